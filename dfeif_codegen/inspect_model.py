@@ -1,0 +1,69 @@
+"""`codegen inspect`: what the toolkit derived from a model, for a person or (`--json`) a program."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import sympy as sp
+
+from . import flatness, model
+from .errors import ModelError
+
+
+def describe(flat: flatness.FlatSystem, ts: float) -> dict:
+    """Everything `inspect` shows, as plain data (expressions as strings, matrices as lists)."""
+    mdl = flat.model
+    a_d, b_d, c_d = flat.discrete(ts)
+    text = lambda e: str(sp.sympify(e))  # noqa: E731
+    return {
+        "model": mdl.name,
+        "description": mdl.description,
+        "source": mdl.source,
+        "states": [{"name": s.name, "unit": s.unit, "description": s.description} for s in mdl.states],
+        "inputs": [{"name": s.name, "unit": s.unit, "description": s.description} for s in mdl.inputs],
+        "parameters": [{"name": q.name, "value": q.value, "unit": q.unit, "description": q.description}
+                       for q in mdl.parameters],
+        "flat_outputs": [{"name": o.name, "expr": text(o.expr), "angle": o.angle, "relative_degree": c.degree}
+                         for o, c in zip(mdl.outputs, flat.chains)],
+        "canonical_state": [str(z) for z in flat.zeta],
+        "phi": {str(z): text(e) for z, e in zip(flat.zeta, flat.phi)},
+        "phi_inv": {s.name: text(e) for s, e in zip(mdl.states, flat.phi_inv)},
+        "f_bar": {c.output: text(e) for c, e in zip(flat.chains, flat.F)},
+        "g_bar": [[text(e) for e in flat.G.row(i)] for i in range(flat.m)],
+        "ts": ts,
+        "A_d": a_d.tolist(),
+        "B_d": b_d.tolist(),
+        "C_d": c_d.tolist(),
+    }
+
+
+def _matrix(rows: list[list[float]]) -> str:
+    return "\n".join("    [" + "  ".join(f"{v:12.6g}" for v in row) + " ]" for row in rows)
+
+
+def render_text(info: dict) -> str:
+    lines = [f"model {info['model']}: {info['description']}", f"  from {info['source']}", "", "states:"]
+    lines += [f"  {s['name']:<10} [{s['unit']}]  {s['description']}" for s in info["states"]]
+    lines += ["inputs:"] + [f"  {s['name']:<10} [{s['unit']}]  {s['description']}" for s in info["inputs"]]
+    lines += ["flat outputs:"] + [
+        f"  {o['name']:<10} = {o['expr']}   relative degree {o['relative_degree']}" + ("   (angle)" if o["angle"] else "")
+        for o in info["flat_outputs"]]
+    lines += ["", "zeta = Phi(x):"] + [f"  {k} = {v}" for k, v in info["phi"].items()]
+    lines += ["x = Phi^-1(zeta):"] + [f"  {k} = {v}" for k, v in info["phi_inv"].items()]
+    lines += ["", "canonical form  y^(r) = f_bar(zeta) + g_bar(zeta) u:"]
+    lines += [f"  f_bar[{k}] = {v}" for k, v in info["f_bar"].items()]
+    lines += [f"  g_bar[{i}] = [{', '.join(row)}]" for i, row in enumerate(info["g_bar"])]
+    lines += ["", f"exact discretization at Ts = {info['ts']:g} s:", "  A_d =", _matrix(info["A_d"]),
+              "  B_d =", _matrix(info["B_d"]), "  C_d =", _matrix(info["C_d"])]
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    mdl = model.load(args.model)
+    ts = mdl.ts if args.ts is None else args.ts
+    if not (np.isfinite(ts) and ts > 0):
+        raise ModelError(f"--ts {args.ts}: the sampling period must be a positive number")
+    info = describe(flatness.derive(mdl), ts)
+    print(json.dumps(info, indent=2) if args.json else render_text(info))
+    return 0

@@ -1,0 +1,361 @@
+"""A plant `x' = f(x) + g(x) u` with flat outputs, built from sympy (Python API) or a TOML file.
+
+Both ways in end in the same `Model`; everything downstream (flatness, kernels, the reference
+filters) reads only this class.
+"""
+
+from __future__ import annotations
+
+import keyword
+import re
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import sympy as sp
+
+from .errors import ModelError
+from .expr_parser import parse_expression
+
+_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_RESERVED = {"pi", "e", "E", "I_", "t"}
+
+
+@dataclass(frozen=True)
+class Variable:
+    """A state or an input: name, unit, one-line description."""
+
+    name: str
+    unit: str = ""
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A physical constant with its default value; `source` says where the value comes from."""
+
+    name: str
+    value: float
+    unit: str = ""
+    description: str = ""
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class Output:
+    """A flat output `y = h(x)`; `angle` outputs have innovations wrapped to (-pi, pi]."""
+
+    name: str
+    expr: sp.Expr
+    angle: bool = False
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What a camera sees (`observe`, functions of the states, with noise std per channel) and
+    how a node recovers the flat outputs from it (`recover`, functions of the observed names)."""
+
+    observe: dict[str, sp.Expr]
+    noise: dict[str, float]
+    recover: dict[str, sp.Expr]
+
+
+@dataclass
+class Model:
+    name: str
+    states: list[Variable]
+    inputs: list[Variable]
+    parameters: list[Parameter]
+    f: sp.Matrix
+    g: sp.Matrix
+    outputs: list[Output]
+    ts: float = 0.01
+    description: str = ""
+    measurement: Measurement | None = None
+    source: str = "<python>"
+    _lines: Mapping[str, int] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.f = sp.Matrix(self.f)
+        self.g = sp.Matrix(self.g)
+        if self.g.shape == (len(self.states), 0) or not self.inputs:
+            raise ModelError(f"{self.source}: the model needs at least one input")
+        self._check()
+
+    # --- symbols ---------------------------------------------------------------------------
+    @property
+    def x(self) -> sp.Matrix:
+        return sp.Matrix([sp.Symbol(s.name) for s in self.states])
+
+    @property
+    def u(self) -> sp.Matrix:
+        return sp.Matrix([sp.Symbol(s.name) for s in self.inputs])
+
+    @property
+    def p(self) -> list[sp.Symbol]:
+        return [sp.Symbol(q.name) for q in self.parameters]
+
+    @property
+    def h(self) -> sp.Matrix:
+        return sp.Matrix([o.expr for o in self.outputs])
+
+    @property
+    def param_values(self) -> dict[sp.Symbol, float]:
+        return {sp.Symbol(q.name): float(q.value) for q in self.parameters}
+
+    @property
+    def n(self) -> int:
+        return len(self.states)
+
+    @property
+    def m(self) -> int:
+        return len(self.inputs)
+
+    def where(self, key: str) -> str:
+        """`file:line: key` for messages, with the line when the TOML loader recorded it."""
+        line = self._lines.get(key)
+        return f"{self.source}:{line}: {key}" if line else f"{self.source}: {key}"
+
+    # --- validation ------------------------------------------------------------------------
+    def _check(self) -> None:
+        n, m = len(self.states), len(self.inputs)
+        names: dict[str, str] = {}
+        for kind, items in (("state", self.states), ("input", self.inputs), ("parameter", self.parameters)):
+            for item in items:
+                if not _NAME.match(item.name) or keyword.iskeyword(item.name) or item.name in _RESERVED:
+                    raise ModelError(f"{self.where(kind + 's')}: '{item.name}' is not a usable {kind} name")
+                if item.name in names:
+                    raise ModelError(
+                        f"{self.where(kind + 's')}: '{item.name}' is declared twice ({names[item.name]} and {kind})")
+                names[item.name] = kind
+        for q in self.parameters:
+            if not isinstance(q.value, (int, float)) or q.value != q.value or abs(q.value) == float("inf"):
+                raise ModelError(f"{self.where('parameters.' + q.name)}: value must be a finite number")
+        if self.f.shape != (n, 1):
+            raise ModelError(f"{self.where('dynamics.f')}: f needs one entry per state ({n}), got {self.f.shape[0]}")
+        if self.g.shape != (n, m):
+            raise ModelError(f"{self.where('dynamics.g')}: g must be {n}x{m} (states x inputs), got {self.g.shape}")
+        if len(self.outputs) != m:
+            raise ModelError(
+                f"{self.where('outputs')}: a flat system needs as many flat outputs as inputs ({m}), got {len(self.outputs)}")
+        if not (isinstance(self.ts, (int, float)) and self.ts > 0):
+            raise ModelError(f"{self.where('model.ts')}: the sampling period must be a positive number")
+        allowed = {sp.Symbol(s) for s, kind in names.items() if kind != "input"}
+        for key, expr in [(f"dynamics.f.{s.name}", e) for s, e in zip(self.states, self.f)] + \
+                         [(f"dynamics.g.{u.name}.{s.name}", self.g[i, j]) for j, u in enumerate(self.inputs)
+                          for i, s in enumerate(self.states)] + \
+                         [(f"outputs.{o.name}", o.expr) for o in self.outputs]:
+            extra = sp.sympify(expr).free_symbols - allowed
+            if extra:
+                bad = ", ".join(sorted(str(s) for s in extra))
+                raise ModelError(f"{self.where(key)}: undeclared name(s) or input in a state function: {bad}")
+        outs = [o.name for o in self.outputs]
+        if len(set(outs)) != len(outs):
+            raise ModelError(f"{self.where('outputs')}: flat output names must be unique")
+
+
+# --- TOML ------------------------------------------------------------------------------------
+
+def _key_lines(text: str) -> dict[str, int]:
+    """Map `section.key` to its line, so messages can say where (tomllib keeps no positions)."""
+    lines: dict[str, int] = {}
+    section = ""
+    counters: dict[str, int] = {}
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        header = re.match(r"^\[\[?\s*([^\]]+?)\s*\]\]?", line)
+        if header:
+            section = header.group(1).replace('"', "")
+            if line.startswith("[["):
+                counters[section] = counters.get(section, -1) + 1
+                section = f"{section}#{counters[section]}"
+            lines.setdefault(section.split("#")[0], number)
+            continue
+        key = re.match(r"^([A-Za-z0-9_\"]+)\s*=", line)
+        if key:
+            name = key.group(1).replace('"', "")
+            lines.setdefault(f"{section}.{name}" if section else name, number)
+    return lines
+
+
+def _table(data: Mapping, key: str, where: str, required: bool = True) -> dict:
+    value = data.get(key)
+    if value is None:
+        if required:
+            raise ModelError(f"{where}: missing [{key}]")
+        return {}
+    if not isinstance(value, dict):
+        raise ModelError(f"{where}: [{key}] must be a table")
+    return value
+
+
+def _items(data: Mapping, key: str, where, required: bool = True) -> list[dict]:
+    value = data.get(key)
+    if value is None:
+        if required:
+            raise ModelError(f"{where(key)}: missing [[{key}]] entries")
+        return []
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise ModelError(f"{where(key)}: [[{key}]] must be an array of tables")
+    return value
+
+
+def _text(entry: Mapping, field_name: str, where: str, default: str | None = None) -> str:
+    value = entry.get(field_name, default)
+    if value is None:
+        raise ModelError(f"{where}: missing field '{field_name}'")
+    if not isinstance(value, str):
+        raise ModelError(f"{where}: field '{field_name}' must be a string")
+    return value
+
+
+def load_toml(path: str | Path, source: str | None = None) -> Model:
+    """Read a model file. Every expression goes through the restricted parser (no eval)."""
+    path = Path(path)
+    source = source or str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ModelError(f"{source}: cannot read model file ({exc.strerror})") from None
+    return loads_toml(text, source)
+
+
+def loads_toml(text: str, source: str = "<string>") -> Model:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ModelError(f"{source}: malformed TOML: {exc}") from None
+    lines = _key_lines(text)
+
+    def where(key: str) -> str:
+        line = lines.get(key)
+        return f"{source}:{line}: {key}" if line else f"{source}: {key}"
+
+    head = _table(data, "model", source)
+    name = _text(head, "name", where("model"))
+    if not _NAME.match(name):
+        raise ModelError(f"{where('model.name')}: '{name}' must be a C identifier (letters, digits, _)")
+    ts = head.get("ts", 0.01)
+    if isinstance(ts, bool) or not isinstance(ts, (int, float)):
+        raise ModelError(f"{where('model.ts')}: must be a number")
+
+    def variables(key: str) -> list[Variable]:
+        out = []
+        for i, entry in enumerate(_items(data, key, where)):
+            at = f"{where(key)} #{i + 1}"
+            out.append(Variable(_text(entry, "name", at), _text(entry, "unit", at, ""),
+                                _text(entry, "description", at, "")))
+        return out
+
+    states, inputs = variables("states"), variables("inputs")
+    parameters = []
+    for i, entry in enumerate(_items(data, "parameters", where, required=False)):
+        at = f"{where('parameters')} #{i + 1}"
+        value = entry.get("value")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ModelError(f"{at}: field 'value' must be a number")
+        parameters.append(Parameter(_text(entry, "name", at), float(value), _text(entry, "unit", at, ""),
+                                    _text(entry, "description", at, ""), _text(entry, "source", at, "")))
+
+    seen: dict[str, str] = {}
+    for kind, items in (("states", states), ("inputs", inputs), ("parameters", parameters)):
+        for item in items:
+            if item.name in seen:
+                raise ModelError(f"{where(kind)}: '{item.name}' is declared twice ({seen[item.name]} and {kind})")
+            seen[item.name] = kind
+    symbols: dict[str, sp.Expr] = {v.name: sp.Symbol(v.name) for v in states + parameters}
+    dynamics = _table(data, "dynamics", source)
+    for key, expr_text in _table(dynamics, "definitions", source, required=False).items():
+        if not _NAME.match(key) or key in symbols:
+            raise ModelError(f"{where('dynamics.definitions.' + key)}: '{key}' is not a new name")
+        symbols[key] = parse_expression(_text({key: expr_text}, key, where("dynamics.definitions")),
+                                        symbols, where(f"dynamics.definitions.{key}"))
+
+    def parse(key: str, expr_text, names=symbols) -> sp.Expr:
+        if not isinstance(expr_text, (str, int, float)) or isinstance(expr_text, bool):
+            raise ModelError(f"{where(key)}: expression must be a string")
+        return parse_expression(str(expr_text), names, where(key))
+
+    f_table = _table(dynamics, "f", source)
+    state_names = [s.name for s in states]
+    for key in f_table:
+        if key not in state_names:
+            raise ModelError(f"{where('dynamics.f.' + key)}: '{key}' is not a declared state")
+    missing = [s for s in state_names if s not in f_table]
+    if missing:
+        raise ModelError(f"{where('dynamics.f')}: missing field for state(s) {', '.join(missing)}")
+    f = sp.Matrix([parse(f"dynamics.f.{s}", f_table[s]) for s in state_names])
+
+    g_table = _table(dynamics, "g", source)
+    input_names = [u.name for u in inputs]
+    for key in g_table:
+        if key not in input_names:
+            raise ModelError(f"{where('dynamics.g.' + key)}: '{key}' is not a declared input")
+    g = sp.zeros(len(states), len(inputs))
+    for j, u in enumerate(input_names):
+        column = g_table.get(u, {})
+        if not isinstance(column, dict):
+            raise ModelError(f"{where('dynamics.g.' + u)}: must be a table of state = expression")
+        for s, expr_text in column.items():
+            if s not in state_names:
+                raise ModelError(f"{where(f'dynamics.g.{u}.{s}')}: '{s}' is not a declared state")
+            g[state_names.index(s), j] = parse(f"dynamics.g.{u}.{s}", expr_text)
+
+    outputs = []
+    for i, entry in enumerate(_items(data, "outputs", where)):
+        at = f"{where('outputs')} #{i + 1}"
+        out_name = _text(entry, "name", at)
+        angle = entry.get("angle", False)
+        if not isinstance(angle, bool):
+            raise ModelError(f"{at}: field 'angle' must be true or false")
+        outputs.append(Output(out_name, parse("outputs", _text(entry, "expr", at, out_name)), angle))
+
+    measurement = None
+    meas = _table(data, "measurement", source, required=False)
+    if meas:
+        observe = {k: parse(f"measurement.observe.{k}", v)
+                   for k, v in _table(meas, "observe", where("measurement")).items()}
+        seen = {k: sp.Symbol(k) for k in observe}
+        recover_table = _table(meas, "recover", where("measurement"))
+        if sorted(recover_table) != sorted(o.name for o in outputs):
+            raise ModelError(f"{where('measurement.recover')}: needs exactly one entry per flat output")
+        recover = {k: parse(f"measurement.recover.{k}", v, {**seen, **{p.name: sp.Symbol(p.name) for p in parameters}})
+                   for k, v in recover_table.items()}
+        noise = _table(meas, "noise", where("measurement"))
+        if sorted(noise) != sorted(observe) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in noise.values()):
+            raise ModelError(f"{where('measurement.noise')}: needs one positive std dev per observed channel")
+        measurement = Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
+
+    return Model(name=name, states=states, inputs=inputs, parameters=parameters, f=f, g=g, outputs=outputs,
+                 ts=float(ts), description=str(head.get("description", "")), measurement=measurement,
+                 source=source, _lines=lines)
+
+
+# --- built-ins -------------------------------------------------------------------------------
+
+def builtin_names() -> list[str]:
+    folder = resources.files("dfeif_codegen") / "models"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load(spec: str) -> Model:
+    """A built-in model by name, or a path to a `.toml` model file."""
+    if spec in builtin_names():
+        resource = resources.files("dfeif_codegen") / "models" / f"{spec}.toml"
+        return loads_toml(resource.read_text(encoding="utf-8"), f"{spec}.toml")
+    path = Path(spec)
+    if path.suffix == ".toml" or path.exists():
+        return load_toml(path)
+    raise ModelError(f"{spec}: not a built-in model ({', '.join(builtin_names())}) nor a .toml file")
+
+
+def from_sympy(name: str, states: Sequence[Variable | str], inputs: Sequence[Variable | str],
+               parameters: Sequence[Parameter], f, g, outputs: Sequence[Output], **kwargs) -> Model:
+    """Python API: expressions use `sympy.Symbol(name)` for states and parameters."""
+    as_var = [s if isinstance(s, Variable) else Variable(str(s)) for s in states]
+    as_in = [s if isinstance(s, Variable) else Variable(str(s)) for s in inputs]
+    return Model(name=name, states=as_var, inputs=as_in, parameters=list(parameters), f=sp.Matrix(f),
+                 g=sp.Matrix(g), outputs=list(outputs), **kwargs)

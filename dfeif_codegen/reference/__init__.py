@@ -1,0 +1,1 @@
+"""The numpy reference: node filters, late measurements, fusion, control, closed loop."""
