@@ -1,0 +1,48 @@
+"""Flatness-based tracking control (equations.md section 6, docs/algorithms.md "Flatness-based
+control"): a linear tracking law on each canonical chain gives `v`, and `u = G^-1 (v - F)` makes
+the plant's `y^(r) = F + G u` equal to it, so the tracking error obeys a chosen linear ODE.
+"""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+from .linalg import wrap
+
+
+def hurwitz_gains(degree: int, lam: float) -> np.ndarray:
+    """k_1..k_r of s^r + k_1 s^(r-1) + ... + k_r = (s + lam)^r, i.e. k_i = C(r, i) lam^i."""
+    return np.array([comb(degree, i) * float(lam) ** i for i in range(1, degree + 1)])
+
+
+class FlatController:
+    """`poles`: one lam > 0 per chain (a scalar is broadcast), every pole of the chain's error
+    ODE at -lam. Or explicit `gains`, length n, chain by chain `[k_1, ..., k_r]` (k_1 multiplies
+    the highest derivative's error, k_r the output's error): the order the C kernel takes."""
+
+    def __init__(self, flat, poles=5.0, gains=None):
+        self.flat = flat
+        if gains is None:
+            lams = np.broadcast_to(np.asarray(poles, dtype=float), (flat.m,))
+            if np.any(lams <= 0):
+                raise ValueError("poles are lam > 0 (every pole at -lam)")
+            gains = np.concatenate([hurwitz_gains(c.degree, lam) for c, lam in zip(flat.chains, lams)])
+        self.gains = np.asarray(gains, dtype=float)
+        if self.gains.shape != (flat.n,):
+            raise ValueError(f"gains must have length n = {flat.n}, got shape {self.gains.shape}")
+
+    def __call__(self, x, ref_flags, params=None) -> tuple[np.ndarray, np.ndarray]:
+        """(u, v) for the estimate `x` and reference flags, chain by chain [y_d, ..., y_d^(r)]."""
+        x, ref = np.asarray(x, dtype=float), np.asarray(ref_flags, dtype=float)
+        if ref.shape != (self.flat.n + self.flat.m,):
+            raise ValueError(f"ref_flags must have length n + m = {self.flat.n + self.flat.m}")
+        v = np.empty(self.flat.m)
+        for j, c in enumerate(self.flat.chains):
+            flags = ref[c.offset + j:c.offset + j + c.degree + 1]
+            e = x[c.offset:c.offset + c.degree] - flags[:c.degree]
+            e[0] = wrap(e[0], c.angle)
+            v[j] = flags[c.degree] - self.gains[c.offset:c.offset + c.degree][::-1] @ e
+        u = np.linalg.solve(self.flat.G_num(x, params), v - self.flat.F_num(x, params))
+        return u, v

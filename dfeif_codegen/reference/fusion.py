@@ -1,0 +1,106 @@
+"""The master: fuses the nodes' estimates in information form (equations.md section 5, order of
+operations in docs/algorithms.md "Master").
+
+Three rules: `paper` (the chapter's sum of informations, overconfident because the common prior
+is counted once per node), `difference` (information gains over each node's own prediction: equal
+to a centralized Kalman filter when every node predicts with the same v), and `ci` (covariance
+intersection: consistent whatever the correlation between the nodes' errors).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .linalg import spd_inv
+from .node import Packet
+
+RULES = ("paper", "difference", "ci")
+
+
+def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int = 12) -> np.ndarray:
+    """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"):
+    Newton steps on the free weights; a weight the step would make negative stops the step at
+    zero and is fixed there, and is freed again once its gradient is the smallest. The damping
+    keeps the step defined when two Y_i are equal (singular Hessian)."""
+    count = len(Ys)
+    w = np.full(count, 1.0 / count)
+    free = np.ones(count, dtype=bool)
+    for _ in range(iterations):
+        P = spd_inv(sum(wi * Y for wi, Y in zip(w, Ys)))
+        pyp = [P @ Y @ P for Y in Ys]
+        g = -np.array([np.trace(a) for a in pyp])
+        H = 2 * np.array([[np.trace(a @ Y @ P) for Y in Ys] for a in pyp])
+        free |= g < np.min(g[free])
+        f = np.flatnonzero(free)
+        H_f = H[np.ix_(f, f)] + 1e-6 * np.max(np.diag(H)[f]) * np.eye(f.size)
+        kkt = np.block([[H_f, np.ones((f.size, 1))], [np.ones((1, f.size)), np.zeros((1, 1))]])
+        d = np.zeros(count)
+        d[f] = np.linalg.solve(kkt, np.append(-g[f], 0.0))[:f.size]
+        shrinking = f[d[f] < 0]
+        ratios = w[shrinking] / -d[shrinking]
+        if ratios.size and ratios.min() <= 1.0:
+            blocking = shrinking[np.argmin(ratios)]
+            w = w + ratios.min() * d
+            w[blocking], free[blocking] = 0.0, False
+        else:
+            w = w + d
+    return w
+
+
+class Master:
+    """Fusion centre. Per step: `fuse` the packets that arrived, then `predict` with the input
+    it broadcasts to the nodes."""
+
+    def __init__(self, flat, ts, q, x0, P0, n_nodes: int, rule: str = "difference", max_lag: int = 32):
+        if rule not in RULES:
+            raise ValueError(f"rule must be one of {RULES}, not {rule!r}")
+        self.rule, self.n_nodes, self.max_lag = rule, n_nodes, max_lag
+        self.A, self.B, _ = flat.discrete(ts)
+        self.Q = flat.process_noise(ts, q)
+        self.k = 0
+        self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
+        self.x_prior, self.P_prior = self.x, self.P
+        self._v: dict[int, np.ndarray] = {}
+
+    def fuse(self, packets: list[Packet | None]) -> None:
+        """One entry per node, None when its packet is absent; stale packets (at most max_lag
+        steps old) are predicted to the current step, older or future ones are ignored."""
+        if len(packets) != self.n_nodes:
+            raise ValueError(f"expected {self.n_nodes} entries (None for absent), got {len(packets)}")
+        usable = [self._bring(p) for p in packets if p is not None and 0 <= self.k - p.step <= self.max_lag]
+        if not usable:
+            self.x, self.P = self.x_prior, self.P_prior
+            return
+        Ys = [spd_inv(P) for _, P, _, _ in usable]
+        ys = [Y @ x for Y, (x, _, _, _) in zip(Ys, usable)]
+        if self.rule == "paper":
+            Y, y = sum(Ys), sum(ys)
+        elif self.rule == "difference":
+            Y_prior = spd_inv(self.P_prior)
+            Y, y = Y_prior, Y_prior @ self.x_prior
+            for Yi, yi, (_, _, xp, Pp) in zip(Ys, ys, usable):
+                Y_pred = spd_inv(Pp)
+                Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ xp)
+        else:
+            w = covariance_intersection_weights(Ys)
+            Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
+            y = sum(wi * yi for wi, yi in zip(w, ys))
+        self.P = spd_inv(Y)
+        self.x = self.P @ y
+
+    def predict(self, v) -> None:
+        v = np.atleast_1d(np.asarray(v, dtype=float))
+        self._v[self.k] = v
+        self._v.pop(self.k - self.max_lag, None)
+        self.x_prior = self.A @ self.x + self.B @ v
+        self.P_prior = self.A @ self.P @ self.A.T + self.Q
+        self.k += 1
+
+    def _bring(self, p: Packet):
+        """A packet's (x, P, x_pred, P_pred), predicted from its step to the current one."""
+        x, P, xp, Pp = p.x, p.P, p.x_pred, p.P_pred
+        for i in range(p.step, self.k):
+            v = self._v[i]
+            x, xp = self.A @ x + self.B @ v, self.A @ xp + self.B @ v
+            P, Pp = self.A @ P @ self.A.T + self.Q, self.A @ Pp @ self.A.T + self.Q
+        return x, P, xp, Pp

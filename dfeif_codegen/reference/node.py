@@ -1,0 +1,205 @@
+"""One camera node: the derivative-free Kalman filter on the canonical (Brunovsky) model, with
+packet drops and late measurements, exactly in the order of docs/algorithms.md ("Node filter").
+
+The filter runs on the linear canonical model, so no Jacobian appears; the nonlinearity lives in
+the input `v = F + G u` that the master broadcasts. A window of the last `max_lag + 1` steps is
+kept so that a late measurement can either be replayed in time order (exact) or folded in at
+once by Xia et al.'s retrodiction (equations.md section 4).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .linalg import spd_solve, wrap
+
+COUNTERS = ("updates", "drops", "late_applied", "late_rejected")
+
+
+@dataclass
+class Packet:
+    """What a node sends to the master after all updates of `step`."""
+
+    step: int
+    x: np.ndarray
+    P: np.ndarray
+    x_pred: np.ndarray
+    P_pred: np.ndarray
+
+
+@dataclass
+class _Slot:
+    """One step of history: its prior, its measurement, what its update computed, and the
+    input used to predict out of it."""
+
+    x_prior: np.ndarray
+    P_prior: np.ndarray
+    z: np.ndarray | None = None
+    gamma: bool = False
+    e: np.ndarray | None = None
+    S: np.ndarray | None = None
+    K: np.ndarray | None = None
+    P_post: np.ndarray | None = None
+    v: np.ndarray | None = None
+
+
+def measurement_covariance(R, m: int) -> np.ndarray:
+    """R given as an (m, m) matrix, or as a scalar / 1-D diagonal."""
+    R = np.asarray(R, dtype=float)
+    if R.ndim < 2:
+        R = np.diag(np.broadcast_to(R, (m,)))
+    if R.shape != (m, m):
+        raise ValueError(f"R must be ({m}, {m}), a length-{m} diagonal or a scalar, got shape {R.shape}")
+    return R
+
+
+class NodeFilter:
+    """Local filter of one node. Per step: `update` once, `update_delayed` any number of times,
+    then `predict` with the broadcast input."""
+
+    def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay"):
+        if oosm not in ("replay", "retrodict"):
+            raise ValueError(f"oosm must be 'replay' or 'retrodict', not {oosm!r}")
+        if max_lag < 1:
+            raise ValueError("max_lag must be at least 1")
+        self.flat, self.ts, self.q, self.oosm, self.max_lag = flat, ts, q, oosm, max_lag
+        self.A, self.B, self.C = flat.discrete(ts)
+        self.Q = flat.process_noise(ts, q)
+        self.R = measurement_covariance(R, flat.m)
+        self.heads = np.array(flat.heads)
+        self.angle = np.array([c.angle for c in flat.chains])
+        self.k = 0
+        self.x = np.array(x0, dtype=float)
+        self.P = np.array(P0, dtype=float)
+        self.x_pred, self.P_pred = self.x, self.P
+        self.counters = dict.fromkeys(COUNTERS, 0)
+        self._ring: list[_Slot | None] = [None] * (max_lag + 1)
+        self._ring[0] = _Slot(self.x, self.P)
+        self._updated = False
+
+    # protocol ---------------------------------------------------------------------------------
+    def update(self, z, gamma: bool) -> None:
+        """The on-time update of step k (`gamma` False: the measurement was dropped or is late;
+        `z` is then ignored and may be None)."""
+        if self._updated:
+            raise RuntimeError(f"update called twice at step {self.k}")
+        slot = self._slot(self.k)
+        slot.gamma = bool(gamma)
+        slot.z = self._z(z) if gamma else np.full(self.flat.m, np.nan)
+        self.x, self.P = self._correct(slot)
+        self.counters["updates" if gamma else "drops"] += 1
+        self._updated = True
+
+    def update_delayed(self, z, lag: int) -> bool:
+        """Apply the measurement taken at step k - lag. False (and counted) if it is outside the
+        window, from the future or the present, or its step already has a measurement."""
+        if not self._updated:
+            raise RuntimeError(f"update_delayed before update at step {self.k}")
+        lag = int(lag)
+        if lag < 1 or lag > self.max_lag or lag > self.k or self._slot(self.k - lag).gamma:
+            self.counters["late_rejected"] += 1
+            return False
+        slot = self._slot(self.k - lag)
+        slot.z, slot.gamma = self._z(z), True
+        if self.oosm == "replay":
+            self._replay(self.k - lag)
+        else:
+            self._retrodict(lag, slot.z)
+        self.counters["late_applied"] += 1
+        return True
+
+    def predict(self, v) -> None:
+        """Predict to step k + 1 with the input the master broadcast for step k."""
+        if not self._updated:
+            raise RuntimeError(f"predict before update at step {self.k}")
+        v = np.atleast_1d(np.asarray(v, dtype=float))
+        self._slot(self.k).v = v
+        self.x, self.P = self._propagate(self.x, self.P, v)
+        self.k += 1
+        self._ring[self.k % (self.max_lag + 1)] = _Slot(self.x, self.P)
+        self.x_pred, self.P_pred = self.x, self.P
+        self._updated = False
+
+    def packet(self) -> Packet:
+        return Packet(self.k, self.x.copy(), self.P.copy(), self.x_pred.copy(), self.P_pred.copy())
+
+    # steps ------------------------------------------------------------------------------------
+    def _slot(self, step: int) -> _Slot:
+        return self._ring[step % (self.max_lag + 1)]
+
+    def _z(self, z) -> np.ndarray:
+        return np.atleast_1d(np.asarray(z, dtype=float)).reshape(self.flat.m)
+
+    def _propagate(self, x, P, v):
+        return self.A @ x + self.B @ v, self.A @ P @ self.A.T + self.Q
+
+    def _correct(self, slot: _Slot):
+        """The update of one step from its slot's prior (Joseph form); fills e, S, K, P_post."""
+        h, xp, Pp = self.heads, slot.x_prior, slot.P_prior
+        slot.e = wrap(slot.z - xp[h], self.angle)
+        slot.S = Pp[np.ix_(h, h)] + self.R
+        if slot.gamma:
+            slot.K = spd_solve(slot.S, Pp[:, h].T).T
+            ikc = np.eye(self.flat.n)
+            ikc[:, h] -= slot.K
+            x, P = xp + slot.K @ slot.e, ikc @ Pp @ ikc.T + slot.K @ self.R @ slot.K.T
+        else:
+            slot.K = np.zeros((self.flat.n, self.flat.m))
+            x, P = xp, Pp
+        slot.P_post = P
+        return x, P
+
+    def _replay(self, start: int) -> None:
+        """Re-run steps start..k from the stored priors, rewriting every slot on the way."""
+        for j in range(start, self.k + 1):
+            slot = self._slot(j)
+            x, P = self._correct(slot)
+            if j < self.k:
+                nxt = self._slot(j + 1)
+                nxt.x_prior, nxt.P_prior = self._propagate(x, P, slot.v)
+        self.x, self.P = x, P
+
+    def _retrodict(self, N: int, z: np.ndarray) -> None:
+        """Xia et al.'s one-shot update (equations.md section 4) by the O(N) backward recursion
+        of algorithms.md. Only steps updated in sequence (nonzero K) contribute a term."""
+        A, Q, h, n, k = self.A, self.Q, self.heads, self.flat.n, self.k
+        eye = np.eye(n)
+
+        def apow(i: int) -> np.ndarray:   # A^i in closed form, exact also for negative i
+            return self.flat.discrete(i * self.ts)[0]
+
+        def lmat(i: int) -> np.ndarray:   # L_i = I - K(k-i) C
+            out = eye.copy()
+            out[:, h] -= self._slot(k - i).K
+            return out
+
+        P_old = self._slot(k - N).P_post
+        sum_w, sum_q, sum_xw = np.zeros(n), np.zeros((n, n)), np.zeros((n, n))
+        T, E = apow(N - 1) @ Q, eye
+        for i in range(N - 1, -1, -1):
+            if i < N - 1:
+                T = apow(i) @ Q + T @ (A @ lmat(i + 1)).T
+                E = lmat(i + 1) @ A @ E
+            slot = self._slot(k - i)
+            if slot.K.any():
+                Ct = T[:, h]                       # C~(i) = T(i) C^T
+                D = (A @ E)[h, :]                  # D(i) = C A E(i)
+                s_ct = spd_solve(slot.S, Ct.T)     # S^-1 C~^T
+                sum_w += Ct @ spd_solve(slot.S, slot.e)
+                sum_q += Ct @ s_ct
+                sum_xw += P_old @ D.T @ s_ct
+        phi1, a_n = apow(-N), apow(N)
+        w_a = -phi1 @ sum_w
+        q_star = phi1 @ (self.flat.process_noise(N * self.ts, self.q) - sum_q) @ phi1.T
+        P_xw = a_n @ sum_xw @ phi1.T - a_n @ q_star
+        forced = np.zeros(n)                       # sum_j A^(N-j) B v(k-N+j-1)
+        for j in range(k - N, k):
+            forced = A @ forced + self.B @ self._slot(j).v
+        x_back = phi1 @ (self.x - forced) + w_a
+        phi_pxw = phi1 @ P_xw
+        W = (phi1 @ self.P @ phi1.T + phi_pxw + phi_pxw.T + q_star)[np.ix_(h, h)] + self.R
+        M = spd_solve(W, (self.P @ phi1.T + P_xw)[:, h].T).T
+        self.x = self.x + M @ wrap(z - x_back[h], self.angle)
+        self.P = self.P - M @ W @ M.T

@@ -1,0 +1,388 @@
+"""The numpy reference filters against independent methods: a plain time-ordered Kalman filter
+(batch re-run), a naive O(N^2) evaluation of the retrodiction sums, a centralized stacked
+Kalman filter, a grid search for covariance intersection, and a Monte Carlo for consistency."""
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from dfeif_codegen import flatness, model
+from dfeif_codegen.reference.fusion import Master, covariance_intersection_weights
+from dfeif_codegen.reference.node import NodeFilter
+
+TS, Q_DENSITY = 0.01, 50.0
+MODELS = ("dc_motor_link", "two_link_arm")
+
+
+@lru_cache(maxsize=None)
+def flat_system(name):
+    return flatness.derive(model.load(name))
+
+
+def rel(a, b):
+    return np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+def angle_wrap(e):
+    return np.angle(np.exp(1j * e))   # (-pi, pi], deliberately not the code's formula
+
+
+def random_spd(rng, m, scale):
+    a = rng.standard_normal((m, m))
+    return scale * (a @ a.T / m + np.eye(m))
+
+
+def start(flat):
+    """x0 with the angles near pi (so wrapping happens), P0 wide."""
+    x0 = np.zeros(flat.n)
+    x0[flat.heads] = 3.1
+    return x0, np.diag(np.tile([0.1, 1.0, 10.0], flat.m)[:flat.n])
+
+
+def simulate(flat, steps, rng, Rs, common=None):
+    """Truth with process noise, random inputs v, and for each R in Rs a measurement sequence
+    wrapped like a camera's atan2; `common` adds a noise component shared by every node."""
+    A, B, C = flat.discrete(TS)
+    Q = flat.process_noise(TS, Q_DENSITY)
+    lam, vec = np.linalg.eigh(Q)
+    q_half = vec * np.sqrt(np.clip(lam, 0, None))
+    x0, P0 = start(flat)
+    x = x0 + np.linalg.cholesky(P0) @ rng.standard_normal(flat.n)
+    angle = np.array([c.angle for c in flat.chains])
+    xs, vs, zs = [], [], [[] for _ in Rs]
+    for _ in range(steps):
+        shared = np.zeros(flat.m) if common is None else np.linalg.cholesky(common) @ rng.standard_normal(flat.m)
+        for i, R in enumerate(Rs):
+            z = C @ x + shared + np.linalg.cholesky(R) @ rng.standard_normal(flat.m)
+            zs[i].append(np.where(angle, angle_wrap(z), z))
+        xs.append(x)
+        vs.append(5 * rng.standard_normal(flat.m))
+        x = A @ x + B @ vs[-1] + q_half @ rng.standard_normal(flat.n)
+    return np.array(xs), np.array(vs), [np.array(z) for z in zs]
+
+
+def batch_kf(flat, R, zs, has, vs, x0, P0):
+    """Plain Kalman filter over time-ordered measurements (`has[t]`: step t has one).
+    Returns per step the posterior and what the update used (for the naive retrodiction)."""
+    A, B, C = flat.discrete(TS)
+    Q = flat.process_noise(TS, Q_DENSITY)
+    angle = np.array([c.angle for c in flat.chains])
+    x, P, out = x0, P0, []
+    for t in range(len(has)):
+        S = C @ P @ C.T + R
+        e = zs[t] - C @ x
+        e = np.where(angle, angle_wrap(e), e)
+        K = P @ C.T @ np.linalg.inv(S) if has[t] else np.zeros((flat.n, flat.m))
+        x, P = x + K @ e, (np.eye(flat.n) - K @ C) @ P
+        out.append(dict(x=x, P=P, K=K, S=S, e=e, measured=bool(has[t])))
+        if t < len(has) - 1:
+            x, P = A @ x + B @ vs[t], A @ P @ A.T + Q
+    return out
+
+
+def delay_plan(steps, rng, max_lag, p_drop, p_late):
+    """Per step: 0 on time, -1 lost, d > 0 arrives d steps late."""
+    u = rng.random(steps)
+    lags = rng.integers(1, max_lag + 1, steps)
+    return np.where(u < p_drop, -1, np.where(u < p_drop + p_late, lags, 0))
+
+
+def run_with_delays(nodes, zs, vs, plan, rng, check=None):
+    """Drive nodes through the protocol; late arrivals of a step in random order."""
+    arrivals = {}
+    for t, d in enumerate(plan):
+        if d > 0:
+            arrivals.setdefault(t + d, []).append(t)
+    for k in range(len(plan)):
+        late = arrivals.get(k, [])
+        rng.shuffle(late)
+        for node in nodes:
+            node.update(zs[k], plan[k] == 0)
+            for t in late:
+                assert node.update_delayed(zs[t], k - t)
+        if check is not None:
+            check(k, [t for t in range(k + 1) if plan[t] == 0 or (plan[t] > 0 and t + plan[t] <= k)])
+        for node in nodes:
+            node.predict(vs[k])
+    return arrivals
+
+
+# 1. replay is exactly a time-ordered Kalman filter ------------------------------------------------
+@pytest.mark.parametrize("name", MODELS)
+def test_replay_equals_batch_kalman_filter(name):
+    flat, rng, steps, max_lag = flat_system(name), np.random.default_rng(1), 120, 24
+    R = random_spd(rng, flat.m, 1e-4)
+    _, vs, (zs,) = simulate(flat, steps, rng, [R])
+    plan = delay_plan(steps, rng, max_lag, 0.15, 0.7)
+    x0, P0 = start(flat)
+    node = NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm="replay")
+    worst = []
+
+    def check(k, known):
+        has = np.zeros(k + 1, bool)
+        has[known] = True
+        ref = batch_kf(flat, R, zs, has, vs, x0, P0)[k]
+        worst.append(max(rel(node.x, ref["x"]), rel(node.P, ref["P"])))
+
+    arrivals = run_with_delays([node], zs, vs, plan, rng, check)
+    assert max(len(a) for a in arrivals.values()) >= 3        # several late ones in one step
+    assert node.counters["late_applied"] == sum(len(a) for k, a in arrivals.items() if k < steps)
+    print(f"\n{name}: replay vs batch Kalman filter, worst relative error {max(worst):.1e}")
+    assert max(worst) <= 1e-10
+
+
+# 2. retrodiction -------------------------------------------------------------------------------
+def naive_retrodiction(flat, R, hist, vs, k, N, z, x, P):
+    """equations.md section 4 evaluated term by term, O(N^2), with matrix powers and inverses."""
+    A, B, C = flat.discrete(TS)
+    Q = flat.process_noise(TS, Q_DENSITY)
+    n, I = flat.n, np.eye(flat.n)
+    Ap = lambda i: np.linalg.matrix_power(A, i)  # noqa: E731
+    L = lambda j: I - hist[k - j]["K"] @ C       # noqa: E731
+    phi1 = np.linalg.inv(Ap(N))
+    terms = []
+    for nn in range(N):
+        if not hist[k - nn]["measured"]:
+            continue
+        ct = Ap(nn) @ Q
+        for j in range(nn + 2, N + 1):
+            prod = I
+            for mm in range(nn + 1, j):
+                prod = prod @ (A @ L(mm))
+            ct = ct + Ap(j - 1) @ Q @ prod.T
+        prod = I
+        for j in range(nn, N - 1):
+            prod = prod @ (L(j + 1) @ A)
+        S_inv = np.linalg.inv(hist[k - nn]["S"])
+        terms.append((ct @ C.T, C @ A @ prod, S_inv, hist[k - nn]["e"]))
+    w_a = -phi1 @ sum((ct @ Si @ e for ct, _, Si, e in terms), np.zeros(n))
+    q_sum = sum(Ap(j - 1) @ Q @ Ap(j - 1).T for j in range(1, N + 1))
+    q_star = phi1 @ q_sum @ phi1.T - phi1 @ sum((ct @ Si @ ct.T for ct, _, Si, _ in terms), np.zeros((n, n))) @ phi1.T
+    P_old = hist[k - N]["P"]
+    P_xw = Ap(N) @ sum((P_old @ D.T @ Si @ ct.T for ct, D, Si, _ in terms), np.zeros((n, n))) @ phi1.T - Ap(N) @ q_star
+    forced = sum((Ap(N - j) @ B @ vs[k - N + j - 1] for j in range(1, N + 1)), np.zeros(n))
+    x_back = phi1 @ (x - forced) + w_a
+    W = C @ (phi1 @ P @ phi1.T + phi1 @ P_xw + (phi1 @ P_xw).T + q_star) @ C.T + R
+    M = (P @ phi1.T + P_xw) @ C.T @ np.linalg.inv(W)
+    angle = np.array([c.angle for c in flat.chains])
+    innov = z - C @ x_back
+    return x + M @ np.where(angle, angle_wrap(innov), innov), P - M @ W @ M.T
+
+
+@pytest.mark.parametrize("name", MODELS)
+@pytest.mark.parametrize("max_lag", [4, 32])
+def test_retrodict_equals_replay_for_one_late_measurement(name, max_lag):
+    flat, rng = flat_system(name), np.random.default_rng(max_lag)
+    R = random_spd(rng, flat.m, 1e-4)
+    x0, P0 = start(flat)
+    steps = max_lag + 6
+    worst_replay = worst_naive = 0.0
+    for lag in range(1, max_lag + 1):
+        _, vs, (zs,) = simulate(flat, steps, rng, [R])
+        k = steps - 1
+        has = rng.random(steps) > 0.3          # intermediate drops
+        has[k - lag] = False                   # this one arrives late
+        nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=o) for o in ("replay", "retrodict")]
+        for t in range(steps):
+            for node in nodes:
+                node.update(zs[t], has[t])
+                if t < k:
+                    node.predict(vs[t])
+        hist = batch_kf(flat, R, zs, has, vs, x0, P0)
+        x_n, P_n = naive_retrodiction(flat, R, hist, vs, k, lag, zs[k - lag], nodes[1].x, nodes[1].P)
+        for node in nodes:
+            assert node.update_delayed(zs[k - lag], lag)
+        replay, retro = nodes
+        worst_replay = max(worst_replay, rel(retro.x, replay.x), rel(retro.P, replay.P))
+        worst_naive = max(worst_naive, rel(retro.x, x_n), rel(retro.P, P_n))
+    print(f"\n{name} N_max={max_lag}: one late measurement, retrodict vs replay {worst_replay:.1e}, "
+          f"recursion vs naive sums {worst_naive:.1e}")
+    assert worst_replay <= 1e-9
+    assert worst_naive <= 1e-11
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_retrodict_with_several_late_measurements_is_approximate(name):
+    """Stale history makes it approximate. (Much denser delays, e.g. 30 % late with lags up to
+    20, can drive its P indefinite: use replay there.)"""
+    flat, rng, steps, max_lag = flat_system(name), np.random.default_rng(7), 150, 10
+    R = random_spd(rng, flat.m, 1e-4)
+    _, vs, (zs,) = simulate(flat, steps, rng, [R])
+    plan = delay_plan(steps, rng, max_lag, 0.1, 0.2)
+    x0, P0 = start(flat)
+    nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=o) for o in ("replay", "retrodict")]
+    errs = []
+
+    def check(k, known):
+        errs.append((rel(nodes[1].x, nodes[0].x), rel(nodes[1].P, nodes[0].P)))
+
+    arrivals = run_with_delays(nodes, zs, vs, plan, rng, check)
+    assert max(len(a) for a in arrivals.values()) >= 2 and sum(plan > 0) >= 15
+    ex, eP = np.max(errs, axis=0)
+    print(f"\n{name}: several late measurements, retrodict vs replay worst relative error x {ex:.1e}, P {eP:.1e}")
+    assert 1e-8 < max(ex, eP) < 1e-1
+
+
+# 3. rejections -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("oosm", ["replay", "retrodict"])
+def test_rejected_late_measurements_change_nothing(oosm):
+    flat, rng = flat_system("dc_motor_link"), np.random.default_rng(3)
+    R = 1e-4
+    _, vs, (zs,) = simulate(flat, 30, rng, [np.eye(1) * R])
+    x0, P0 = start(flat)
+    for max_lag, k_test, bad_lags in [(8, 12, [0, -1, 9, 13]), (32, 5, [0, 6, 33])]:
+        has = np.ones(30, bool)
+        has[[k_test - 2, k_test - 3]] = False
+        node, twin = (NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=oosm) for _ in range(2))
+        for t in range(30):
+            for nd in (node, twin):
+                nd.update(zs[t], has[t])
+            if t == k_test:
+                for nd in (node, twin):
+                    assert nd.update_delayed(zs[t - 2], 2)
+                before = (node.x.copy(), node.P.copy(), dict(node.counters))
+                dup_lags = [1, 2]                  # on time at k-1; already applied late at k-2
+                for lag in bad_lags + dup_lags:
+                    assert node.update_delayed(zs[t - 1], lag) is False
+                assert np.array_equal(node.x, before[0]) and np.array_equal(node.P, before[1])
+                assert node.counters == {**before[2], "late_rejected": len(bad_lags) + len(dup_lags)}
+                assert node.update_delayed(zs[t - 3], 3)   # the window still works afterwards
+                assert twin.update_delayed(zs[t - 3], 3)
+            for nd in (node, twin):
+                nd.predict(vs[t])
+            assert np.array_equal(node.x, twin.x) and np.array_equal(node.P, twin.P)
+
+
+# 4. the information-difference rule is the centralized Kalman filter ----------------------------
+@pytest.mark.parametrize("name", MODELS)
+@pytest.mark.parametrize("n_nodes", [2, 3])
+def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes):
+    flat, rng, steps = flat_system(name), np.random.default_rng(10 + n_nodes), 80
+    Rs = [random_spd(rng, flat.m, s) for s in (1e-4, 4e-4, 2.5e-5)[:n_nodes]]
+    _, vs, zs = simulate(flat, steps, rng, Rs)
+    has = rng.random((n_nodes, steps)) > 0.25
+    x0, P0 = start(flat)
+    nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0) for R in Rs]
+    master = Master(flat, TS, Q_DENSITY, x0, P0, n_nodes, rule="difference")
+    A, B, C = flat.discrete(TS)
+    Q = flat.process_noise(TS, Q_DENSITY)
+    angle = np.array([c.angle for c in flat.chains])
+    x, P, worst = x0, P0, 0.0
+    for k in range(steps):
+        for i, node in enumerate(nodes):
+            node.update(zs[i][k], has[i, k])
+        master.fuse([node.packet() for node in nodes])
+        present = [i for i in range(n_nodes) if has[i, k]]
+        if present:                                           # centralized: stacked measurement
+            Cs = np.vstack([C] * len(present))
+            Rs_blk = np.zeros((len(present) * flat.m,) * 2)
+            for j, i in enumerate(present):
+                Rs_blk[j * flat.m:(j + 1) * flat.m, j * flat.m:(j + 1) * flat.m] = Rs[i]
+            e = np.concatenate([zs[i][k] - C @ x for i in present])
+            e = np.where(np.tile(angle, len(present)), angle_wrap(e), e)
+            K = P @ Cs.T @ np.linalg.inv(Cs @ P @ Cs.T + Rs_blk)
+            x, P = x + K @ e, (np.eye(flat.n) - K @ Cs) @ P
+        worst = max(worst, rel(master.x, x), rel(master.P, P))
+        for node in nodes:
+            node.predict(vs[k])
+        master.predict(vs[k])
+        x, P = A @ x + B @ vs[k], A @ P @ A.T + Q
+    print(f"\n{name}, {n_nodes} nodes: difference rule vs centralized, worst relative error {worst:.1e}")
+    assert worst <= 1e-9
+
+
+def test_master_predicts_stale_packets_and_ignores_old_ones():
+    flat, rng = flat_system("dc_motor_link"), np.random.default_rng(5)
+    _, vs, (zs,) = simulate(flat, 12, rng, [np.eye(1) * 1e-4])
+    x0, P0 = start(flat)
+    node = NodeFilter(flat, TS, Q_DENSITY, 1e-4, x0, P0)
+    fresh = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="paper", max_lag=4)
+    stale = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="paper", max_lag=4)
+    packets = []
+    for k in range(12):
+        node.update(zs[k], True)
+        packets.append(node.packet())
+        if k == 10:
+            fresh.fuse([packets[7]])         # 3 steps old, predicted with the stored v
+            x, P = packets[7].x, packets[7].P
+            A, B, _ = flat.discrete(TS)
+            for i in range(7, 10):
+                x, P = A @ x + B @ vs[i], A @ P @ A.T + flat.process_noise(TS, Q_DENSITY)
+            assert rel(fresh.x, x) < 1e-9 and rel(fresh.P, P) < 1e-9   # through Y = P^-1 and back
+            stale.fuse([packets[5]])         # 5 steps old > max_lag: ignored, the prior is kept
+            assert np.array_equal(stale.x, stale.x_prior) and np.array_equal(stale.P, stale.P_prior)
+        node.predict(vs[k])
+        fresh.predict(vs[k])
+        stale.predict(vs[k])
+
+
+# 5. covariance intersection ---------------------------------------------------------------------
+def trace_at(Ys, w):
+    """tr((sum w_i Y_i)^-1); w may be a stack of weight vectors (one row each)."""
+    w = np.atleast_2d(w)
+    return np.trace(np.linalg.inv(np.einsum("gi,ijk->gjk", w, np.array(Ys))), axis1=1, axis2=2).squeeze()
+
+
+def test_ci_weights_are_optimal_on_a_grid():
+    rng = np.random.default_rng(11)
+    grid = np.linspace(0, 1, 20001)
+    for trial in range(40):
+        n = 3 + trial % 4
+        Ys = [np.linalg.inv(random_spd(rng, n, 10.0 ** rng.uniform(-3, 1))) for _ in range(2)]
+        w = covariance_intersection_weights(Ys)
+        assert np.all(w >= 0) and abs(w.sum() - 1) < 1e-12
+        best = trace_at(Ys, np.column_stack([grid, 1 - grid])).min()
+        assert trace_at(Ys, w) <= best * (1 + 1e-12)
+
+
+def test_ci_weights_three_nodes_edge_cases():
+    rng = np.random.default_rng(12)
+    Y = np.linalg.inv(random_spd(rng, 4, 1.0))
+    w = covariance_intersection_weights([1e3 * Y, Y, np.linalg.inv(random_spd(rng, 4, 1.0))])
+    assert w[0] > 1 - 1e-6 and np.all(w >= 0) and abs(w.sum() - 1) < 1e-12
+    w = covariance_intersection_weights([Y, Y.copy()])           # equal nodes: no singular step
+    assert np.allclose(w, 0.5, atol=1e-12)
+    w = covariance_intersection_weights([Y, Y.copy(), Y.copy()])
+    assert np.allclose(w, 1 / 3, atol=1e-12)
+    rng_w = rng.dirichlet(np.ones(3), 20000)                        # no random weights do better,
+    for scales in [(1.0, 2.0, 0.5), (1.0, 30.0, 0.03)]:             # interior and on a face
+        Ys = [np.linalg.inv(random_spd(rng, 4, s)) for s in scales]
+        w = covariance_intersection_weights(Ys)
+        assert np.all(w >= 0) and abs(w.sum() - 1) < 1e-12
+        assert trace_at(Ys, w) <= trace_at(Ys, rng_w).min() * (1 + 1e-12)
+    assert trace_at(Ys, w) <= trace_at(Ys, rng_w).min() * (1 + 1e-12)
+
+
+def test_ci_is_consistent_and_paper_is_not_with_correlated_nodes():
+    """Two nodes watch the same truth (common process noise) with a measurement noise component
+    they share: each node is consistent, their errors are strongly correlated."""
+    flat, rng = flat_system("dc_motor_link"), np.random.default_rng(13)
+    trials, steps = 300, 20
+    shared, own = np.eye(1) * 1e-4, [np.eye(1) * 2e-5, np.eye(1) * 4e-5]
+    x0, P0 = start(flat)
+    nees = {"paper": [], "ci": []}
+    for _ in range(trials):
+        xs, vs, zs = simulate(flat, steps, rng, own, common=shared)
+        nodes = [NodeFilter(flat, TS, Q_DENSITY, shared + R, x0, P0) for R in own]
+        masters = {r: Master(flat, TS, Q_DENSITY, x0, P0, 2, rule=r) for r in nees}
+        for k in range(steps):
+            for node, z in zip(nodes, zs):
+                node.update(z[k], True)
+            if k < steps - 1:
+                for node in nodes:
+                    node.predict(vs[k])
+                for m in masters.values():
+                    m.predict(vs[k])
+        for r, m in masters.items():
+            m.fuse([node.packet() for node in nodes])
+            e = m.x - xs[-1]
+            e[flat.heads] = angle_wrap(e[flat.heads])
+            nees[r].append(e @ np.linalg.solve(m.P, e))
+    upper = chi2.ppf(0.975, flat.n * trials) / trials
+    avg = {r: np.mean(v) for r, v in nees.items()}
+    print(f"\naverage NEES over {trials} runs (n = {flat.n}, 95% upper bound {upper:.2f}): "
+          + ", ".join(f"{r} {a:.2f}" for r, a in avg.items()))
+    assert avg["ci"] <= upper
+    assert avg["paper"] > upper
