@@ -1,0 +1,196 @@
+"""`codegen build`: model -> flat system -> CasADi kernels -> rendered C module in <out>/<model>.
+
+Why atomic: a firmware tree that includes generated/<model> must never see half a module. Files
+are rendered in memory, written into a temporary folder beside the target and swapped in by
+rename; any failure (bad model, bad option, template error) leaves the previous output as it was.
+Why deterministic: no timestamps or paths, stable ordering, so a rebuild is byte-identical and the
+committed generated/ can be checked against a fresh build.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import shutil
+import subprocess
+import tempfile
+from dataclasses import asdict
+from importlib import metadata
+from pathlib import Path
+
+import jinja2
+import sympy as sp
+
+from . import __version__, flatness, kernels, model, render
+from .errors import CodegenError
+
+MAX_LAG_LIMIT = 4096
+NODES_LIMIT = 16
+
+GROUP_DOCS = {
+    "filter": "Node filter kernels (the master reuses predict and info)",
+    "fusion": "Master fusion kernels",
+    "control": "Flatness-based controller kernel: u and v = F + G u from the estimate, flags and gains",
+}
+
+
+class BuildError(CodegenError):
+    """A bad build option or an output folder that cannot be written."""
+
+
+def options_from_args(args: argparse.Namespace, default_ts: float) -> kernels.Options:
+    ts = default_ts if getattr(args, "ts", None) is None else args.ts
+    if not (isinstance(ts, (int, float)) and math.isfinite(ts) and ts > 0):
+        raise BuildError(f"--ts must be a positive sampling period in seconds, got {ts}")
+    if not 1 <= args.max_lag <= MAX_LAG_LIMIT:
+        raise BuildError(f"--max-lag must be between 1 and {MAX_LAG_LIMIT} steps, got {args.max_lag}")
+    if not 1 <= args.nodes <= NODES_LIMIT:
+        raise BuildError(f"--nodes must be between 1 and {NODES_LIMIT}, got {args.nodes}")
+    return kernels.Options(ts=float(ts), max_lag=args.max_lag, nodes=args.nodes,
+                           oosm=args.oosm or "replay", fusion=args.fusion or "difference",
+                           precision=args.precision)
+
+
+def model_hash(m: model.Model) -> str:
+    """SHA-256 of a canonical description of the model (sympy srepr is stable)."""
+    doc = {
+        "name": m.name, "ts": m.ts,
+        "states": [s.name for s in m.states], "inputs": [u.name for u in m.inputs],
+        "parameters": [[q.name, q.value] for q in m.parameters],
+        "f": [sp.srepr(e) for e in m.f], "g": [sp.srepr(e) for e in m.g],
+        "outputs": [[o.name, sp.srepr(o.expr), o.angle] for o in m.outputs],
+    }
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def versions() -> dict[str, str]:
+    """This tool's version and its code-generating dependencies' (recorded in the manifest)."""
+    out = {"dfeif-codegen": __version__}
+    for dist in ("casadi", "jinja2", "numpy", "sympy"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist] = "unknown"
+    return out
+
+
+def _comment(text: str) -> str:
+    """Safe inside a C block comment and on one line."""
+    return " ".join(str(text).replace("*/", "* /").replace("/*", "/ *").split())
+
+
+def context(flat, opts: kernels.Options) -> dict:
+    """Everything the templates need, computed once."""
+    m = flat.model
+    p = m.name
+    ks = kernels.build(flat, opts, p)
+    real_c = "float" if opts.precision == "float" else "double"
+    kernel_code, kernel_list = {}, []
+    for group, functions in ks.groups.items():
+        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision)
+        kernel_code[group] = (code, f"{GROUP_DOCS[group]}: "
+                                    + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
+        kernel_list += [{"name": k.name, "macro": k.name.upper(), "signature": _comment(k.signature),
+                         "n_in": k.n_in, "n_out": k.n_out, "sz_w": k.sz_w} for k in infos]
+    names = render.file_names(p, list(ks.groups))
+    return {
+        "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
+        "description": _comment(m.description or p),
+        "zeta_names": [str(z) for z in flat.zeta], "n": flat.n, "m": flat.m, "np": len(flat.params),
+        "degrees": flat.degrees, "heads": flat.heads, "angles": [int(c.angle) for c in flat.chains],
+        "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
+                    "description": _comment(q.description)} for q in m.parameters],
+        "opts": opts, "options": asdict(opts), "ci_iterations": kernels.CI_ITERATIONS,
+        "model_hash": model_hash(m), "versions": versions(),
+        "dependencies": {k: v for k, v in versions().items() if k != "dfeif-codegen"},
+        "kernel_code": kernel_code, "kernel_list": kernel_list,
+        "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
+    }
+
+
+def generate(spec: str, opts_args: argparse.Namespace) -> tuple[str, kernels.Options, dict[str, str]]:
+    """Model spec and options -> (model name, options, {file: text}); nothing is written."""
+    m = model.load(spec)
+    opts = options_from_args(opts_args, m.ts)
+    flat = flatness.derive(m)
+    try:
+        files = render.render(context(flat, opts))
+    except jinja2.TemplateError as exc:
+        raise BuildError(f"template error: {type(exc).__name__}: {exc}") from None
+    return m.name, opts, files
+
+
+def write_atomic(out_root: Path, name: str, files: dict[str, str]) -> Path:
+    """Write files into out_root/name by rendering into a sibling temp folder and renaming."""
+    try:
+        out_root.mkdir(parents=True, exist_ok=True)
+        target = out_root / name
+        tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".new", dir=out_root))
+    except OSError as exc:
+        raise BuildError(f"{out_root}: cannot write output ({exc.strerror})") from None
+    old = None
+    try:
+        for fname, text in files.items():
+            (tmp / fname).write_bytes(text.encode("utf-8"))
+        os.chmod(tmp, 0o755)
+        if target.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".old", dir=out_root))
+            os.rmdir(old)
+            os.rename(target, old)
+        os.rename(tmp, target)
+    except OSError as exc:
+        if old is not None and old.exists() and not target.exists():
+            os.rename(old, target)
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise BuildError(f"{out_root / name}: cannot write output ({exc.strerror})") from None
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+    return target
+
+
+def host_compiler() -> str | None:
+    for cc in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if cc and shutil.which(cc):
+            return cc
+    return None
+
+
+def measure_sizes(folder: Path, name: str) -> dict[str, int] | None:
+    """sizeof the node, master and packet structs, by compiling a probe with the host compiler."""
+    cc = host_compiler()
+    if cc is None:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        probe = Path(tmp) / "probe.c"
+        probe.write_text(f'#include <stdio.h>\n#include "{name}.h"\nint main(void) {{ printf("%lu %lu %lu\\n", '
+                         f"(unsigned long)sizeof({name}_node), (unsigned long)sizeof({name}_master), "
+                         f"(unsigned long)sizeof({name}_packet)); return 0; }}\n")
+        exe = Path(tmp) / "probe"
+        try:
+            subprocess.run([cc, "-std=c99", "-I", str(folder), str(probe), "-o", str(exe)], check=True,
+                           capture_output=True, timeout=60)
+            out = subprocess.run([str(exe)], check=True, capture_output=True, text=True, timeout=10).stdout
+        except (OSError, subprocess.SubprocessError):
+            return None
+    node, master, packet = (int(v) for v in out.split())
+    return {"node": node, "master": master, "packet": packet}
+
+
+def run(args: argparse.Namespace) -> int:
+    name, opts, files = generate(args.model, args)
+    target = write_atomic(Path(args.out), name, files)
+    print(f"codegen build: {name} -> {target}/ ({opts.precision}, Ts {opts.ts:g} s, NMAX {opts.max_lag}, "
+          f"{opts.nodes} nodes, oosm {opts.oosm}, fusion {opts.fusion})")
+    width = max(len(f) for f in files)
+    for fname, text in files.items():
+        print(f"  {fname:<{width}}  {len(text.encode()):>7} bytes")
+    sizes = measure_sizes(target, name)
+    if sizes is None:
+        print("  sizeof: skipped (no working host C compiler: set CC)")
+    else:
+        print(f"  sizeof: node {sizes['node']} B, master {sizes['master']} B, packet {sizes['packet']} B "
+              f"(host compiler)")
+    return 0

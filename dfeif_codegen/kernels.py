@@ -1,0 +1,534 @@
+"""The filter, fusion and control math as CasADi SX functions, and their C source.
+
+Why CasADi: it turns the symbolic model into straight-line C with shared subexpressions and the
+known structure folded away (Brunovsky A_d is constant and sparse, C = e_head picks entries), so
+no generic matrix code ships to the microcontroller. Every kernel is one step of work; loops over
+the late-measurement window, over nodes and over the CI iterations are plain C in the templates.
+
+The sympy model is converted by walking its tree (`to_casadi`), never by printing and evaluating.
+The C that CasADi prints is post-processed (`c_source`) into one file per group: internal helpers
+made `static`, the entry points renamed `<model>_kern_<name>` with only the arguments they use,
+the real type named, and, for single precision, `f` math calls and `f` literals so that no
+double arithmetic hides in a float build.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from math import factorial
+
+import casadi as ca
+import numpy as np
+import sympy as sp
+
+from . import discretize
+from .errors import ModelError
+
+CI_ITERATIONS = 12
+
+# --- sympy -> CasADi ------------------------------------------------------------------------
+
+_UNARY = {
+    sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.asin: ca.asin, sp.acos: ca.acos,
+    sp.atan: ca.atan, sp.sinh: ca.sinh, sp.cosh: ca.cosh, sp.tanh: ca.tanh, sp.exp: ca.exp,
+    sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
+}
+
+
+def _int_power(base, k: int):
+    """x**k by squaring: CasADi would print pow(), which is slow and double-only on newlib."""
+    result, square = None, base
+    while k:
+        if k & 1:
+            result = square if result is None else result * square
+        k >>= 1
+        if k:
+            square = square * square
+    return result
+
+
+def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX]) -> ca.SX:
+    """Convert a sympy expression to a CasADi SX scalar; shared subtrees stay shared."""
+    memo: dict[sp.Basic, ca.SX] = {}
+
+    def walk(e: sp.Basic) -> ca.SX:
+        if e in memo:
+            return memo[e]
+        if e.is_Symbol:
+            if e not in table:
+                raise ModelError(f"kernel: unexpected symbol '{e}' in a model expression")
+            out = table[e]
+        elif e.is_Number or e.is_NumberSymbol:
+            value = float(e)
+            if not math.isfinite(value):
+                raise ModelError(f"kernel: non-finite constant {e} in a model expression")
+            out = ca.SX(value)
+        elif e.is_Add:
+            terms = [walk(a) for a in e.args]
+            out = terms[0]
+            for t in terms[1:]:
+                out = out + t
+        elif e.is_Mul:
+            factors = [walk(a) for a in e.args]
+            out = factors[0]
+            for f in factors[1:]:
+                out = out * f
+        elif e.is_Pow:
+            base, exp = e.args
+            b = walk(base)
+            if exp.is_Integer and abs(int(exp)) <= 16:
+                k = int(exp)
+                out = ca.SX(1.0) if k == 0 else _int_power(b, abs(k))
+                if k < 0:
+                    out = 1 / out
+            elif exp == sp.Rational(1, 2):
+                out = ca.sqrt(b)
+            elif exp == sp.Rational(-1, 2):
+                out = 1 / ca.sqrt(b)
+            else:
+                out = ca.power(b, walk(exp))
+        elif e.func in _UNARY:
+            out = _UNARY[e.func](walk(e.args[0]))
+        elif e.func == sp.atan2:
+            out = ca.atan2(walk(e.args[0]), walk(e.args[1]))
+        elif e.func in (sp.Min, sp.Max):
+            op = ca.fmin if e.func == sp.Min else ca.fmax
+            args = [walk(a) for a in e.args]
+            out = args[0]
+            for a in args[1:]:
+                out = op(out, a)
+        else:
+            raise ModelError(f"kernel: cannot generate C for '{e.func.__name__}' in {e}")
+        memo[e] = out
+        return out
+
+    return walk(sp.sympify(expr))
+
+
+# --- options ----------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Options:
+    """Build options baked into the C as #defines."""
+
+    ts: float
+    max_lag: int = 32
+    nodes: int = 2
+    oosm: str = "replay"
+    fusion: str = "difference"
+    precision: str = "double"
+
+
+# --- symbolic linear algebra on small matrices ------------------------------------------------
+
+def _sym(name: str, rows: int = 1, cols: int = 1) -> ca.SX:
+    return ca.SX.sym(name, rows, cols)
+
+
+def _dm(a: np.ndarray) -> ca.DM:
+    """Constant matrix with zeros structural, so CasADi emits no work for them."""
+    return ca.sparsify(ca.DM(np.atleast_2d(a)))
+
+
+def _powers(t: ca.SX, top: int) -> list[ca.SX]:
+    out = [ca.SX(1.0)]
+    for _ in range(top):
+        out.append(out[-1] * t)
+    return out
+
+
+def _chol(S: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Lower Cholesky factor and the pivots before the square root (<= 0: not positive definite)."""
+    n = S.shape[0]
+    L = ca.SX(n, n)
+    piv = ca.SX(n, 1)
+    for j in range(n):
+        d = S[j, j]
+        for k in range(j):
+            d = d - L[j, k] * L[j, k]
+        piv[j] = d
+        L[j, j] = ca.sqrt(d)
+        for i in range(j + 1, n):
+            s = S[i, j]
+            for k in range(j):
+                s = s - L[i, k] * L[j, k]
+            L[i, j] = s / L[j, j]
+    return L, piv
+
+
+def spd_inverse(S: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Inverse of a symmetric positive definite matrix by Cholesky, and its pivots.
+    A 1x1 matrix is a division: the scalar innovation of a single output needs no factorisation."""
+    n = S.shape[0]
+    if n == 1:
+        return 1 / S, S
+    L, piv = _chol(S)
+    Li = ca.SX(n, n)          # L^-1 by forward substitution, column by column
+    for j in range(n):
+        Li[j, j] = 1 / L[j, j]
+        for i in range(j + 1, n):
+            s = ca.SX(0)
+            for k in range(j, i):
+                s = s - L[i, k] * Li[k, j]
+            Li[i, j] = s / L[i, i]
+    return ca.mtimes(Li.T, Li), piv
+
+
+def _right_divide(B: ca.SX, S: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """B S^-1 for SPD S (a division when S is 1x1), and S's pivots."""
+    if S.shape[0] == 1:
+        return B / S, S
+    Si, piv = spd_inverse(S)
+    return ca.mtimes(B, Si), piv
+
+
+def _trace_of_product(A: ca.SX, B: ca.SX) -> ca.SX:
+    """tr(A B) = sum_ab A_ab B_ba: n^2 products instead of the n^3 of forming A B."""
+    n = A.shape[0]
+    out = ca.SX(0)
+    for a in range(n):
+        for b in range(n):
+            out = out + A[a, b] * B[b, a]
+    return out
+
+
+def _trace(A: ca.SX) -> ca.SX:
+    out = A[0, 0]
+    for i in range(1, A.shape[0]):
+        out = out + A[i, i]
+    return out
+
+
+# --- the kernels ------------------------------------------------------------------------------
+
+@dataclass
+class KernelSet:
+    """The CasADi functions of one model, grouped by the C file they go into."""
+
+    groups: dict[str, list[ca.Function]] = field(default_factory=dict)
+
+    def all(self) -> list[ca.Function]:
+        return [f for fs in self.groups.values() for f in fs]
+
+
+class _Builder:
+    def __init__(self, flat, opts: Options):
+        self.flat, self.opts = flat, opts
+        self.n, self.m = flat.n, flat.m
+        self.degrees = flat.degrees
+        self.heads = flat.heads
+        self.angles = [c.angle for c in flat.chains]
+        A, B, C = flat.discrete(opts.ts)
+        self.A, self.B, self.C = _dm(A), _dm(B), _dm(C)
+        self.Qunit = [discretize.chain_Q(r, opts.ts, 1.0) for r in self.degrees]
+        self.I = ca.DM.eye(self.n)
+
+    # chain-structured constants with a runtime factor -------------------------------------
+    def A_of(self, t: ca.SX) -> ca.SX:
+        """A_d(t) = exp(A_c t) for symbolic t: A^n = A_of(n Ts), A^-N = A_of(-N Ts)."""
+        out = ca.SX(self.n, self.n)
+        pw = _powers(t, max(self.degrees))
+        at = 0
+        for r in self.degrees:
+            for i in range(r):
+                for j in range(i, r):
+                    out[at + i, at + j] = pw[j - i] / factorial(j - i) if j > i else ca.SX(1.0)
+            at += r
+        return out
+
+    def Q_of(self, q: ca.SX, t: ca.SX | None = None) -> ca.SX:
+        """Q_d for densities q (one per chain) over Ts, or over a symbolic period t."""
+        out = ca.SX(self.n, self.n)
+        pw = _powers(t, 2 * max(self.degrees)) if t is not None else None
+        at = 0
+        for c, r in enumerate(self.degrees):
+            for i in range(1, r + 1):
+                for j in range(1, r + 1):
+                    if pw is None:
+                        value = q[c] * self.Qunit[c][i - 1, j - 1]
+                    else:
+                        power = 2 * r - i - j + 1
+                        value = q[c] * pw[power] / (factorial(r - i) * factorial(r - j) * power)
+                    out[at + i - 1, at + j - 1] = value
+            at += r
+        return out
+
+    def head_rows(self, X: ca.SX) -> ca.SX:
+        return ca.vertcat(*[X[h, :] for h in self.heads])
+
+    def head_cols(self, X: ca.SX) -> ca.SX:
+        return ca.horzcat(*[X[:, h] for h in self.heads])
+
+    def wrap(self, e: ca.SX) -> ca.SX:
+        """Angle outputs' innovations into (-pi, pi]."""
+        out = []
+        for j in range(self.m):
+            ej = e[j]
+            if self.angles[j]:
+                ej = ej - 2 * math.pi * ca.ceil((ej - math.pi) / (2 * math.pi))
+            out.append(ej)
+        return ca.vertcat(*out)
+
+    def gain(self, Pm: ca.SX, R: ca.SX, scale: ca.SX):
+        """Innovation covariance, gain K = scale P C' S^-1 and the pivots of S."""
+        S = self.head_cols(self.head_rows(Pm)) + R
+        K, piv = _right_divide(self.head_cols(Pm), S)
+        return S, scale * K, piv
+
+    def joseph(self, Pm: ca.SX, K: ca.SX, R: ca.SX) -> ca.SX:
+        IKC = self.I - ca.mtimes(K, self.C)
+        return ca.mtimes(ca.mtimes(IKC, Pm), IKC.T) + ca.mtimes(ca.mtimes(K, R), K.T)
+
+    # kernels ---------------------------------------------------------------------------------
+    def predict(self, name: str) -> ca.Function:
+        n, m = self.n, self.m
+        x, P, v, q = _sym("x", n), _sym("P", n, n), _sym("v", m), _sym("q", m)
+        x1 = ca.mtimes(self.A, x) + ca.mtimes(self.B, v)
+        P1 = ca.mtimes(ca.mtimes(self.A, P), self.A.T) + self.Q_of(q)
+        return ca.Function(name, [x, P, v, q], [x1, P1], ["x", "P", "v", "q"], ["x1", "P1"])
+
+    def update(self, name: str) -> ca.Function:
+        n, m = self.n, self.m
+        xm, Pm, z, gamma, R = _sym("xm", n), _sym("Pm", n, n), _sym("z", m), _sym("gamma"), _sym("R", m, m)
+        e = self.wrap(z - self.head_rows(xm))
+        _, K, piv = self.gain(Pm, R, gamma)
+        x = xm + ca.mtimes(K, e)
+        P = self.joseph(Pm, K, R)
+        return ca.Function(name, [xm, Pm, z, gamma, R], [x, P, piv],
+                           ["xm", "Pm", "z", "gamma", "R"], ["x", "P", "piv"])
+
+    def info(self, name: str) -> ca.Function:
+        n = self.n
+        x, P = _sym("x", n), _sym("P", n, n)
+        Y, piv = spd_inverse(P)
+        return ca.Function(name, [x, P], [Y, ca.mtimes(Y, x), piv], ["x", "P"], ["Y", "y", "piv"])
+
+    def fuse_finish(self, name: str) -> ca.Function:
+        n = self.n
+        Y, y = _sym("Y", n, n), _sym("y", n)
+        P, piv = spd_inverse(Y)
+        return ca.Function(name, [Y, y], [ca.mtimes(P, y), P, piv], ["Y", "y"], ["x", "P", "piv"])
+
+    def retro_step(self, name: str) -> ca.Function:
+        """One step n (slot k-n) of the backward recursion of the retrodiction (algorithms.md):
+        adds slot k-n's terms to the sums and carries T(n)(A L_n)' and E(n-1) = L_n A E(n)."""
+        n, m = self.n, self.m
+        nn, Tp, E = _sym("n"), _sym("Tp", n, n), _sym("E", n, n)
+        xm, Pm, z, used, R = _sym("xm", n), _sym("Pm", n, n), _sym("z", m), _sym("used"), _sym("R", m, m)
+        v, q = _sym("v", m), _sym("q", m)
+        sw, sQ, sX, su = _sym("sw", n), _sym("sQ", n, n), _sym("sX", n, n), _sym("su", n)
+        t = nn * self.opts.ts
+        An = self.A_of(t)
+        e = self.wrap(z - self.head_rows(xm))
+        S, K, piv = self.gain(Pm, R, used)
+        Si, _ = spd_inverse(S)
+        T = ca.mtimes(An, self.Q_of(q)) + Tp
+        Ct = self.head_cols(T)                       # C~(n) = T(n) C'
+        D = self.head_rows(ca.mtimes(self.A, E))     # D(n) = C A E(n)
+        CtSi = ca.mtimes(Ct, Si)
+        sw1 = sw + used * ca.mtimes(CtSi, e)
+        sQ1 = sQ + used * ca.mtimes(CtSi, Ct.T)
+        sX1 = sX + used * ca.mtimes(ca.mtimes(D.T, Si), Ct.T)
+        su1 = su + ca.mtimes(ca.mtimes(An, self.B), v)   # A^n B v(k-1-n): the known input
+        L = self.I - ca.mtimes(K, self.C)
+        AL = ca.mtimes(self.A, L)
+        Tp1 = ca.mtimes(T, AL.T)
+        E1 = ca.mtimes(ca.mtimes(L, self.A), E)
+        return ca.Function(name, [nn, Tp, E, xm, Pm, z, used, R, v, q, sw, sQ, sX, su],
+                           [Tp1, E1, sw1, sQ1, sX1, su1, piv],
+                           ["n", "Tp", "E", "xm", "Pm", "z", "used", "R", "v", "q", "sw", "sQ", "sX", "su"],
+                           ["Tp1", "E1", "sw1", "sQ1", "sX1", "su1", "piv"])
+
+    def retro_finish(self, name: str) -> ca.Function:
+        """Xia et al.'s correction (equations.md section 4) from the sums of the recursion."""
+        n, m = self.n, self.m
+        N, x, P, PmN, usedN = _sym("N"), _sym("x", n), _sym("P", n, n), _sym("PmN", n, n), _sym("usedN")
+        z, R, q = _sym("z", m), _sym("R", m, m), _sym("q", m)
+        sw, sQ, sX, su = _sym("sw", n), _sym("sQ", n, n), _sym("sX", n, n), _sym("su", n)
+        Phi1 = self.A_of(-N * self.opts.ts)
+        AN = self.A_of(N * self.opts.ts)
+        _, KN, _ = self.gain(PmN, R, usedN)
+        PN = self.joseph(PmN, KN, R)                  # P(k-N|k-N)
+        wa = -ca.mtimes(Phi1, sw)
+        Qs = ca.mtimes(ca.mtimes(Phi1, self.Q_of(q, N * self.opts.ts)), Phi1.T) \
+            - ca.mtimes(ca.mtimes(Phi1, sQ), Phi1.T)
+        Pxw = ca.mtimes(ca.mtimes(ca.mtimes(AN, PN), sX), Phi1.T) - ca.mtimes(AN, Qs)
+        xr = ca.mtimes(Phi1, x - su) + wa
+        PhiPxw = ca.mtimes(Phi1, Pxw)
+        inner = ca.mtimes(ca.mtimes(Phi1, P), Phi1.T) + PhiPxw + PhiPxw.T + Qs
+        W = self.head_cols(self.head_rows(inner)) + R
+        Mg, piv = _right_divide(self.head_cols(ca.mtimes(P, Phi1.T) + Pxw), W)
+        xs = x + ca.mtimes(Mg, self.wrap(z - self.head_rows(xr)))
+        Ps = P - ca.mtimes(ca.mtimes(Mg, W), Mg.T)
+        return ca.Function(name, [N, x, P, PmN, usedN, z, R, q, sw, sQ, sX, su], [xs, Ps, piv],
+                           ["N", "x", "P", "PmN", "usedN", "z", "R", "q", "sw", "sQ", "sX", "su"],
+                           ["xs", "Ps", "piv"])
+
+    def ci_grad(self, name: str) -> ca.Function:
+        """Covariance intersection, first half of a Newton step (algorithms.md, master "ci"):
+        gradient and Hessian of tr((sum w_i Y_i)^-1). Absent nodes have w_i = 0 and Y_i = 0."""
+        n, M = self.n, self.opts.nodes
+        w = _sym("w", M)
+        Ys = [_sym(f"Y{i}", n, n) for i in range(M)]
+        Ysum = w[0] * Ys[0]
+        for i in range(1, M):
+            Ysum = Ysum + w[i] * Ys[i]
+        P, piv = spd_inverse(Ysum)
+        Z = [ca.mtimes(P, Y) for Y in Ys]
+        ZP = [ca.mtimes(Zi, P) for Zi in Z]
+        g = ca.vertcat(*[-_trace(ZPi) for ZPi in ZP])
+        H = ca.SX(M, M)
+        for i in range(M):           # symmetric by construction; tr(A B) without forming A B
+            for j in range(i, M):
+                H[i, j] = 2 * _trace_of_product(Z[i], ZP[j])
+                H[j, i] = H[i, j]
+        return ca.Function(name, [w] + Ys, [g, H, piv], ["w"] + [f"Y{i}" for i in range(M)], ["g", "H", "piv"])
+
+    def ci_dir(self, name: str) -> ca.Function:
+        """Second half: the step d_F of `[H_FF + 1e-6 max_F H_ii I, 1; 1', 0] [d; mu] = [-g_F; 0]`
+        over the free set F (mask f), d_i = 0 off F, by the Schur complement of a Cholesky solve.
+        Off F the matrix is the identity and the right-hand side 0, so d_i is exactly 0."""
+        M = self.opts.nodes
+        g, H, f = _sym("g", M), _sym("H", M, M), _sym("free", M)
+        ridge = f[0] * H[0, 0]
+        for i in range(1, M):
+            ridge = ca.fmax(ridge, f[i] * H[i, i])
+        Hf = ca.SX(M, M)
+        for i in range(M):
+            for j in range(M):
+                Hf[i, j] = f[i] * f[j] * H[i, j]
+            Hf[i, i] = Hf[i, i] + f[i] * 1e-6 * ridge + (1 - f[i])
+        Hi, piv = spd_inverse(Hf)
+        u1, u2 = ca.mtimes(Hi, f * g), ca.mtimes(Hi, f)
+        mu = -ca.dot(f, u1) / ca.dot(f, u2)
+        return ca.Function(name, [g, H, f], [-(u1 + mu * u2), piv], ["g", "H", "free"], ["d", "piv"])
+
+    def control(self, name: str) -> ca.Function:
+        """u and v = F + G u from the estimate, reference flags and gains (algorithms.md)."""
+        flat, n, m = self.flat, self.n, self.m
+        x, flags, gains = _sym("x", n), _sym("flags", n + m), _sym("gains", n)
+        p = _sym("params", len(flat.params))
+        table = dict(zip(flat.zeta, [x[i] for i in range(n)]))
+        table.update(zip(flat.params, [p[i] for i in range(len(flat.params))]))
+        v = []
+        for j, chain in enumerate(flat.chains):
+            r, off = chain.degree, chain.offset
+            base = off + j                            # chain j's flags start here
+            errs = [x[off + i] - flags[base + i] for i in range(r)]
+            if chain.angle:
+                errs[0] = self.wrap_one(errs[0])
+            vj = flags[base + r]
+            for i in range(r):
+                vj = vj - gains[off + r - i - 1] * errs[i]
+            v.append(vj)
+        v = ca.vertcat(*v)
+        F = ca.vertcat(*[to_casadi(flat.F[j], table) for j in range(m)])
+        G = ca.SX(m, m)
+        for i in range(m):
+            for j in range(m):
+                G[i, j] = to_casadi(flat.G[i, j], table)
+        if m == 1:
+            u, det = (v - F) / G, G
+        else:
+            u, det = ca.solve(G, v - F), ca.det(G)
+        return ca.Function(name, [x, flags, gains, p], [u, v, det],
+                           ["x", "flags", "gains", "params"], ["u", "v", "det"], {"cse": True})
+
+    @staticmethod
+    def wrap_one(e: ca.SX) -> ca.SX:
+        return e - 2 * math.pi * ca.ceil((e - math.pi) / (2 * math.pi))
+
+
+def build(flat, opts: Options, prefix: str) -> KernelSet:
+    """All kernels the chosen options need, named `<prefix>_kern_<name>`."""
+    b = _Builder(flat, opts)
+    name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
+    filt = [b.predict(name("predict")), b.update(name("update")), b.info(name("info"))]
+    if opts.oosm == "retrodict":
+        filt += [b.retro_step(name("retro_step")), b.retro_finish(name("retro_finish"))]
+    fusion = [b.fuse_finish(name("fuse_finish"))]
+    if opts.fusion == "ci":
+        fusion += [b.ci_grad(name("ci_grad")), b.ci_dir(name("ci_dir"))]
+    return KernelSet({"filter": filt, "fusion": fusion, "control": [b.control(name("control"))]})
+
+
+# --- C source ---------------------------------------------------------------------------------
+
+_MATH = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log",
+         "sqrt", "ceil", "floor", "fabs", "fmin", "fmax", "pow", "fmod", "erf", "copysign", "hypot",
+         "log10", "log1p", "expm1", "trunc", "round", "cbrt", "asinh", "acosh", "atanh")
+_MATH_CALL = re.compile(r"(?<![\w.])(" + "|".join(_MATH) + r")\(")
+_FLOAT_LIT = re.compile(r"(?<![\w.])(\d+\.\d*(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+)(?![\w.])")
+_ENTRY = re.compile(r"^int (\w+)\(const casadi_real\*\* arg, casadi_real\*\* res, casadi_int\* iw, "
+                    r"casadi_real\* w, int mem\)\{\n  return (casadi_f\d+)\(arg, res, iw, w, mem\);\n\}$", re.M)
+_BODY = re.compile(r"^(/\* [^\n]*\*/\n)static int (casadi_f\d+)\(const casadi_real\*\* arg, casadi_real\*\* res, "
+                   r"casadi_int\* iw, casadi_real\* w, int mem\) \{\n(.*?)^\}\n", re.M | re.S)
+_HELPER = re.compile(r"^casadi_real casadi_\w+\([^)\n]*\) \{(?:[^\n]*\}\n|\n.*?^\}\n)", re.M | re.S)
+_CONST = re.compile(r"^static const casadi_(?:real|int) (casadi_[cs]\d+)\[\d+\] = \{[^}]*\};\n", re.M)
+
+
+@dataclass
+class KernelC:
+    """One kernel's C entry point and the work sizes its caller must provide."""
+
+    name: str
+    signature: str      # CasADi's one-line description, e.g. "predict:(x[3],P[3x3],...)->(...)"
+    n_in: int
+    n_out: int
+    sz_w: int
+    inputs: list[str]
+    outputs: list[str]
+
+
+def _float_text(text: str) -> str:
+    text = _MATH_CALL.sub(lambda mt: mt.group(1) + "f(", text)
+    return _FLOAT_LIT.sub(lambda mt: mt.group(1) + "f", text)
+
+
+def c_source(functions: list[ca.Function], real: str, precision: str) -> tuple[str, list[KernelC]]:
+    """C for a group of kernels: helpers and constants `static`, entry points `int name(arg, res, w)`."""
+    cg = ca.CodeGenerator("kernels", {"casadi_int": "int", "casadi_real": "double", "avoid_stack": True,
+                                      "main": False, "mex": False, "with_header": False,
+                                      "with_export": False, "verbose": False, "include_math": True})
+    for f in functions:
+        cg.add(f)
+    text = cg.dump()
+    entries = {fn: name for name, fn in _ENTRY.findall(text)}
+    bodies = _BODY.findall(text)
+    if len(bodies) != len(functions) or len(entries) != len(functions):
+        raise RuntimeError("unexpected CasADi output layout (kernel bodies not found)")
+    out, infos = [], []
+    used = "".join(body for _, _, body in bodies)
+    for mt in _HELPER.finditer(text):
+        helper = mt.group(0)
+        out.append("static " + helper)
+        used += helper
+    for mt in _CONST.finditer(text):
+        if re.search(rf"\b{mt.group(1)}\b", used):
+            out.append(mt.group(0))
+    by_name = {f.name(): f for f in functions}
+    for comment, fn, body in bodies:
+        name = entries[fn]
+        f = by_name[name]
+        if re.search(r"\b(iw|mem)\b|\bcasadi_f\d+\(", body) or f.sz_iw() != 0:
+            raise RuntimeError(f"kernel {name}: integer work or a nested call, unexpected for SX")
+        # `!x` and `x ? :` on a real are float-to-bool conversions (clang -Wfloat-conversion)
+        body = re.sub(r"\(!(w\[\d+\])\)", r"(\1==0)", body)
+        body = re.sub(r"\((w\[\d+\])\?", r"(\1!=0?", body)
+        # the wrappers always pass every input and output: drop CasADi's NULL checks (code size)
+        body = re.sub(r"arg\[(\d+)\]\? (arg\[\1\]\[\d+\]) : 0", r"\2", body)
+        body = re.sub(r"if \(res\[(\d+)\]!=0\) (res\[\1\]\[\d+\]=)", r"\2", body)
+        if re.search(r"arg\[\d+\]\?|res\[\d+\]!=0", body):
+            raise RuntimeError(f"kernel {name}: unexpected CasADi NULL-check pattern")
+        out.append(f"{comment}int {name}(const casadi_real** arg, casadi_real** res, casadi_real* w) {{\n{body}}}\n")
+        infos.append(KernelC(name, comment[3:-4], f.n_in(), f.n_out(), max(1, f.sz_w()),
+                             [f.name_in(i) for i in range(f.n_in())],
+                             [f.name_out(i) for i in range(f.n_out())]))
+    code = "\n".join(out)
+    code = re.sub(r"\bcasadi_real\b", real, code)
+    code = re.sub(r"\bcasadi_int\b", "int", code)
+    if precision == "float":
+        code = _float_text(code)
+    return code, infos

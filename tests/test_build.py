@@ -1,0 +1,216 @@
+"""`codegen build`: the committed generated/ equals a fresh build, rebuilds are byte-identical, a
+failed build leaves the previous output untouched, bad options are one line and exit 2, and every
+file carries its banner. Also the sympy -> CasADi converter and the renderer's strictness."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import casadi as ca
+import jinja2
+import pytest
+import sympy as sp
+
+from dfeif_codegen import build, cli, kernels, render
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ["dc_motor_link", "two_link_arm"]
+
+
+def cli_run(*argv: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "dfeif_codegen.cli", *argv], capture_output=True, text=True,
+                          timeout=300, env={**os.environ, **(env or {})}, cwd=ROOT)
+
+
+def tree(folder: Path) -> dict[str, bytes]:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory):
+    """Both built-in models built with default options through the CLI."""
+    out = tmp_path_factory.mktemp("fresh")
+    for name in MODELS:
+        result = cli_run("build", name, "--out", str(out))
+        assert result.returncode == 0, result.stderr
+    return out
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_committed_generated_equals_fresh_build(fresh, name):
+    committed = ROOT / "generated" / name
+    assert committed.is_dir(), "generated/ is missing: run `codegen build` for each built-in model"
+    assert tree(committed) == tree(fresh / name), (
+        f"generated/{name} is stale: rerun `codegen build {name}` and commit the result")
+
+
+def test_rebuild_is_byte_identical(fresh, tmp_path):
+    result = cli_run("build", "--out", str(tmp_path), env={"PYTHONHASHSEED": "12345"})
+    assert result.returncode == 0, result.stderr
+    assert tree(tmp_path / "dc_motor_link") == tree(fresh / "dc_motor_link")
+
+
+def test_output_has_no_timestamps_or_paths(fresh):
+    for name in MODELS:
+        for fname, data in tree(fresh / name).items():
+            text = data.decode()
+            assert str(fresh) not in text and str(ROOT) not in text and "/home/" not in text, fname
+            assert not re.search(r"\b20\d\d-\d\d-\d\d\b|\d\d:\d\d:\d\d", text), fname
+
+
+def test_every_file_has_banner_and_manifest_hashes(fresh):
+    folder = fresh / "dc_motor_link"
+    files = tree(folder)
+    for fname, data in files.items():
+        first = data.decode().splitlines()[0 if not fname.endswith(".json") else 1]
+        assert "DO NOT EDIT" in first and "dc_motor_link" in first and ".j2" in first, fname
+    manifest = json.loads(files["manifest.json"])
+    assert manifest["model"] == "dc_motor_link" and len(manifest["model_hash"]) == 64
+    assert manifest["options"] == {"ts": 0.01, "max_lag": 32, "nodes": 2, "oosm": "replay",
+                                   "fusion": "difference", "precision": "double"}
+    assert set(manifest["dependencies"]) >= {"casadi", "sympy", "numpy", "jinja2"}
+    assert set(manifest["files"]) == set(files) - {"manifest.json"}
+    for fname, entry in manifest["files"].items():
+        assert entry["sha256"] == hashlib.sha256(files[fname]).hexdigest()
+
+
+def test_header_defines_and_options(tmp_path):
+    result = cli_run("build", "--out", str(tmp_path), "--precision", "float", "--max-lag", "7", "--nodes", "3",
+                     "--oosm", "retrodict", "--fusion", "ci", "--ts", "0.005")
+    assert result.returncode == 0, result.stderr
+    header = (tmp_path / "dc_motor_link" / "dc_motor_link.h").read_text()
+    for define in ("DC_MOTOR_LINK_NX 3", "DC_MOTOR_LINK_NY 1", "DC_MOTOR_LINK_NP 8", "DC_MOTOR_LINK_NMAX 7",
+                   "DC_MOTOR_LINK_NNODES 3", "DC_MOTOR_LINK_TS 0.005f", "DC_MOTOR_LINK_OOSM_RETRODICT 1",
+                   "DC_MOTOR_LINK_FUSION_CI 1", "typedef float dc_motor_link_real"):
+        assert re.search(r"(#define |)" + re.escape(define), header), define
+    assert "dc_motor_link_kern_retro_step" in (tmp_path / "dc_motor_link" / "dc_motor_link_internal.h").read_text()
+
+
+def test_cli_prints_files_sizes_and_sizeof(tmp_path):
+    result = cli_run("build", "--out", str(tmp_path))
+    assert result.returncode == 0
+    out = result.stdout
+    assert "dc_motor_link_node.c" in out and "bytes" in out
+    if build.host_compiler():
+        node = int(re.search(r"sizeof: node (\d+) B", out).group(1))
+        assert node <= 4096, "node state over the 4 KiB budget at N_max = 32 (double)"
+    else:
+        assert "sizeof: skipped" in out
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--max-lag", "0"], "--max-lag"),
+    (["--nodes", "0"], "--nodes"),
+    (["--ts", "-1"], "--ts"),
+    (["--ts", "nan"], "--ts"),
+    (["no_such_model"], "not a built-in model"),
+])
+def test_bad_input_is_one_line_exit_2_and_keeps_old_output(tmp_path, argv, fragment):
+    assert cli_run("build", "--out", str(tmp_path)).returncode == 0
+    before = tree(tmp_path)
+    result = cli_run("build", "--out", str(tmp_path), *argv)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and fragment in lines[0] and lines[0].startswith("codegen build: error:")
+    assert tree(tmp_path) == before
+
+
+def test_failure_while_writing_leaves_old_output(tmp_path, monkeypatch):
+    files = {"a.h": "old a\n", "b.c": "old b\n"}
+    build.write_atomic(tmp_path, "m", files)
+    calls = {"n": 0}
+    real_write = Path.write_bytes
+
+    def flaky(self, data):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise OSError(28, "No space left on device")
+        return real_write(self, data)
+    monkeypatch.setattr(Path, "write_bytes", flaky)
+    with pytest.raises(build.BuildError, match="No space left"):
+        build.write_atomic(tmp_path, "m", {"a.h": "new a\n", "b.c": "new b\n", "c.c": "new c\n"})
+    monkeypatch.undo()
+    assert tree(tmp_path / "m") == {k: v.encode() for k, v in files.items()}
+    assert [p.name for p in tmp_path.iterdir()] == ["m"], "temporary folder left behind"
+
+
+def test_template_error_is_one_line_and_keeps_old_output(tmp_path, monkeypatch):
+    assert cli.main(["build", "--out", str(tmp_path)]) == 0
+    before = tree(tmp_path)
+    original = render._load
+
+    def broken(name):
+        text, path, uptodate = original(name)
+        return (text + "{{ no_such_variable }}" if name == "node.c.j2" else text), path, uptodate
+    monkeypatch.setattr(render, "_load", broken)
+    with pytest.raises(build.BuildError, match="template error: UndefinedError"):
+        build.generate("dc_motor_link", cli.parser().parse_args(["build"]))
+    assert cli.main(["build", "--out", str(tmp_path)]) == 2
+    assert tree(tmp_path) == before
+
+
+def test_replaces_stale_files(tmp_path):
+    assert cli_run("build", "--out", str(tmp_path)).returncode == 0
+    (tmp_path / "dc_motor_link" / "stale.c").write_text("old\n")
+    assert cli_run("build", "--out", str(tmp_path)).returncode == 0
+    assert not (tmp_path / "dc_motor_link" / "stale.c").exists()
+
+
+def test_strict_undefined():
+    env = render.environment()
+    with pytest.raises(jinja2.UndefinedError):
+        env.from_string("{{ missing }}").render()
+    assert render.literal("float")(0.01) == "0.01f" and render.literal("double")(2) == "2.0"
+
+
+@pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None, reason="make or cc missing")
+def test_make_fragment_builds_the_example(fresh, tmp_path):
+    gen = fresh / "dc_motor_link"
+    (tmp_path / "Makefile").write_text(
+        f"include {gen}/dc_motor_link.mk\n"
+        "app: $(DC_MOTOR_LINK_SRCS) $(DC_MOTOR_LINK_DIR)/example_main.c\n"
+        "\t$(CC) -std=c99 $(DC_MOTOR_LINK_CFLAGS) $^ $(DC_MOTOR_LINK_LDLIBS) -o $@\n")
+    result = subprocess.run(["make", "-s", "app"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert subprocess.run([str(tmp_path / "app")], capture_output=True, timeout=60).returncode == 0
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake missing")
+def test_cmake_builds_library_and_example(fresh, tmp_path):
+    src = tmp_path / "src"
+    shutil.copytree(fresh / "dc_motor_link", src)
+    b = tmp_path / "b"
+    for cmd in (["cmake", "-S", str(src), "-B", str(b)], ["cmake", "--build", str(b)]):
+        result = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, result.stdout + result.stderr
+    assert subprocess.run([str(b / "dc_motor_link_example")], capture_output=True, timeout=60).returncode == 0
+
+
+def test_sympy_to_casadi_converter():
+    x, y = sp.symbols("x y")
+    exprs = [sp.sin(x) * sp.cos(y) ** 3 / (1 + x ** 2), sp.sqrt(x + 2) - 1 / sp.sqrt(y + 3),
+             sp.atan2(y, x) + sp.Abs(x - y) + sp.exp(-x) * sp.log(y + 4), sp.Max(x, y, 0) + sp.Min(x, 1),
+             sp.tanh(x) + sp.pi * (x + 3) ** sp.Rational(3, 2),
+             x ** -3 + sp.sign(y) + sp.asin(x / 4)]
+    X, Y = ca.SX.sym("x"), ca.SX.sym("y")
+    for e in exprs:
+        f = ca.Function("f", [X, Y], [kernels.to_casadi(e, {x: X, y: Y})])
+        for point in ((0.3, -0.7), (1.2, 0.4)):
+            want = float(e.subs({x: point[0], y: point[1]}).evalf())
+            assert float(f(*point)) == pytest.approx(want, rel=1e-13), e
+    with pytest.raises(Exception, match="unexpected symbol"):
+        kernels.to_casadi(x + sp.Symbol("z"), {x: X})
+
+
+def test_float_post_processing():
+    text = "w[1]=sin(w[0]); w[2]=(2.*w[1]); w[3]=1.0000000000000000e-02; w[4]=fmin(w[2],w[3]); a[10]=w12;"
+    out = kernels._float_text(text)
+    assert out == ("w[1]=sinf(w[0]); w[2]=(2.f*w[1]); w[3]=1.0000000000000000e-02f; w[4]=fminf(w[2],w[3]); "
+                   "a[10]=w12;")

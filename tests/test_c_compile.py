@@ -1,0 +1,589 @@
+"""The generated C: strict compiles (gcc, clang, both precisions), a clean Cortex-M4F float build,
+the static rules, C test programs (instances, error codes leave the state bit-identical) and a
+quick numerical check against a few lines of numpy through ctypes.
+
+A missing compiler skips its tests with the reason, unless CI=true, where it fails.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from dfeif_codegen import build, discretize, flatness, model, render
+
+WARN = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow", "-Wdouble-promotion",
+        "-Wfloat-conversion", "-Wcast-qual", "-Wstrict-prototypes", "-Wmissing-prototypes", "-Wvla", "-Werror"]
+ARM = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", "-Os"]
+DOUBLE_MATH = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log",
+               "sqrt", "ceil", "floor", "fabs", "fmin", "fmax", "pow", "fmod", "hypot", "round", "trunc"}
+
+# (model, options): what the compile matrix covers
+VARIANTS = {
+    "dc-double": ("dc_motor_link", {}),
+    "dc-float": ("dc_motor_link", {"precision": "float"}),
+    "dc-retro-ci": ("dc_motor_link", {"oosm": "retrodict", "fusion": "ci"}),
+    "dc-ci3": ("dc_motor_link", {"fusion": "ci", "nodes": 3}),
+    "dc-float-retro-ci3": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci", "nodes": 3}),
+    "dc-float-paper": ("dc_motor_link", {"precision": "float", "fusion": "paper", "max_lag": 5}),
+    "dc-float-retro-ci": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
+    "arm-double": ("two_link_arm", {}),
+    "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
+}
+FLOAT_VARIANTS = [k for k, (_, o) in VARIANTS.items() if o.get("precision") == "float"]
+
+
+def tool(name: str) -> str:
+    """Path of a tool, or skip (fail under CI=true) with the reason."""
+    path = shutil.which(name)
+    if path is None:
+        message = f"{name} not found on PATH"
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(f"{message} (required when CI=true)")
+        print(f"skipping: {message}")
+        pytest.skip(message)
+    return path
+
+
+@functools.lru_cache(maxsize=None)
+def _flat(name: str):
+    return flatness.derive(model.load(name))
+
+
+def args_for(name: str, **opts) -> SimpleNamespace:
+    return SimpleNamespace(model=name, max_lag=opts.get("max_lag", 32), nodes=opts.get("nodes", 2),
+                           oosm=opts.get("oosm"), fusion=opts.get("fusion"),
+                           precision=opts.get("precision", "double"), ts=opts.get("ts"))
+
+
+def render_files(name: str, **opts) -> dict[str, str]:
+    flat = _flat(name)
+    return render.render(build.context(flat, build.options_from_args(args_for(name, **opts), flat.model.ts)))
+
+
+@pytest.fixture(scope="session")
+def built(tmp_path_factory):
+    """variant -> folder with the generated module (rendered once per session)."""
+    root = tmp_path_factory.mktemp("gen")
+    cache: dict[str, Path] = {}
+
+    def get(variant: str) -> Path:
+        if variant not in cache:
+            name, opts = VARIANTS[variant]
+            cache[variant] = build.write_atomic(root / variant, name, render_files(name, **opts))
+        return cache[variant]
+    return get
+
+
+def sources(folder: Path, example: bool = False) -> list[Path]:
+    return sorted(p for p in folder.glob("*.c") if example or p.name != "example_main.c")
+
+
+def run(cmd: list, **kw) -> subprocess.CompletedProcess:
+    out = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=300, **kw)
+    assert out.returncode == 0, f"{' '.join(map(str, cmd))}\n{out.stdout}\n{out.stderr}"
+    return out
+
+
+# --- strict compiles ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_strict_compile(built, tmp_path, cc, variant):
+    compiler = tool(cc)
+    folder = built(variant)
+    for src in sources(folder, example=True):
+        run([compiler, *WARN, "-O2", "-I", folder, "-c", src, "-o", tmp_path / (src.stem + ".o")])
+
+
+@pytest.mark.parametrize("variant", ["dc-double", "dc-float", "dc-retro-ci", "arm-float-retro-ci"])
+def test_example_runs(built, tmp_path, variant):
+    cc = tool("gcc")
+    folder = built(variant)
+    exe = tmp_path / "example"
+    run([cc, *WARN, "-O2", "-I", folder, *sources(folder, example=True), "-lm", "-o", exe])
+    out = run([exe]).stdout
+    assert "RMS error" in out and "late applied" in out
+
+
+@pytest.mark.parametrize("variant", FLOAT_VARIANTS)
+def test_arm_float_objects_have_no_double(built, tmp_path, variant):
+    cc, nm = tool("arm-none-eabi-gcc"), tool("arm-none-eabi-nm")
+    folder = built(variant)
+    objects = []
+    for src in sources(folder):
+        obj = tmp_path / (src.stem + ".o")
+        run([cc, *ARM, *WARN, "-I", folder, "-c", src, "-o", obj])
+        objects.append(obj)
+    symbols = run([nm, "-u", *objects]).stdout.split()
+    assert not [s for s in symbols if s.startswith("__aeabi_d") or s in DOUBLE_MATH], symbols
+
+
+@pytest.mark.parametrize("variant", ["dc-float", "dc-float-retro-ci"])
+def test_arm_sizes_within_budget(built, tmp_path, variant):
+    """Node + master + control objects of dc_motor_link at -Os: .text <= 16 KiB, no .data/.bss."""
+    cc, size = tool("arm-none-eabi-gcc"), tool("arm-none-eabi-size")
+    folder = built(variant)
+    objects = []
+    for src in sources(folder):
+        obj = tmp_path / (src.stem + ".o")
+        run([cc, *ARM, "-std=c99", "-I", folder, "-c", src, "-o", obj])
+        objects.append(obj)
+    table = run([size, "-t", *objects]).stdout.splitlines()
+    print("\n".join(table))
+    text, data, bss = (int(v) for v in table[-1].split()[:3])
+    assert text <= 16 * 1024 and data == 0 and bss == 0
+
+
+def test_float_sources_have_no_double_literals_or_calls(built):
+    folder = built("dc-float-retro-ci3")
+    for src in sources(folder):
+        code = re.sub(r"/\*.*?\*/", "", src.read_text(), flags=re.S)
+        calls = re.findall(r"(?<![\w.])(" + "|".join(sorted(DOUBLE_MATH)) + r")\(", code)
+        literals = re.findall(r"(?<![\w.])\d+\.\d*(?:[eE][+-]?\d+)?(?![\w.])", code)
+        assert not calls and not literals, (src.name, calls[:5], literals[:5])
+
+
+# --- static rules ---------------------------------------------------------------------------------
+
+ALLOWED_INCLUDES = {"<math.h>", "<stdint.h>", "<stddef.h>", "<string.h>"}
+
+
+@pytest.mark.parametrize("variant", ["dc-double", "dc-float-retro-ci3", "arm-double"])
+def test_static_rules(built, variant):
+    folder = built(variant)
+    files = sources(folder) + sorted(p for p in folder.glob("*.h"))
+    for path in files:
+        code = re.sub(r"/\*.*?\*/", "", path.read_text(), flags=re.S)
+        for bad in (r"\bmalloc\b", r"\bcalloc\b", r"\brealloc\b", r"\bfree\s*\(", r"\bprintf\b", r"\bFILE\b",
+                    r"\balloca\b", r"\bgoto\b"):
+            assert not re.search(bad, code), (path.name, bad)
+        for inc in re.findall(r'#include\s+(\S+)', code):
+            assert inc in ALLOWED_INCLUDES or inc.startswith('"'), (path.name, inc)
+        for line in code.splitlines():
+            stripped = line.strip()
+            # static data must be const; static functions are fine (a '(' before any '=')
+            if stripped.startswith("static ") and "const" not in stripped.split("=")[0]:
+                assert "(" in stripped.split("=")[0], (path.name, line)
+        # VLA pattern: an array declared with a lower-case (runtime) size
+        assert not re.search(r"\b(?:real|double|float|int)\s+\w+\[[a-z_][a-z_0-9]*\]", code), path.name
+
+
+# --- C test programs ------------------------------------------------------------------------------
+
+C_TEST = r"""
+#include <stdio.h>
+#include <string.h>
+#include HEADER
+#define XC(a, b) a##_##b
+#define C(a, b) XC(a, b)
+#define F(n) C(PFX, n)
+#define K(n) C(UP, n)
+#define NX K(NX)
+#define NY K(NY)
+typedef F(real) real;
+static int fails = 0;
+#define CHECK(c) do { if (!(c)) { printf("FAIL line %d: %s\n", __LINE__, #c); fails++; } } while (0)
+#define SAME(a, b) (memcmp(&(a), &(b), sizeof(a)) == 0)
+
+static void init(F(node) *nd, real p0)
+{
+    real x0[NX], P0[NX * NX], R[NY * NY], q[NY];
+    int i;
+    memset(x0, 0, sizeof(x0));
+    memset(P0, 0, sizeof(P0));
+    memset(R, 0, sizeof(R));
+    for (i = 0; i < NX; i++) P0[i * NX + i] = p0;
+    for (i = 0; i < NY; i++) { R[i * NY + i] = (real)1e-4; q[i] = 1; }
+    CHECK(F(node_init)(nd, x0, P0, R, q) == K(OK));
+}
+
+static void step(F(node) *nd, int k, real scale)
+{
+    real z[NY], v[NY];
+    int j;
+    for (j = 0; j < NY; j++) { z[j] = scale * (real)(k % 7) / 10; v[j] = (real)(k % 3) - 1; }
+    CHECK(F(node_update)(nd, z, k % 4 != 1) == K(OK));
+    CHECK(F(node_predict)(nd, v) == K(OK));
+}
+
+int main(void)
+{
+    static F(node) a, b, c, snap, tmp;
+    static F(master) m, msnap;
+    static F(packet) pk[K(NNODES)];
+    uint8_t present[K(NNODES)];
+    real z[NY], v[NY], x[NX], P[NX * NX], Y[NX * NX], flags[K(NFLAGS)], gains[NX], params[K(NP)];
+    real u[NY], x0[NX], P0[NX * NX], R[NY * NY], q[NY];
+    volatile real zero = 0;
+    real nan = zero / zero;
+    int i, k;
+
+    /* two instances interleaved equal one run alone */
+    init(&a, 1); init(&b, 2); init(&c, 1);
+    for (k = 0; k < 20; k++) { step(&a, k, 1); step(&b, k, -3); }
+    for (k = 0; k < 20; k++) step(&c, k, 1);
+    CHECK(SAME(a, c));
+    CHECK(F(node_size)() == sizeof(F(node)) && F(master_size)() == sizeof(F(master)));
+    CHECK(F(packet_size)() == sizeof(F(packet)));
+
+    for (i = 0; i < NY; i++) { z[i] = (real)0.1; v[i] = 0; }
+    /* step 20, not updated yet */
+    snap = a;
+    CHECK(F(node_predict)(&a, v) == K(ERR_SEQUENCE) && SAME(a, snap));
+    CHECK(F(node_update_delayed)(&a, z, 1) == K(ERR_SEQUENCE) && SAME(a, snap));
+    CHECK(F(node_update)(NULL, z, 1) == K(ERR_ARG));
+    CHECK(F(node_update)(&a, z, 2) == K(ERR_ARG) && SAME(a, snap));
+    CHECK(F(node_update)(&a, z, -1) == K(ERR_ARG) && SAME(a, snap));
+    CHECK(F(node_update)(&a, NULL, 1) == K(ERR_ARG) && SAME(a, snap));
+    z[0] = nan;
+    CHECK(F(node_update)(&a, z, 1) == K(ERR_NONFINITE) && SAME(a, snap));
+    z[0] = (real)0.1;
+    CHECK(F(node_update)(&a, z, 1) == K(OK));
+    snap = a;
+    CHECK(F(node_update)(&a, z, 1) == K(ERR_SEQUENCE) && SAME(a, snap));
+    v[0] = nan;
+    CHECK(F(node_predict)(&a, v) == K(ERR_NONFINITE) && SAME(a, snap));
+    v[0] = 0;
+    CHECK(F(node_predict)(NULL, v) == K(ERR_ARG) && F(node_predict)(&a, NULL) == K(ERR_ARG) && SAME(a, snap));
+
+    /* late measurements: rejected ones only count */
+    tmp = snap;
+    tmp.health.late_rejected++;
+    CHECK(F(node_update_delayed)(&a, z, 0) == K(ERR_LAG) && SAME(a, tmp));
+    a = snap;
+    CHECK(F(node_update_delayed)(&a, z, K(NMAX) + 1) == K(ERR_LAG) && SAME(a, tmp));
+    a = snap;
+    CHECK(F(node_update_delayed)(&a, z, -5) == K(ERR_LAG) && SAME(a, tmp));
+    a = snap;
+    CHECK(F(node_update_delayed)(&a, z, 2) == K(ERR_DUPLICATE) && SAME(a, tmp));  /* step 18: on time */
+    a = snap;
+    z[0] = nan;
+    CHECK(F(node_update_delayed)(&a, z, 3) == K(ERR_NONFINITE) && SAME(a, snap));
+    z[0] = (real)0.1;
+    CHECK(F(node_update_delayed)(NULL, z, 3) == K(ERR_ARG) && F(node_update_delayed)(&a, NULL, 3) == K(ERR_ARG));
+    CHECK(F(node_update_delayed)(&a, z, 3) == K(OK));  /* step 17 was dropped (17 % 4 == 1) */
+    CHECK(a.health.late_applied == 1);
+    snap = a;
+    tmp = snap;
+    tmp.health.late_rejected++;
+    CHECK(F(node_update_delayed)(&a, z, 3) == K(ERR_DUPLICATE) && SAME(a, tmp));
+    init(&c, 1);
+    CHECK(F(node_update)(&c, z, 1) == K(OK));
+    snap = c;
+    tmp = c;
+    tmp.health.late_rejected++;
+    CHECK(F(node_update_delayed)(&c, z, 1) == K(ERR_LAG) && SAME(c, tmp));  /* lag > k */
+
+    /* init validates before touching the node */
+    memset(x0, 0, sizeof(x0)); memset(P0, 0, sizeof(P0)); memset(R, 0, sizeof(R));
+    for (i = 0; i < NX; i++) P0[i * NX + i] = 1;
+    for (i = 0; i < NY; i++) { R[i * NY + i] = 1; q[i] = 1; }
+    snap = a;
+    R[0] = -1;
+    CHECK(F(node_init)(&a, x0, P0, R, q) == K(ERR_SINGULAR) && SAME(a, snap));
+    R[0] = 1; q[0] = -1;
+    CHECK(F(node_init)(&a, x0, P0, R, q) == K(ERR_ARG) && SAME(a, snap));
+    q[0] = 1; x0[0] = nan;
+    CHECK(F(node_init)(&a, x0, P0, R, q) == K(ERR_NONFINITE) && SAME(a, snap));
+    x0[0] = 0;
+    CHECK(F(node_init)(NULL, x0, P0, R, q) == K(ERR_ARG));
+
+    /* information of a non-positive-definite covariance */
+    tmp = a;
+    for (i = 0; i < NX * NX; i++) tmp.P[i] = (i % (NX + 1) == 0) ? -1 : 0;
+    snap = tmp;
+    for (i = 0; i < NX * NX; i++) Y[i] = 7;
+    CHECK(F(node_information)(&tmp, Y, x) == K(ERR_SINGULAR) && SAME(tmp, snap) && Y[0] == 7);
+    CHECK(F(node_information)(&a, Y, x) == K(OK));
+
+    /* master */
+    CHECK(F(master_init)(&m, x0, P0, q) == K(OK));
+    for (i = 0; i < K(NNODES); i++) { CHECK(F(node_packet)(&a, &pk[i]) == K(OK)); pk[i].step = 0; present[i] = 1; }
+    msnap = m;
+    CHECK(F(master_fuse)(NULL, pk, present) == K(ERR_ARG) && F(master_fuse)(&m, NULL, present) == K(ERR_ARG));
+    pk[0].x[0] = nan;
+    CHECK(F(master_fuse)(&m, pk, present) == K(ERR_NONFINITE) && SAME(m, msnap));
+    pk[0].x[0] = 0;
+    pk[0].P[0] = -1;
+    CHECK(F(master_fuse)(&m, pk, present) == K(ERR_SINGULAR) && SAME(m, msnap));
+    pk[0].P[0] = 1;
+    pk[0].step = 5;  /* from the future: ignored */
+    CHECK(F(master_fuse)(&m, pk, present) == K(OK) && m.health.packets_ignored == 1);
+    v[0] = nan;
+    msnap = m;
+    CHECK(F(master_predict)(&m, v) == K(ERR_NONFINITE) && SAME(m, msnap));
+    CHECK(F(master_estimate)(&m, x, P) == K(OK) && F(master_estimate)(NULL, x, P) == K(ERR_ARG));
+
+    /* control */
+    for (i = 0; i < K(NFLAGS); i++) flags[i] = 0;
+    for (i = 0; i < NX; i++) gains[i] = 1;
+    memcpy(params, F(params_default), sizeof(params));
+    CHECK(F(control)(x, flags, gains, params, u, NULL) == K(OK));
+    u[0] = 42;
+    CHECK(F(control)(NULL, flags, gains, params, u, v) == K(ERR_ARG));
+    flags[0] = nan;
+    CHECK(F(control)(x, flags, gains, params, u, v) == K(ERR_NONFINITE) && u[0] == 42);
+    flags[0] = 0;
+    memset(params, 0, sizeof(params));
+    CHECK(F(control)(x, flags, gains, params, u, v) == K(ERR_SINGULAR) && u[0] == 42);
+    CHECK(F(gains)(NULL, gains) == K(ERR_ARG));
+
+    printf(fails ? "FAILED\n" : "ok\n");
+    return fails ? 1 : 0;
+}
+"""
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+@pytest.mark.parametrize("variant", ["dc-double", "dc-float", "dc-retro-ci", "arm-float-retro-ci"])
+def test_c_api_errors_and_instances(built, tmp_path, cc, variant):
+    compiler = tool(cc)
+    folder = built(variant)
+    name = VARIANTS[variant][0]
+    src = tmp_path / "api_test.c"
+    src.write_text(C_TEST)
+    exe = tmp_path / "api_test"
+    run([compiler, *WARN, "-Wno-missing-prototypes", "-O1", f'-DHEADER="{name}.h"', f"-DPFX={name}",
+         f"-DUP={name.upper()}", "-I", folder, src, *sources(folder), "-lm", "-o", exe])
+    assert run([exe]).stdout.strip().endswith("ok")
+
+
+# --- numbers through ctypes -----------------------------------------------------------------------
+
+def shared_library(folder: Path, tmp: Path) -> ctypes.CDLL:
+    cc = tool("gcc")
+    so = tmp / f"lib{folder.name}.so"
+    run([cc, "-std=c99", "-O2", "-fPIC", "-shared", "-I", folder, *sources(folder), "-lm", "-o", so])
+    return ctypes.CDLL(str(so))
+
+
+class Lib:
+    """Thin ctypes access: every array is a float64 numpy array passed by pointer."""
+
+    def __init__(self, cdll: ctypes.CDLL, name: str):
+        self.c, self.p = cdll, name
+        for f in ("node_size", "master_size", "packet_size"):
+            getattr(cdll, f"{name}_{f}").restype = ctypes.c_size_t
+
+    def __call__(self, fn: str, *args) -> int:
+        conv = [a.ctypes.data_as(ctypes.c_void_p) if isinstance(a, np.ndarray) else a for a in args]
+        return getattr(self.c, f"{self.p}_{fn}")(*conv)
+
+    def new(self, kind: str):
+        return ctypes.create_string_buffer(getattr(self.c, f"{self.p}_{kind}_size")())
+
+
+def wrap(e):
+    return e - 2 * np.pi * np.ceil((e - np.pi) / (2 * np.pi))
+
+
+def test_node_matches_numpy(built, tmp_path):
+    folder = built("dc-double")
+    lib = Lib(shared_library(folder, tmp_path), "dc_motor_link")
+    flat = _flat("dc_motor_link")
+    A, B, C = flat.discrete(flat.model.ts)
+    q = np.array([3.0])
+    Q = flat.process_noise(flat.model.ts, q)
+    R = np.array([[2e-4]])
+    x, P = np.array([0.3, -0.1, 0.2]), np.diag([1e-2, 1e-1, 1.0])
+    node = lib.new("node")
+    assert lib("node_init", node, x.copy(), P.copy(), R.copy(), q.copy()) == 0
+    rng = np.random.default_rng(7)
+    for k in range(25):
+        z = np.array([3.1 if k == 5 else rng.normal(0.3, 0.05)])  # k = 5 exercises the angle wrap
+        gamma = int(k % 6 != 2)
+        e = wrap(z - C @ x)
+        S = C @ P @ C.T + R
+        K = gamma * P @ C.T @ np.linalg.inv(S)
+        IKC = np.eye(3) - K @ C
+        x, P = x + K @ e, IKC @ P @ IKC.T + K @ R @ K.T
+        assert lib("node_update", node, z, gamma) == 0
+        got_x, got_P = np.zeros(3), np.zeros(9)
+        lib("node_estimate", node, got_x, got_P)
+        np.testing.assert_allclose(got_x, x, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(got_P.reshape(3, 3), P, rtol=1e-12, atol=1e-16)
+        v = np.array([np.sin(0.3 * k)])
+        x, P = A @ x + B @ v, A @ P @ A.T + Q
+        assert lib("node_predict", node, v) == 0
+    Y, y = np.zeros(9), np.zeros(3)
+    assert lib("node_information", node, Y, y) == 0
+    np.testing.assert_allclose(Y.reshape(3, 3), np.linalg.inv(P), rtol=1e-9)
+    np.testing.assert_allclose(y, np.linalg.solve(P, x), rtol=1e-9)
+
+
+def _run_late(lib: Lib, late_lag: int, drops=(30, 33, 35)) -> tuple[np.ndarray, np.ndarray]:
+    node = lib.new("node")
+    assert lib("node_init", node, np.zeros(3), np.diag([1e-2, 1e-1, 1.0]), np.array([1e-4]), np.array([10.0])) == 0
+    zs = {k: np.array([0.1 * np.sin(0.05 * k) + 0.01 * np.cos(1.7 * k)]) for k in range(40)}
+    for k in range(40):
+        assert lib("node_update", node, zs[k], int(k not in drops)) == 0
+        if k == 39 and late_lag:
+            assert lib("node_update_delayed", node, zs[39 - late_lag], ctypes.c_int32(late_lag)) == 0
+        if k < 39:
+            assert lib("node_predict", node, np.array([np.cos(0.1 * k)])) == 0
+    x, P = np.zeros(3), np.zeros(9)
+    lib("node_estimate", node, x, P)
+    return x, P.reshape(3, 3)
+
+
+def test_late_measurement_replay_and_retrodict_agree(built, tmp_path):
+    """One late measurement with drops in between: retrodiction is exact, so it equals replay,
+    and replay equals processing the measurement on time."""
+    replay = Lib(shared_library(built("dc-double"), tmp_path), "dc_motor_link")
+    retro_dir = tmp_path / "retro"
+    retro_dir.mkdir()
+    retro = Lib(shared_library(built("dc-retro-ci"), retro_dir), "dc_motor_link")
+    on_time = _run_late(replay, 0, drops=(30, 35))
+    for lag in (6, 1):
+        drops = (30, 33, 35) if lag == 6 else (30, 35, 38)
+        xr, Pr = _run_late(replay, lag, drops)
+        xo, Po = _run_late(retro, lag, drops)
+        np.testing.assert_allclose(xo, xr, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(Po, Pr, rtol=1e-9, atol=1e-15)
+    xr, Pr = _run_late(replay, 6)
+    np.testing.assert_allclose(xr, on_time[0], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(Pr, on_time[1], rtol=1e-12, atol=1e-18)
+
+
+def test_master_difference_and_control_match_numpy(built, tmp_path):
+    lib = Lib(shared_library(built("dc-double"), tmp_path), "dc_motor_link")
+    flat = _flat("dc_motor_link")
+    A, B, _ = flat.discrete(flat.model.ts)
+    q = np.array([2.0])
+    Q = flat.process_noise(flat.model.ts, q)
+    master = lib.new("master")
+    x0, P0 = np.array([0.1, 0.0, 0.0]), np.diag([1e-2, 1e-1, 1.0])
+    assert lib("master_init", master, x0, P0.ravel().copy(), q) == 0
+    v = np.array([0.5])
+    assert lib("master_predict", master, v) == 0
+    xm, Pm = A @ x0 + B @ v, A @ P0 @ A.T + Q
+    rng = np.random.default_rng(3)
+    packets = (ctypes.c_char * (2 * lib.c.dc_motor_link_packet_size()))()
+    psize = lib.c.dc_motor_link_packet_size()
+    Ysum, ysum = np.linalg.inv(Pm), np.linalg.solve(Pm, xm)
+    for i in range(2):
+        node = lib.new("node")
+        assert lib("node_init", node, x0, P0.ravel().copy(), np.array([1e-4 * (i + 1)]), q) == 0
+        assert lib("node_update", node, np.zeros(1), 0) == 0
+        assert lib("node_predict", node, v) == 0
+        z = np.array([0.1 + 0.01 * rng.standard_normal()])
+        assert lib("node_update", node, z, 1) == 0
+        pk = lib.new("packet")
+        assert lib("node_packet", node, pk) == 0
+        ctypes.memmove(ctypes.addressof(packets) + i * psize, pk, psize)
+        x, P = np.zeros(3), np.zeros(9)
+        lib("node_estimate", node, x, P)
+        P = P.reshape(3, 3)
+        Pp = A @ P0 @ A.T + Q
+        Ysum += np.linalg.inv(P) - np.linalg.inv(Pp)
+        ysum += np.linalg.solve(P, x) - np.linalg.solve(Pp, A @ x0 + B @ v)
+    assert lib("master_fuse", master, packets, np.ones(2, dtype=np.uint8)) == 0
+    x, P = np.zeros(3), np.zeros(9)
+    lib("master_estimate", master, x, P)
+    P_ref = np.linalg.inv(Ysum)
+    np.testing.assert_allclose(P.reshape(3, 3), P_ref, rtol=1e-8)
+    np.testing.assert_allclose(x, P_ref @ ysum, rtol=1e-8, atol=1e-12)
+
+    # control: v from flags and gains, u = G^-1 (v - F)
+    lam = np.array([5.0])
+    gains = np.zeros(3)
+    assert lib("gains", lam, gains) == 0
+    np.testing.assert_allclose(gains, [15.0, 75.0, 125.0])
+    flags = np.array([0.2, 0.1, -0.3, 0.7])
+    params = flat.param_vector.copy()
+    u, vv = np.zeros(1), np.zeros(1)
+    assert lib("control", x, flags, gains, params, u, vv) == 0
+    e = x - flags[:3]
+    e[0] = wrap(e[0])
+    v_ref = flags[3] - gains[2] * e[0] - gains[1] * e[1] - gains[0] * e[2]
+    u_ref = (v_ref - flat.F_num(x)[0]) / flat.G_num(x)[0, 0]
+    np.testing.assert_allclose(vv, [v_ref], rtol=1e-12)
+    np.testing.assert_allclose(u, [u_ref], rtol=1e-10)
+
+
+def test_ci_weights_on_simplex(built, tmp_path):
+    """CI on two identical packets and one different: stays consistent (no singular Hessian)."""
+    lib = Lib(shared_library(built("dc-retro-ci"), tmp_path), "dc_motor_link")
+    master = lib.new("master")
+    P0 = np.diag([1e-2, 1e-1, 1.0])
+    assert lib("master_init", master, np.zeros(3), P0.ravel().copy(), np.array([1.0])) == 0
+    psize = lib.c.dc_motor_link_packet_size()
+    packets = (ctypes.c_char * (2 * psize))()
+    for i, r in enumerate((1e-4, 1e-4)):
+        node = lib.new("node")
+        assert lib("node_init", node, np.zeros(3), P0.ravel().copy(), np.array([r]), np.array([1.0])) == 0
+        assert lib("node_update", node, np.array([0.05]), 1) == 0
+        pk = lib.new("packet")
+        lib("node_packet", node, pk)
+        ctypes.memmove(ctypes.addressof(packets) + i * psize, pk, psize)
+    assert lib("master_fuse", master, packets, np.ones(2, dtype=np.uint8)) == 0
+    x, P = np.zeros(3), np.zeros(9)
+    lib("master_estimate", master, x, P)
+    node_x, node_P = np.zeros(3), np.zeros(9)
+    lib("node_estimate", node, node_x, node_P)
+    # CI of identical estimates is that estimate
+    np.testing.assert_allclose(P, node_P, rtol=1e-9)
+    np.testing.assert_allclose(x, node_x, rtol=1e-9)
+
+
+def test_ci_weights_match_reference_active_set(built, tmp_path):
+    """Three nodes, random informations (some far worse, so weights hit 0 and the active set
+    works): the C's weights, read back as w = Y x from packets with y_i = e_i, equal the
+    reference's covariance_intersection_weights."""
+    from dfeif_codegen.reference.fusion import covariance_intersection_weights
+    lib = Lib(shared_library(built("dc-ci3"), tmp_path), "dc_motor_link")
+    psize = lib.c.dc_motor_link_packet_size()
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        Ys = []
+        for i in range(3):
+            a = rng.normal(size=(3, 3))
+            Ys.append((a @ a.T + 0.1 * np.eye(3)) * (10.0 ** rng.uniform(-2, 2)))
+        w_ref = covariance_intersection_weights(Ys)
+        master = lib.new("master")
+        assert lib("master_init", master, np.zeros(3), np.eye(3).ravel().copy(), np.array([1.0])) == 0
+        packets = (ctypes.c_char * (3 * psize))()
+        for i, Y in enumerate(Ys):
+            P = np.linalg.inv(Y)
+            pk = lib.new("packet")
+            assert lib("node_packet", _fake_node(lib, P @ np.eye(3)[i], P), pk) == 0
+            ctypes.memmove(ctypes.addressof(packets) + i * psize, pk, psize)
+        assert lib("master_fuse", master, packets, np.ones(3, dtype=np.uint8)) == 0
+        x, P = np.zeros(3), np.zeros(9)
+        lib("master_estimate", master, x, P)
+        np.testing.assert_allclose(np.linalg.solve(P.reshape(3, 3), x), w_ref, atol=1e-8, err_msg=str(trial))
+
+
+def _fake_node(lib: Lib, x: np.ndarray, P: np.ndarray):
+    """A node at step 0 whose estimate is (x, P): init with that prior and a dropped update."""
+    node = lib.new("node")
+    assert lib("node_init", node, x.copy(), P.ravel().copy(), np.array([1.0]), np.array([1.0])) == 0
+    assert lib("node_update", node, None, 0) == 0
+    return node
+
+
+def test_discrete_constants_match_discretize():
+    """The kernels' closed-form A_d(t) for a symbolic t equals discretize's A_d at t = N Ts."""
+    import casadi as ca
+
+    from dfeif_codegen import kernels
+    flat = _flat("two_link_arm")
+    b = kernels._Builder(flat, kernels.Options(ts=0.01))
+    t = ca.SX.sym("t")
+    f = ca.Function("f", [t], [b.A_of(t), b.Q_of(ca.DM([2.0, 3.0]), t)])
+    for N in (1, 7, -5):
+        A_got, Q_got = (np.array(m) for m in f(N * 0.01))
+        np.testing.assert_allclose(A_got, flat.discrete(N * 0.01)[0], rtol=1e-14)
+        if N > 0:
+            np.testing.assert_allclose(Q_got, discretize.process_noise(flat.degrees, N * 0.01, [2.0, 3.0]),
+                                       rtol=1e-13)
