@@ -300,16 +300,19 @@ class _Builder:
                            ["xm", "Pm", "z", "gamma", "R"], ["x", "P", "piv"])
 
     def info(self, name: str) -> ca.Function:
+        """Information form about a centre c: Y = P^-1, y = Y (x - c). The master centres on its
+        prior: the same fused x in exact arithmetic, without the cancellation of Y x terms
+        that |x| / sigma of several hundred causes in single precision."""
         n = self.n
-        x, P = _sym("x", n), _sym("P", n, n)
+        x, P, c = _sym("x", n), _sym("P", n, n), _sym("c", n)
         Y, piv = spd_inverse(P)
-        return ca.Function(name, [x, P], [Y, ca.mtimes(Y, x), piv], ["x", "P"], ["Y", "y", "piv"])
+        return ca.Function(name, [x, P, c], [Y, ca.mtimes(Y, x - c), piv], ["x", "P", "c"], ["Y", "y", "piv"])
 
     def fuse_finish(self, name: str) -> ca.Function:
         n = self.n
-        Y, y = _sym("Y", n, n), _sym("y", n)
+        Y, y, c = _sym("Y", n, n), _sym("y", n), _sym("c", n)
         P, piv = spd_inverse(Y)
-        return ca.Function(name, [Y, y], [ca.mtimes(P, y), P, piv], ["Y", "y"], ["x", "P", "piv"])
+        return ca.Function(name, [Y, y, c], [c + ca.mtimes(P, y), P, piv], ["Y", "y", "c"], ["x", "P", "piv"])
 
     def retro_step(self, name: str) -> ca.Function:
         """One step n (slot k-n) of the backward recursion of the retrodiction (algorithms.md):
@@ -362,9 +365,10 @@ class _Builder:
         Mg, piv = _right_divide(self.head_cols(ca.mtimes(P, Phi1.T) + Pxw), W)
         xs = x + ca.mtimes(Mg, self.wrap(z - self.head_rows(xr)))
         Ps = P - ca.mtimes(ca.mtimes(Mg, W), Mg.T)
-        return ca.Function(name, [N, x, P, PmN, usedN, z, R, q, sw, sQ, sX, su], [xs, Ps, piv],
+        _, pivP = spd_inverse(Ps)     # with a stale history P* can lose definiteness: reject then
+        return ca.Function(name, [N, x, P, PmN, usedN, z, R, q, sw, sQ, sX, su], [xs, Ps, piv, pivP],
                            ["N", "x", "P", "PmN", "usedN", "z", "R", "q", "sw", "sQ", "sX", "su"],
-                           ["xs", "Ps", "piv"])
+                           ["xs", "Ps", "piv", "pivP"])
 
     def ci_grad(self, name: str) -> ca.Function:
         """Covariance intersection, first half of a Newton step (algorithms.md, master "ci"):
@@ -384,22 +388,25 @@ class _Builder:
             for j in range(i, M):
                 H[i, j] = 2 * _trace_of_product(Z[i], ZP[j])
                 H[j, i] = H[i, j]
+        rho = H[0, 0]                # the regulariser rho/2 |w|^2 makes the optimum unique
+        for i in range(1, M):
+            rho = ca.fmax(rho, H[i, i])
+        rho = 1e-6 * rho
+        g = g + rho * w
+        H = H + rho * ca.SX.eye(M)
         return ca.Function(name, [w] + Ys, [g, H, piv], ["w"] + [f"Y{i}" for i in range(M)], ["g", "H", "piv"])
 
     def ci_dir(self, name: str) -> ca.Function:
-        """Second half: the step d_F of `[H_FF + 1e-6 max_F H_ii I, 1; 1', 0] [d; mu] = [-g_F; 0]`
+        """Second half: the step d_F of `[H_FF, 1; 1', 0] [d; mu] = [-g_F; 0]`
         over the free set F (mask f), d_i = 0 off F, by the Schur complement of a Cholesky solve.
         Off F the matrix is the identity and the right-hand side 0, so d_i is exactly 0."""
         M = self.opts.nodes
         g, H, f = _sym("g", M), _sym("H", M, M), _sym("free", M)
-        ridge = f[0] * H[0, 0]
-        for i in range(1, M):
-            ridge = ca.fmax(ridge, f[i] * H[i, i])
         Hf = ca.SX(M, M)
         for i in range(M):
             for j in range(M):
                 Hf[i, j] = f[i] * f[j] * H[i, j]
-            Hf[i, i] = Hf[i, i] + f[i] * 1e-6 * ridge + (1 - f[i])
+            Hf[i, i] = Hf[i, i] + (1 - f[i])
         Hi, piv = spd_inverse(Hf)
         u1, u2 = ca.mtimes(Hi, f * g), ca.mtimes(Hi, f)
         mu = -ca.dot(f, u1) / ca.dot(f, u2)

@@ -20,8 +20,9 @@ RULES = ("paper", "difference", "ci")
 def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int = 12) -> np.ndarray:
     """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"):
     Newton steps on the free weights; a weight the step would make negative stops the step at
-    zero and is fixed there, and is freed again once its gradient is the smallest. The damping
-    keeps the step defined when two Y_i are equal (singular Hessian)."""
+    zero and is fixed there, and is freed again once its gradient is the smallest. A tiny
+    regulariser (rho/2)|w|^2 keeps the optimum unique when two Y_i are equal, so the split of
+    weight between equal nodes is not decided by round-off."""
     count = len(Ys)
     w = np.full(count, 1.0 / count)
     free = np.ones(count, dtype=bool)
@@ -30,9 +31,11 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int = 12) 
         pyp = [P @ Y @ P for Y in Ys]
         g = -np.array([np.trace(a) for a in pyp])
         H = 2 * np.array([[np.trace(a @ Y @ P) for Y in Ys] for a in pyp])
+        rho = 1e-6 * np.max(np.diag(H))  # rho/2 |w|^2 makes the optimum unique (equal Y_i)
+        g, H = g + rho * w, H + rho * np.eye(count)
         free |= g < np.min(g[free])
         f = np.flatnonzero(free)
-        H_f = H[np.ix_(f, f)] + 1e-6 * np.max(np.diag(H)[f]) * np.eye(f.size)
+        H_f = H[np.ix_(f, f)]
         kkt = np.block([[H_f, np.ones((f.size, 1))], [np.ones((1, f.size)), np.zeros((1, 1))]])
         d = np.zeros(count)
         d[f] = np.linalg.solve(kkt, np.append(-g[f], 0.0))[:f.size]

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linalg import spd_solve, wrap
+from .linalg import SingularMatrixError, cholesky, spd_solve, wrap
 
 COUNTERS = ("updates", "drops", "late_applied", "late_rejected")
 
@@ -102,11 +102,16 @@ class NodeFilter:
             self.counters["late_rejected"] += 1
             return False
         slot = self._slot(self.k - lag)
-        slot.z, slot.gamma = self._z(z), True
         if self.oosm == "replay":
+            slot.z, slot.gamma = self._z(z), True
             self._replay(self.k - lag)
         else:
-            self._retrodict(lag, slot.z)
+            try:
+                self.x, self.P = self._retrodict(lag, self._z(z))
+            except SingularMatrixError:   # a stale history made W or P* indefinite: reject
+                self.counters["late_rejected"] += 1
+                return False
+            slot.z, slot.gamma = self._z(z), True
         self.counters["late_applied"] += 1
         return True
 
@@ -161,9 +166,10 @@ class NodeFilter:
                 nxt.x_prior, nxt.P_prior = self._propagate(x, P, slot.v)
         self.x, self.P = x, P
 
-    def _retrodict(self, N: int, z: np.ndarray) -> None:
+    def _retrodict(self, N: int, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Xia et al.'s one-shot update (equations.md section 4) by the O(N) backward recursion
-        of algorithms.md. Only steps updated in sequence (nonzero K) contribute a term."""
+        of algorithms.md: the corrected (x, P). Only steps updated in sequence (nonzero K)
+        contribute a term. Raises SingularMatrixError if W or the corrected P is indefinite."""
         A, Q, h, n, k = self.A, self.Q, self.heads, self.flat.n, self.k
         eye = np.eye(n)
 
@@ -201,5 +207,6 @@ class NodeFilter:
         phi_pxw = phi1 @ P_xw
         W = (phi1 @ self.P @ phi1.T + phi_pxw + phi_pxw.T + q_star)[np.ix_(h, h)] + self.R
         M = spd_solve(W, (self.P @ phi1.T + P_xw)[:, h].T).T
-        self.x = self.x + M @ wrap(z - x_back[h], self.angle)
-        self.P = self.P - M @ W @ M.T
+        P_star = self.P - M @ W @ M.T
+        cholesky(P_star)                           # raises if P* lost definiteness
+        return self.x + M @ wrap(z - x_back[h], self.angle), P_star

@@ -24,16 +24,16 @@ int dc_motor_link_kern_update(const dc_motor_link_real** arg, dc_motor_link_real
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_ARG 5
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_RES 3
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_W 14
-/* dc_motor_link_kern_info:(x[3],P[3x3])->(Y[3x3],y[3],piv[3]) */
+/* dc_motor_link_kern_info:(x[3],P[3x3],c[3])->(Y[3x3],y[3],piv[3]) */
 int dc_motor_link_kern_info(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
-#define DC_MOTOR_LINK_KERN_INFO_SZ_ARG 2
+#define DC_MOTOR_LINK_KERN_INFO_SZ_ARG 3
 #define DC_MOTOR_LINK_KERN_INFO_SZ_RES 3
-#define DC_MOTOR_LINK_KERN_INFO_SZ_W 14
-/* dc_motor_link_kern_fuse_finish:(Y[3x3],y[3])->(x[3],P[3x3],piv[3]) */
+#define DC_MOTOR_LINK_KERN_INFO_SZ_W 15
+/* dc_motor_link_kern_fuse_finish:(Y[3x3],y[3],c[3])->(x[3],P[3x3],piv[3]) */
 int dc_motor_link_kern_fuse_finish(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
-#define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_ARG 2
+#define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_ARG 3
 #define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_RES 3
-#define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W 17
+#define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W 18
 /* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det) */
 int dc_motor_link_kern_control(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_ARG 4

@@ -217,7 +217,7 @@ int dc_motor_link_kern_update(const dc_motor_link_real** arg, dc_motor_link_real
   return 0;
 }
 
-/* dc_motor_link_kern_info:(x[3],P[3x3])->(Y[3x3],y[3],piv[3]) */
+/* dc_motor_link_kern_info:(x[3],P[3x3],c[3])->(Y[3x3],y[3],piv[3]) */
 int dc_motor_link_kern_info(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w) {
   w[0]=arg[1][0];
   w[1]=sqrt(w[0]);
@@ -283,11 +283,17 @@ int dc_motor_link_kern_info(const dc_motor_link_real** arg, dc_motor_link_real**
   w[8]=casadi_sq(w[8]);
   res[0][8]=w[8];
   w[12]=arg[0][0];
+  w[13]=arg[2][0];
+  w[12]=(w[12]-w[13]);
   w[2]=(w[2]*w[12]);
   w[13]=arg[0][1];
+  w[14]=arg[2][1];
+  w[13]=(w[13]-w[14]);
   w[4]=(w[4]*w[13]);
   w[2]=(w[2]-w[4]);
   w[4]=arg[0][2];
+  w[14]=arg[2][2];
+  w[4]=(w[4]-w[14]);
   w[3]=(w[3]*w[4]);
   w[2]=(w[2]+w[3]);
   res[1][0]=w[2];

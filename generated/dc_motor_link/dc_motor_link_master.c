@@ -36,8 +36,8 @@ static int predict_step(const real* x, const real* P, const real* v, const real*
     return DC_MOTOR_LINK_OK;
 }
 
-/* Y = P^-1, y = Y x by Cholesky. */
-static int info(const real* x, const real* P, real* Y, real* y)
+/* Y = P^-1, y = Y (x - c) by Cholesky: information about the centre c (the master's prior). */
+static int info(const real* x, const real* P, const real* c, real* Y, real* y)
 {
     real piv[NX];
     real w[DC_MOTOR_LINK_KERN_INFO_SZ_W];
@@ -45,6 +45,7 @@ static int info(const real* x, const real* P, real* Y, real* y)
     real* res[DC_MOTOR_LINK_KERN_INFO_SZ_RES];
     arg[0] = x;
     arg[1] = P;
+    arg[2] = c;
     res[0] = Y;
     res[1] = y;
     res[2] = piv;
@@ -111,7 +112,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
     if (!master || !packets || !present) {
         return DC_MOTOR_LINK_ERR_ARG;
     }
-    rc = info(master->x_prior, master->P_prior, Yacc, yacc);
+    rc = info(master->x_prior, master->P_prior, master->x_prior, Yacc, yacc);
     if (rc != DC_MOTOR_LINK_OK) {
         return rc;
     }
@@ -132,7 +133,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
         memcpy(P, pk->P, sizeof(P));
         rc = catch_up(master, pk->step, x, P);
         if (rc == DC_MOTOR_LINK_OK) {
-            rc = info(x, P, Yi, yi);
+            rc = info(x, P, master->x_prior, Yi, yi);
         }
         if (rc != DC_MOTOR_LINK_OK) {
             return rc;
@@ -141,7 +142,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
         memcpy(Pp, pk->P_pred, sizeof(Pp));
         rc = catch_up(master, pk->step, xp, Pp);
         if (rc == DC_MOTOR_LINK_OK) {
-            rc = info(xp, Pp, Ypi, ypi);
+            rc = info(xp, Pp, master->x_prior, Ypi, ypi);
         }
         if (rc != DC_MOTOR_LINK_OK) {
             return rc;
@@ -163,6 +164,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
     } else {
         arg[0] = Yacc;
         arg[1] = yacc;
+        arg[2] = master->x_prior;
         res[0] = x;
         res[1] = P;
         res[2] = piv;

@@ -263,15 +263,17 @@ int dc_motor_link_node_estimate(const dc_motor_link_node* node, real x[NX], real
 
 int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], real y[NX])
 {
-    real Yl[NXX], yl[NX], piv[NX];
+    real Yl[NXX], yl[NX], piv[NX], origin[NX];
     real w[DC_MOTOR_LINK_KERN_INFO_SZ_W];
     const real* arg[DC_MOTOR_LINK_KERN_INFO_SZ_ARG];
     real* res[DC_MOTOR_LINK_KERN_INFO_SZ_RES];
     if (!node) {
         return DC_MOTOR_LINK_ERR_ARG;
     }
+    memset(origin, 0, sizeof(origin));
     arg[0] = node->x;
     arg[1] = node->P;
+    arg[2] = origin;
     res[0] = Yl;
     res[1] = yl;
     res[2] = piv;

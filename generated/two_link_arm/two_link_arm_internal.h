@@ -24,16 +24,16 @@ int two_link_arm_kern_update(const two_link_arm_real** arg, two_link_arm_real** 
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_ARG 5
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_RES 3
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_W 49
-/* two_link_arm_kern_info:(x[6],P[6x6])->(Y[6x6],y[6],piv[6]) */
+/* two_link_arm_kern_info:(x[6],P[6x6],c[6])->(Y[6x6],y[6],piv[6]) */
 int two_link_arm_kern_info(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
-#define TWO_LINK_ARM_KERN_INFO_SZ_ARG 2
+#define TWO_LINK_ARM_KERN_INFO_SZ_ARG 3
 #define TWO_LINK_ARM_KERN_INFO_SZ_RES 3
-#define TWO_LINK_ARM_KERN_INFO_SZ_W 44
-/* two_link_arm_kern_fuse_finish:(Y[6x6],y[6])->(x[6],P[6x6],piv[6]) */
+#define TWO_LINK_ARM_KERN_INFO_SZ_W 45
+/* two_link_arm_kern_fuse_finish:(Y[6x6],y[6],c[6])->(x[6],P[6x6],piv[6]) */
 int two_link_arm_kern_fuse_finish(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
-#define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_ARG 2
+#define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_ARG 3
 #define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_RES 3
-#define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W 50
+#define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W 51
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det) */
 int two_link_arm_kern_control(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_ARG 4

@@ -959,7 +959,7 @@ int two_link_arm_kern_update(const two_link_arm_real** arg, two_link_arm_real** 
   return 0;
 }
 
-/* two_link_arm_kern_info:(x[6],P[6x6])->(Y[6x6],y[6],piv[6]) */
+/* two_link_arm_kern_info:(x[6],P[6x6],c[6])->(Y[6x6],y[6],piv[6]) */
 int two_link_arm_kern_info(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w) {
   w[0]=arg[1][0];
   w[1]=sqrt(w[0]);
@@ -1336,20 +1336,32 @@ int two_link_arm_kern_info(const two_link_arm_real** arg, two_link_arm_real** re
   w[26]=casadi_sq(w[26]);
   res[0][35]=w[26];
   w[42]=arg[0][0];
+  w[43]=arg[2][0];
+  w[42]=(w[42]-w[43]);
   w[2]=(w[2]*w[42]);
   w[43]=arg[0][1];
+  w[44]=arg[2][1];
+  w[43]=(w[43]-w[44]);
   w[32]=(w[32]*w[43]);
   w[2]=(w[2]+w[32]);
   w[32]=arg[0][2];
+  w[44]=arg[2][2];
+  w[32]=(w[32]-w[44]);
   w[9]=(w[9]*w[32]);
   w[2]=(w[2]+w[9]);
   w[9]=arg[0][3];
+  w[44]=arg[2][3];
+  w[9]=(w[9]-w[44]);
   w[14]=(w[14]*w[9]);
   w[2]=(w[2]+w[14]);
   w[14]=arg[0][4];
+  w[44]=arg[2][4];
+  w[14]=(w[14]-w[44]);
   w[20]=(w[20]*w[14]);
   w[2]=(w[2]+w[20]);
   w[20]=arg[0][5];
+  w[44]=arg[2][5];
+  w[20]=(w[20]-w[44]);
   w[3]=(w[3]*w[20]);
   w[2]=(w[2]+w[3]);
   res[1][0]=w[2];

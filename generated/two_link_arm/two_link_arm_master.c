@@ -36,8 +36,8 @@ static int predict_step(const real* x, const real* P, const real* v, const real*
     return TWO_LINK_ARM_OK;
 }
 
-/* Y = P^-1, y = Y x by Cholesky. */
-static int info(const real* x, const real* P, real* Y, real* y)
+/* Y = P^-1, y = Y (x - c) by Cholesky: information about the centre c (the master's prior). */
+static int info(const real* x, const real* P, const real* c, real* Y, real* y)
 {
     real piv[NX];
     real w[TWO_LINK_ARM_KERN_INFO_SZ_W];
@@ -45,6 +45,7 @@ static int info(const real* x, const real* P, real* Y, real* y)
     real* res[TWO_LINK_ARM_KERN_INFO_SZ_RES];
     arg[0] = x;
     arg[1] = P;
+    arg[2] = c;
     res[0] = Y;
     res[1] = y;
     res[2] = piv;
@@ -111,7 +112,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
     if (!master || !packets || !present) {
         return TWO_LINK_ARM_ERR_ARG;
     }
-    rc = info(master->x_prior, master->P_prior, Yacc, yacc);
+    rc = info(master->x_prior, master->P_prior, master->x_prior, Yacc, yacc);
     if (rc != TWO_LINK_ARM_OK) {
         return rc;
     }
@@ -132,7 +133,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
         memcpy(P, pk->P, sizeof(P));
         rc = catch_up(master, pk->step, x, P);
         if (rc == TWO_LINK_ARM_OK) {
-            rc = info(x, P, Yi, yi);
+            rc = info(x, P, master->x_prior, Yi, yi);
         }
         if (rc != TWO_LINK_ARM_OK) {
             return rc;
@@ -141,7 +142,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
         memcpy(Pp, pk->P_pred, sizeof(Pp));
         rc = catch_up(master, pk->step, xp, Pp);
         if (rc == TWO_LINK_ARM_OK) {
-            rc = info(xp, Pp, Ypi, ypi);
+            rc = info(xp, Pp, master->x_prior, Ypi, ypi);
         }
         if (rc != TWO_LINK_ARM_OK) {
             return rc;
@@ -163,6 +164,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
     } else {
         arg[0] = Yacc;
         arg[1] = yacc;
+        arg[2] = master->x_prior;
         res[0] = x;
         res[1] = P;
         res[2] = piv;

@@ -263,15 +263,17 @@ int two_link_arm_node_estimate(const two_link_arm_node* node, real x[NX], real P
 
 int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], real y[NX])
 {
-    real Yl[NXX], yl[NX], piv[NX];
+    real Yl[NXX], yl[NX], piv[NX], origin[NX];
     real w[TWO_LINK_ARM_KERN_INFO_SZ_W];
     const real* arg[TWO_LINK_ARM_KERN_INFO_SZ_ARG];
     real* res[TWO_LINK_ARM_KERN_INFO_SZ_RES];
     if (!node) {
         return TWO_LINK_ARM_ERR_ARG;
     }
+    memset(origin, 0, sizeof(origin));
     arg[0] = node->x;
     arg[1] = node->P;
+    arg[2] = origin;
     res[0] = Yl;
     res[1] = yl;
     res[2] = piv;

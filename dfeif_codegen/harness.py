@@ -1,0 +1,368 @@
+"""Compile a generated model folder with the host C compiler and run it from Python.
+
+Two ways in: a shared library loaded with ctypes (the equivalence tests and the closed loop), and a
+stand-alone program that reads the scenario from a file (sanitizers, valgrind, the Cortex-M4F).
+Both contain the scenario driver rendered from `templates/harness/driver.c.j2`, which replays a
+whole recorded scenario in one call, so a comparison is not dominated by ctypes call overhead.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import io
+import json
+import os
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from .errors import MismatchError, SetupError
+
+HOST_CFLAGS = ["-O2", "-Wall", "-Wextra", "-g"]
+SANITIZE_FLAGS = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"]
+
+
+def host_compiler_name() -> str:
+    return os.environ.get("CC", "cc")
+
+
+def host_compiler() -> str:
+    """The host C compiler ($CC, else cc), or a SetupError naming the package to install."""
+    name = host_compiler_name()
+    path = shutil.which(name)
+    if path is None:
+        raise SetupError(f"C compiler '{name}' not found: install the Debian package gcc "
+                         "(apt-get install gcc) or set CC")
+    return path
+
+
+def _cc(args: Sequence, cwd: Path | None = None) -> None:
+    cmd = [host_compiler(), *map(str, args)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=cwd)
+    if proc.returncode != 0:
+        raise SetupError(f"compiling failed: {' '.join(cmd)}\n{proc.stderr.strip()[-4000:]}")
+
+
+def compile_shared(sources: Iterable[Path], out: Path, include_dirs: Iterable[Path] = (),
+                   extra: Sequence[str] = ()) -> Path:
+    """Build a shared library from C sources. -Bsymbolic keeps each library's calls inside it:
+    every build of a model exports the same names, and a test session loads many builds.
+    No sanitizers here: ctypes cannot load ASan builds without LD_PRELOAD (see compile_program)."""
+    incs = [f"-I{d}" for d in include_dirs]
+    _cc([*HOST_CFLAGS, "-fPIC", "-shared", "-Wl,-Bsymbolic", *incs, *extra, *sources, "-lm", "-o", out])
+    return out
+
+
+def compile_program(sources: Iterable[Path], out: Path, include_dirs: Iterable[Path] = (),
+                    extra: Sequence[str] = (), sanitize: bool = False) -> Path:
+    incs = [f"-I{d}" for d in include_dirs]
+    flags = [*HOST_CFLAGS, *(SANITIZE_FLAGS if sanitize else ())]
+    _cc([*flags, *incs, *extra, *sources, "-lm", "-o", out])
+    return out
+
+
+def load(path: Path) -> ctypes.CDLL:
+    return ctypes.CDLL(str(Path(path).resolve()))
+
+
+# --- the generated model folder and the scenario driver -------------------------------------
+
+@dataclass(frozen=True)
+class ModelDir:
+    """A folder written by `codegen build`: its manifest says the model name and build options."""
+
+    path: Path
+    name: str
+    options: dict
+
+    @classmethod
+    def open(cls, path: Path) -> "ModelDir":
+        path = Path(path)
+        manifest = path / "manifest.json"
+        if not manifest.is_file():
+            raise SetupError(f"{path} is not a folder written by `codegen build` (no manifest.json)")
+        data = json.loads(manifest.read_text())
+        return cls(path, data["model"], data.get("options", {}))
+
+    @property
+    def precision(self) -> str:
+        return self.options.get("precision", "double")
+
+    @property
+    def dtype(self):
+        return np.float32 if self.precision == "float" else np.float64
+
+    def sources(self) -> list[Path]:
+        """The library's C files (not the example program)."""
+        return sorted(p for p in self.path.glob("*.c") if p.name != "example_main.c")
+
+
+def build_model(model: str, out: Path, precision: str = "double", oosm: str = "replay",
+                fusion: str = "difference", nodes: int = 2, max_lag: int = 32) -> ModelDir:
+    """Run `codegen build` into `out` and open what it wrote."""
+    from . import cli
+
+    out = Path(out)
+    args = ["build", model, "--out", str(out), "--precision", precision, "--oosm", oosm,
+            "--fusion", fusion, "--nodes", str(nodes), "--max-lag", str(max_lag)]
+    with contextlib.redirect_stdout(io.StringIO()):
+        rc = cli.main(args)
+    if rc != 0:
+        raise SetupError(f"codegen {' '.join(args)} failed with exit code {rc}")
+    found = [p.parent for p in out.rglob("manifest.json")]
+    if len(found) != 1:
+        raise SetupError(f"expected one generated model under {out}, found {len(found)}")
+    return ModelDir.open(found[0])
+
+
+def render_driver(model: ModelDir, out_dir: Path) -> Path:
+    """The scenario driver for this model, from templates/harness/driver.c.j2."""
+    from . import __version__, render
+
+    env = render.environment(model.precision)
+    text = env.get_template("harness/driver.c.j2").render(
+        p=model.name, P=model.name.upper(),
+        banner=render.banner("harness/driver.c.j2", model.name, __version__))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"{model.name}_harness.c"
+    path.write_text(text)
+    return path
+
+
+# --- scenarios: a Recording as the driver's arrays and files --------------------------------
+
+OUTPUTS = ("node_x", "node_P", "x", "P", "u", "v", "late_applied")
+
+
+def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
+    """The driver's inputs, C-contiguous, reals in the build's precision, integers int32."""
+    K = rec.ref.shape[0]
+    source = np.full((K, rec.nodes), -1, dtype=np.int32)
+    source[np.asarray(rec.pkt_step, int), np.asarray(rec.pkt_node, int)] = rec.pkt_src
+    real = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
+    int32 = lambda a: np.ascontiguousarray(a, dtype=np.int32)  # noqa: E731
+    return {
+        "node_x0": real(rec.node_x0), "node_P0": real(rec.node_P0), "R": real(rec.R), "q": real(rec.q),
+        "master_x0": real(rec.master_x0), "master_P0": real(rec.master_P0), "gains": real(rec.gains),
+        "params": real(rec.params),
+        "z": real(rec.z), "gamma": int32(rec.gamma), "ref": real(rec.ref),
+        "late_step": int32(rec.late_step), "late_node": int32(rec.late_node),
+        "late_lag": int32(rec.late_lag), "late_z": real(np.reshape(rec.late_z, (-1, rec.m))),
+        "source": source,
+    }
+
+
+def output_arrays(rec, dtype) -> dict[str, np.ndarray]:
+    K, M, n, m = rec.ref.shape[0], rec.nodes, rec.n, rec.m
+    shapes = {"node_x": (M, K, n), "node_P": (M, K, n, n), "x": (K, n), "P": (K, n, n),
+              "u": (K, m), "v": (K, m)}
+    out = {k: np.zeros(s, dtype=dtype) for k, s in shapes.items()}
+    out["late_applied"] = np.zeros(len(rec.late_step), dtype=np.int32)
+    return out
+
+
+_FILE_ORDER = ("node_x0", "node_P0", "R", "q", "master_x0", "master_P0", "gains", "params", "z", "gamma",
+               "ref", "late_step", "late_node", "late_lag", "late_z", "source")
+
+
+def write_scenario(rec, model: ModelDir, path: Path) -> Path:
+    """scenario.bin for the driver's stand-alone program (format in driver.c.j2)."""
+    arrays = scenario_arrays(rec, model.dtype)
+    head = np.array([0x43534644, 1, np.dtype(model.dtype).itemsize, rec.n, rec.m, rec.nodes,
+                     len(rec.params), rec.ref.shape[0], len(rec.late_step)], dtype="<i4")
+    with open(path, "wb") as f:
+        f.write(head.tobytes())
+        for name in _FILE_ORDER:
+            f.write(arrays[name].astype(arrays[name].dtype.newbyteorder("<")).tobytes())
+    return path
+
+
+def read_results(rec, model: ModelDir, path: Path) -> tuple[dict, dict]:
+    """results.bin -> ({status, failed_step, failed_call, stack_bytes}, outputs)."""
+    data = Path(path).read_bytes()
+    head = np.frombuffer(data[:16], dtype="<i4")
+    status = dict(zip(("status", "failed_step", "failed_call", "stack_bytes"), map(int, head)))
+    out, at = output_arrays(rec, model.dtype), 16
+    for name in OUTPUTS:
+        nbytes = out[name].nbytes
+        out[name] = np.frombuffer(data[at:at + nbytes], dtype=out[name].dtype.newbyteorder("<")) \
+            .reshape(out[name].shape).copy()
+        at += nbytes
+    if at != len(data):
+        raise SetupError(f"{path}: {len(data)} bytes, expected {at}")
+    return status, out
+
+
+CALLS = {1: "node update", 2: "node update_delayed", 3: "node packet", 4: "master fuse", 5: "control",
+         6: "predict"}
+
+
+def failure(status: dict, err: int | None = None) -> str:
+    code = status["status"] if err is None else err
+    return (f"the C failed at step {status['failed_step']} in "
+            f"{CALLS.get(status['failed_call'], 'init')} with error {code}")
+
+
+# --- the compiled model in this process --------------------------------------------------------
+
+class Library:
+    """The generated library plus its scenario driver, compiled into one shared object."""
+
+    def __init__(self, model: ModelDir, work_dir: Path, extra: Sequence[str] = (), reuse: bool = False):
+        self.model, self.p = model, model.name
+        work_dir = Path(work_dir)
+        self.path = work_dir / f"lib{self.p}_harness.so"
+        if not (reuse and self.path.is_file()):
+            driver = render_driver(model, work_dir)
+            compile_shared([*model.sources(), driver], self.path, [model.path], extra)
+        self.lib = load(self.path)
+        self.real = ctypes.c_float if model.precision == "float" else ctypes.c_double
+        self.dtype = model.dtype
+        for name in ("harness_size", "node_size", "master_size", "packet_size"):
+            getattr(self.lib, f"{self.p}_{name}").restype = ctypes.c_size_t
+        getattr(self.lib, f"{self.p}_harness_step").argtypes = [ctypes.c_void_p] * 3 + [ctypes.c_int32] + \
+            [ctypes.c_void_p] * 8 + [ctypes.c_size_t] + [ctypes.c_void_p] * 5
+
+    def sizeof(self, what: str) -> int:
+        """sizeof of a state struct: node, master, packet, harness."""
+        return int(getattr(self.lib, f"{self.p}_{what}_size")())
+
+    def start(self, rec) -> "Harness":
+        return Harness(self, rec)
+
+    def run(self, rec) -> dict[str, np.ndarray]:
+        """Replay the whole recording in one C call; the outputs, shaped as replay_recording's."""
+        return self.start(rec).run()
+
+
+def _ptr(a: np.ndarray) -> int:
+    return a.ctypes.data
+
+
+class Harness:
+    """One initialized harness state (nodes, master, packet history) inside a Library."""
+
+    _INIT = ("node_x0", "node_P0", "R", "q", "master_x0", "master_P0", "gains", "params")
+    _SCENARIO = ("z", "gamma", "ref", "late_step", "late_node", "late_lag", "late_z", "source")
+    _RESULTS = ("node_x", "node_P", "x", "P", "u", "v", "late_applied")
+
+    def __init__(self, library: Library, rec):
+        self.library, self.rec, self.lib, p = library, rec, library.lib, library.p
+        self.arrays = scenario_arrays(rec, library.dtype)
+        self.state = (ctypes.c_uint8 * library.sizeof("harness"))()
+        rc = getattr(self.lib, f"{p}_harness_init")(self.state, *(ctypes.c_void_p(_ptr(self.arrays[k])) for k in self._INIT))
+        if rc != 0:
+            raise MismatchError(f"{p}_harness_init failed with error {rc}")
+
+    def counters(self, i: int) -> dict:
+        """Node i's health counters (node[i] is the harness struct's first member)."""
+        health = (ctypes.c_uint32 * 4)()
+        node = ctypes.addressof(self.state) + i * self.library.sizeof("node")
+        getattr(self.lib, f"{self.library.p}_node_health")(ctypes.c_void_p(node), health)
+        return dict(zip(("updates", "drops", "late_applied", "late_rejected"), map(int, health)))
+    def run(self) -> dict[str, np.ndarray]:
+        a, rec = self.arrays, self.rec
+        out = output_arrays(rec, self.library.dtype)
+
+        class Scenario(ctypes.Structure):
+            _fields_ = [("steps", ctypes.c_int32), ("n_late", ctypes.c_int32)] + \
+                [(k, ctypes.c_void_p) for k in Harness._SCENARIO]
+
+        class Results(ctypes.Structure):
+            _fields_ = [(k, ctypes.c_void_p) for k in Harness._RESULTS] + \
+                [("failed_step", ctypes.c_int32), ("failed_call", ctypes.c_int32)]
+
+        s = Scenario(rec.ref.shape[0], len(rec.late_step), *(_ptr(a[k]) for k in self._SCENARIO))
+        r = Results(*(_ptr(out[k]) for k in self._RESULTS), -1, 0)
+        err = getattr(self.lib, f"{self.library.p}_harness_run")(self.state, ctypes.byref(s), ctypes.byref(r))
+        if err != 0:
+            raise MismatchError(failure({"failed_step": r.failed_step, "failed_call": r.failed_call,
+                                         "status": err}))
+        out["late_applied"] = out["late_applied"].astype(bool)
+        return out
+
+    def step(self, z, gamma, late, sources, ref):
+        """One closed-loop step, with FilterBank.step's arguments and results:
+        (late applied flags, node x list, node P list, x, P, u, v)."""
+        lib, dt = self.library, self.library.dtype
+        M, n, m = self.rec.nodes, self.rec.n, self.rec.m
+        z = np.ascontiguousarray(np.nan_to_num(np.asarray(z, dtype=float)), dtype=dt).reshape(M, m)
+        gamma = np.ascontiguousarray(gamma, dtype=np.int32)
+        late_node = np.array([e[0] for e in late], dtype=np.int32)
+        late_lag = np.array([e[1] for e in late], dtype=np.int32)
+        late_z = np.array([e[2] for e in late], dtype=dt).reshape(-1, m)
+        applied = np.zeros(len(late), dtype=np.int32)
+        sources = np.ascontiguousarray(sources, dtype=np.int32)
+        ref = np.ascontiguousarray(ref, dtype=dt)
+        nx, nP = np.zeros((M, n), dt), np.zeros((M, n, n), dt)
+        x, P, u, v = np.zeros(n, dt), np.zeros((n, n), dt), np.zeros(m, dt), np.zeros(m, dt)
+        err = ctypes.c_int(0)
+        call = getattr(lib.lib, f"{lib.p}_harness_step")(
+            self.state, _ptr(z), _ptr(gamma), len(late), _ptr(late_node), _ptr(late_lag), _ptr(late_z),
+            _ptr(applied), _ptr(sources), _ptr(ref), _ptr(nx), _ptr(nP), 1, _ptr(x), _ptr(P), _ptr(u),
+            _ptr(v), ctypes.byref(err))
+        if call:
+            raise MismatchError(failure({"failed_step": -1, "failed_call": call, "status": err.value}))
+        return list(applied.astype(bool)), list(nx), list(nP), x, P, u, v
+
+
+def filter_bank(library: Library):
+    """A drop-in for `reference.experiment.FilterBank` that runs the compiled C: the closed loop
+    (plant, cameras, network) stays in Python, the filters and the controller are the C's."""
+
+    class _Node:
+        def __init__(self, harness: Harness, i: int):
+            self.harness, self.i = harness, i
+
+        @property
+        def counters(self) -> dict:
+            return self.harness.counters(self.i)
+
+    class CFilterBank:
+        def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion):
+            opts = library.model.options
+            for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R))):
+                if key in opts and opts[key] != want:
+                    raise SetupError(f"the C was built with {key} = {opts[key]}, the run needs {want}")
+            init = SimpleNamespace(nodes=len(R), n=flat.n, m=flat.m, ref=np.zeros((0, flat.n + flat.m)),
+                                   pkt_step=[], pkt_node=[], pkt_src=[], z=np.zeros((len(R), 0, flat.m)),
+                                   gamma=np.zeros((len(R), 0)), late_step=[], late_node=[], late_lag=[],
+                                   late_z=np.zeros((0, flat.m)), node_x0=node_x0, node_P0=node_P0, R=R, q=q,
+                                   master_x0=master_x0, master_P0=master_P0, gains=gains,
+                                   params=flat.param_vector)
+            self.harness = Harness(library, init)
+            self.nodes = [_Node(self.harness, i) for i in range(len(R))]
+
+        def step(self, k, z, gamma, late, sources, ref):
+            return self.harness.step(z, gamma, late, sources, ref)
+
+    return CFilterBank
+
+
+def run_program(model: ModelDir, rec, work: Path, sanitize: bool = False, timeout: float = 600.0,
+                wrapper: Sequence[str] = ()) -> tuple[dict, dict]:
+    """The driver as a stand-alone host program (scenario.bin in, results.bin out), optionally
+    with AddressSanitizer and UBSan, or under a `wrapper` such as valgrind."""
+    work = Path(work)
+    driver = render_driver(model, work)
+    exe = compile_program([*model.sources(), driver], work / f"{model.name}_harness", [model.path],
+                          ["-DHARNESS_MAIN"], sanitize=sanitize)
+    write_scenario(rec, model, work / "scenario.bin")
+    (work / "results.bin").unlink(missing_ok=True)
+    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:exitcode=86",
+               UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:exitcode=87")
+    proc = subprocess.run([*wrapper, str(exe)], cwd=work, capture_output=True, text=True, env=env,
+                          timeout=timeout)
+    if proc.returncode not in (0, 4) or not (work / "results.bin").is_file():
+        raise MismatchError(f"{exe.name} exited with {proc.returncode}:\n{(proc.stdout + proc.stderr)[-4000:]}")
+    status, out = read_results(rec, model, work / "results.bin")
+    if status["status"] != 0:
+        raise MismatchError(failure(status))
+    out["late_applied"] = out["late_applied"].astype(bool)
+    return status, out

@@ -1,0 +1,222 @@
+"""`codegen verify`: run the generated C on a recorded scenario and compare it with the reference.
+
+Relative error, per signal (node i's x and P, the master's x and P, u, v), worst over the run:
+
+- a vector signal (x, u, v), component c at step t:
+  `|C - ref| / max(|ref|, rms_c)`, where `rms_c` is the root mean square of that component over
+  the run: a plain relative error where the value is large, and relative to the component's
+  typical size where it crosses zero (a relative error there would divide by ~0).
+- a covariance, entry (i, j) at step t: `|C - ref| / sqrt(P_ii P_jj)` with the reference's
+  diagonal at that step. For a diagonal entry that is the plain relative error; off the diagonal it
+  is the error in correlation units (|P_ij| <= sqrt(P_ii P_jj), so this is again max(|ref|, scale)).
+  Covariances shrink by orders of magnitude from P0 to steady state, so no scale fixed over the run
+  would do.
+A reference that is exactly zero with its scale zero must be matched exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import MismatchError, ScenarioError, SetupError
+
+TINY = np.finfo(float).tiny
+
+
+@dataclass(frozen=True)
+class SignalError:
+    signal: str
+    worst: float      # worst relative error over the run
+    step: int         # where it occurs
+    index: tuple      # component (or matrix entry) where it occurs
+    tol: float
+
+    @property
+    def ok(self) -> bool:
+        return bool(self.worst <= self.tol)
+
+
+def relative_error(got: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Elementwise relative error of a time series (steps first): vectors (K, n) or covariances
+    (K, n, n), as documented in the module docstring."""
+    got, ref = np.asarray(got, dtype=float), np.asarray(ref, dtype=float)
+    if got.shape != ref.shape:
+        raise ValueError(f"shape {got.shape} differs from the reference's {ref.shape}")
+    diff = np.abs(got - ref)
+    if ref.ndim == 3 and ref.shape[1] == ref.shape[2]:
+        d = np.sqrt(np.abs(np.diagonal(ref, axis1=1, axis2=2)))
+        scale = d[:, :, None] * d[:, None, :]
+    else:
+        rms = np.sqrt(np.mean(ref ** 2, axis=0, keepdims=True))
+        scale = np.maximum(np.abs(ref), rms)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        err = np.where(scale > 0, diff / np.maximum(scale, TINY), np.where(diff > 0, np.inf, 0.0))
+    return np.where(np.isnan(got) & ~np.isnan(ref), np.inf, err)
+
+
+def compare(got: dict[str, np.ndarray], ref: dict[str, np.ndarray], tol: float | dict) -> list[SignalError]:
+    """Worst relative error per signal; `tol` one number or one per signal name."""
+    out = []
+    for name, want in ref.items():
+        err = relative_error(got[name], want)
+        at = np.unravel_index(int(np.argmax(err)), err.shape) if err.size else (0,)
+        limit = tol[name] if isinstance(tol, dict) else tol
+        out.append(SignalError(name, float(err[at]) if err.size else 0.0, int(at[0]),
+                               tuple(int(i) for i in at[1:]), float(limit)))
+    return out
+
+
+def table(errors: list[SignalError]) -> str:
+    """One line per signal: worst relative error, where, tolerance, PASS/FAIL."""
+    rows = [("signal", "worst rel. error", "step", "index", "tolerance", "")]
+    rows += [(e.signal, f"{e.worst:.3e}", str(e.step), ",".join(map(str, e.index)) or "-",
+              f"{e.tol:.0e}", "PASS" if e.ok else "FAIL") for e in errors]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
+
+
+def check(errors: list[SignalError]) -> None:
+    bad = [e for e in errors if not e.ok]
+    if bad:
+        worst = max(bad, key=lambda e: e.worst / e.tol)
+        raise MismatchError(f"{len(bad)} signal(s) differ from the reference; worst {worst.signal}: "
+                            f"{worst.worst:.3e} > {worst.tol:.0e} at step {worst.step}")
+
+
+# --- what is compared ---------------------------------------------------------------------------
+
+# double: everything to round-off. float: the estimates to 1e-4 of their scale; u and v to 1e-3,
+# because v = y_d^(r) - sum k e multiplies the position error by the largest gain (lambda^r, 1000
+# for the paper's poles) and u = G^-1 (v - F) inherits that.
+TOLERANCE = {"double": {"x": 1e-10, "P": 1e-10, "u": 1e-10, "v": 1e-10},
+             "float": {"x": 1e-4, "P": 1e-4, "u": 1e-3, "v": 1e-3}}
+
+
+def signals(out: dict, nodes: int) -> dict[str, np.ndarray]:
+    """Outputs (as replay_recording returns them) as named time series, steps first."""
+    named = {}
+    for i in range(nodes):
+        named[f"node{i}.x"], named[f"node{i}.P"] = out["node_x"][i], out["node_P"][i]
+    named["master.x"], named["master.P"] = out["x"], out["P"]
+    named["u"], named["v"] = out["u"], out["v"]
+    return named
+
+
+def tolerances(names, precision: str) -> dict[str, float]:
+    tol = TOLERANCE[precision]
+    return {name: tol[name.rsplit(".", 1)[-1]] for name in names}
+
+
+def reference_outputs(rec) -> dict[str, np.ndarray]:
+    """What the Python reference computed in the closed loop (replay_recording gives the same
+    numbers bit for bit, see reference/experiment.py)."""
+    return {k: np.asarray(getattr(rec, k)) for k in ("late_applied", "node_x", "node_P", "x", "P", "u", "v")}
+
+
+def compare_run(got: dict, rec, precision: str) -> list[SignalError]:
+    """Every signal of a C run against the recording; late measurements accepted/rejected must
+    agree exactly (a disagreement is reported as an infinite error on 'late_applied')."""
+    want = reference_outputs(rec)
+    named_ref = signals(want, rec.nodes)
+    errors = compare(signals(got, rec.nodes), named_ref, tolerances(named_ref, precision))
+    same = np.array_equal(np.asarray(got["late_applied"], bool), np.asarray(want["late_applied"], bool))
+    bad = np.nonzero(np.asarray(got["late_applied"], bool) != np.asarray(want["late_applied"], bool))[0]
+    step = int(rec.late_step[bad[0]]) if bad.size else 0
+    errors.append(SignalError("late_applied", 0.0 if same else np.inf, step, (), 0.0))
+    return errors
+
+
+# --- recorded scenarios ---------------------------------------------------------------------------
+
+def record(*args, **kw):
+    """The Recording of `closed_loop(...)`: every input event and every reference output."""
+    return closed_loop(*args, **kw).recording
+
+
+def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", reference: str = "sinusoid",
+                row: int = 2, nodes: int = 2, max_lag: int = 32, seed: int = 0, duration: float | None = None,
+                uplink=None, sensor_drop: float | None = None):
+    """One closed-loop run of the paper scenario (scenarios/paper.toml) with the Python reference
+    (an experiment.Result). `row` indexes the paper's delay grid; `uplink` (a network Link) makes
+    node -> master packets late or lost; `sensor_drop` adds camera frame drops."""
+    import dataclasses
+
+    from . import scenario, simulate
+    from .reference import experiment
+
+    sc = scenario.load("paper")
+    cfg = simulate.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
+    changes = {}
+    if duration is not None:
+        changes["duration"] = duration
+        changes["metrics_from"] = min(cfg.metrics_from, duration / 2)
+    if uplink is not None:
+        changes["uplink"] = tuple(uplink for _ in range(nodes))
+    if sensor_drop is not None:
+        changes["sensor"] = tuple(dataclasses.replace(s, p_drop=sensor_drop) for s in cfg.sensor)
+    return experiment.run(dataclasses.replace(cfg, **changes))
+
+
+# --- the command ------------------------------------------------------------------------------------
+
+VERIFY_ROW = 1        # the paper grid's (4, 6, 0.8): late measurements that every method survives
+
+
+def run(args) -> int:
+    """`codegen verify`: build into a temporary folder, record the paper scenario (delay row
+    (4, 6, 0.8), sinusoid, 20 s) with the reference, run the C on it, print the worst errors."""
+    import tempfile
+    from pathlib import Path
+
+    from . import harness, target
+
+    precision = args.precision or ("float" if args.target == "cortex-m4f" else "double")
+    oosm, fusion = args.oosm or "replay", args.fusion or "difference"
+    if args.target == "host":
+        harness.host_compiler()
+    else:
+        for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm"):
+            target.require(tool)
+        target.require_newlib()
+        if args.sanitize:
+            raise SetupError("--sanitize applies to --target host only")
+    with tempfile.TemporaryDirectory(prefix="codegen-verify-") as tmp:
+        work = Path(tmp)
+        model = harness.build_model(args.model, work / "gen", precision, oosm, fusion, args.nodes, args.max_lag)
+        print(f"codegen verify: {model.name}, {precision}, oosm {oosm}, fusion {fusion}, "
+              f"{args.nodes} nodes, max lag {args.max_lag}, target {args.target}"
+              f"{' with ASan+UBSan' if args.sanitize else ''}")
+        try:
+            rec = record(args.model, oosm, fusion, "sinusoid", VERIFY_ROW, args.nodes, args.max_lag)
+        except (ArithmeticError, np.linalg.LinAlgError) as exc:
+            raise ScenarioError(f"the Python reference itself failed on the scenario ({type(exc).__name__}: "
+                                f"{exc}), so there is nothing to compare the C with") from exc
+        K = rec.ref.shape[0]
+        print(f"scenario: paper, sinusoid, delays {_row_label(VERIFY_ROW)}, {K} steps, "
+              f"{len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
+        extra = ""
+        if args.target == "cortex-m4f":
+            result = target.run_scenario(model, rec, work / "target")
+            if result.status["status"] != 0:
+                raise MismatchError(harness.failure(result.status))
+            got, extra = result.outputs, target.report(result)
+        elif args.sanitize:
+            got = harness.run_program(model, rec, work / "host", sanitize=True)[1]
+        else:
+            got = harness.Library(model, work / "host").run(rec)
+        errors = compare_run(got, rec, precision)
+        print(table(errors))
+        if extra:
+            print(extra)
+        check(errors)
+        print("PASS")
+    return 0
+
+
+def _row_label(row: int) -> str:
+    from . import scenario
+
+    r = scenario.load("paper").grid[row]
+    return f"d = {tuple(r.d)}, p = {r.p}"
