@@ -42,7 +42,8 @@ def parser() -> argparse.ArgumentParser:
 
     def filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
         p.add_argument("--max-lag", type=int, default=32, metavar="N", help="late-measurement window (default 32)")
-        p.add_argument("--nodes", type=int, default=2, metavar="M", help="camera nodes (default 2)")
+        p.add_argument("--nodes", type=int, default=None if many else 2, metavar="M",
+                       help="camera nodes (default: " + ("the scenario's)" if many else "2)"))
         kind = dict(action="append") if many else dict(default=None)
         p.add_argument("--oosm", choices=["retrodict", "replay"], **kind,
                        help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))

@@ -1,0 +1,354 @@
+"""One closed-loop run of the chapter's experiment (section 7), and its complete recording.
+
+Order of one step k (docs/algorithms.md): cameras measure the true plant -> each node `update`s
+with its on-time frame (or a drop) -> each node applies the late frames arriving at k, in arrival
+order -> node packets travel to the master (maybe late or lost) -> master `fuse` -> control on the
+fused estimate -> the plant integrates over [k Ts, (k+1) Ts] with u held -> master and nodes
+`predict(v)`.
+
+Everything the filters see goes into a `Recording`, and `replay_recording` re-runs the filters
+and the controller from it alone (open loop, no plant): the scenario format the C harness
+consumes, and a proof that the recording is complete (the replay equals the run bit for bit).
+
+Baselines: `discard` throws late frames away; `as-current` feeds the freshest late frame to the
+step's update as if taken now (when the step has no on-time frame; one frame per update).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from functools import lru_cache
+
+import numpy as np
+
+from .. import flatness
+from .. import model as model_mod
+from .control import FlatController
+from .fusion import Master
+from .linalg import wrap
+from .network import Link, Network
+from .node import NodeFilter
+from .plant import Camera, Plant
+from .trajectory import Reference, flags
+
+OOSM = ("replay", "retrodict")
+BASELINES = ("discard", "as-current")
+METHODS = OOSM + BASELINES
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything one run needs, as plain picklable data (per-chain values broadcast)."""
+
+    model: str = "dc_motor_link"
+    ts: float | None = None           # None: the model's
+    duration: float = 20.0
+    substeps: int = 10                # RK4 steps per sampling period
+    q: tuple = (1.0,)                 # process-noise density per chain
+    poles: tuple = (5.0,)             # controller: every pole of chain j at -poles[j]
+    p0_std: tuple = (0.05, 0.1, 1.0)  # initial std per derivative order (y, y', y'', ...)
+    initial_error: bool = True        # draw the true initial state from N(estimate, P0)
+    reference: str = "sinusoid"
+    amplitude: tuple = (1.0,)
+    period: float = 5.0
+    offset: tuple = (0.0,)
+    harmonics: int = 4
+    noise_scale: tuple = (1.0, 1.0)   # per node, times the model's camera noise
+    noise_std: tuple = (None, None)   # per node: std per channel, or None for the model's
+    sensor: tuple = (Link(), Link())  # camera -> node link per node
+    uplink: tuple = (Link(), Link())  # node -> master link per node
+    max_lag: int = 32
+    method: str = "replay"            # one of METHODS
+    fusion: str = "difference"
+    seed: int = 0
+    metrics_from: float = 1.0         # [s] metrics skip the initial transient
+
+
+@dataclass
+class Recording:
+    """Every input the filters saw and every output they gave, as numpy arrays (`np.savez`).
+
+    Meta: model spec, sizes, methods, ts, q (m), R (M, m, m), initial x0/P0 of the nodes
+    (M, n), (M, n, n) and master, controller gains (n, chain by chain k_1..k_r), params, seed.
+    Per step k: z (M, K, m) and gamma (M, K) of each node's `update` (z is 0 where gamma is 0),
+    ref (K, n + m). Late events in the order applied: late_step, late_node, late_lag, late_z
+    (E, m). Packets fused by the master: pkt_step (master step), pkt_node, pkt_src (source step).
+    Outputs: late_applied (E), node_x (M, K, n) and node_P after the step's updates, master x, P
+    after fuse, u, v.
+    """
+
+    model: str
+    n: int
+    m: int
+    nodes: int
+    max_lag: int
+    method: str           # replay | retrodict | discard | as-current
+    oosm: str             # what the node filters were built with
+    fusion: str
+    ts: float
+    q: np.ndarray
+    R: np.ndarray
+    node_x0: np.ndarray
+    node_P0: np.ndarray
+    master_x0: np.ndarray
+    master_P0: np.ndarray
+    gains: np.ndarray
+    params: np.ndarray
+    seed: int
+    z: np.ndarray
+    gamma: np.ndarray
+    ref: np.ndarray
+    late_step: np.ndarray
+    late_node: np.ndarray
+    late_lag: np.ndarray
+    late_z: np.ndarray
+    pkt_step: np.ndarray
+    pkt_node: np.ndarray
+    pkt_src: np.ndarray
+    late_applied: np.ndarray
+    node_x: np.ndarray
+    node_P: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+
+    def save(self, path) -> None:
+        np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
+
+    @classmethod
+    def load(cls, path) -> "Recording":
+        with np.load(path) as data:
+            values = {f.name: data[f.name] for f in fields(cls)}
+        for name in ("model", "method", "oosm", "fusion"):
+            values[name] = str(values[name])
+        for name in ("n", "m", "nodes", "max_lag", "seed"):
+            values[name] = int(values[name])
+        values["ts"] = float(values["ts"])
+        return cls(**values)
+
+
+@dataclass
+class Result:
+    """One run: the recording, the true canonical state, time series for figures, metrics."""
+
+    config: Config
+    t: np.ndarray
+    zeta: np.ndarray          # true canonical state (K, n)
+    x_true: np.ndarray        # true physical state (K, n)
+    delays: np.ndarray        # camera lag per node and step (-1 dropped)
+    recording: Recording
+    counters: list[dict]
+    metrics: dict = field(default_factory=dict)
+
+
+# --- the filter side, shared by the closed loop and the replay ----------------------------------
+
+class FilterBank:
+    """Nodes, master and controller, stepped exactly as the protocol says."""
+
+    def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion):
+        self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm)
+                      for i in range(len(R))]
+        self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag)
+        self.control = FlatController(flat, gains=gains)
+        self.max_lag = max_lag
+        self.sent: list[dict[int, object]] = [{} for _ in self.nodes]
+
+    def step(self, k, z, gamma, late, sources, ref):
+        """`late`: (node, lag, z) in arrival order; `sources[i]`: source step of node i's packet
+        fused now (-1: none). Returns (late applied flags, node x, node P, x, P, u, v)."""
+        for node, zi, gi in zip(self.nodes, z, gamma):
+            node.update(zi if gi else None, bool(gi))
+        applied = [self.nodes[i].update_delayed(zl, lag) for i, lag, zl in late]
+        for node, sent in zip(self.nodes, self.sent):
+            sent[k] = node.packet()
+            sent.pop(k - self.max_lag - 1, None)
+        self.master.fuse([sent.get(s) if s >= 0 else None for sent, s in zip(self.sent, sources)])
+        u, v = self.control(self.master.x, ref)
+        out = (applied, [nd.x.copy() for nd in self.nodes], [nd.P.copy() for nd in self.nodes],
+               self.master.x.copy(), self.master.P.copy(), u, v)
+        for node in self.nodes:
+            node.predict(v)
+        self.master.predict(v)
+        return out
+
+
+class _Outputs:
+    """Collects what FilterBank.step returns into the recording's arrays."""
+
+    def __init__(self, M, K, n, m):
+        self.node_x, self.node_P = np.zeros((M, K, n)), np.zeros((M, K, n, n))
+        self.x, self.P = np.zeros((K, n)), np.zeros((K, n, n))
+        self.u, self.v = np.zeros((K, m)), np.zeros((K, m))
+        self.applied: list[bool] = []
+
+    def put(self, k, out):
+        applied, nx, nP, x, P, u, v = out
+        self.applied += applied
+        self.node_x[:, k], self.node_P[:, k] = nx, nP
+        self.x[k], self.P[k], self.u[k], self.v[k] = x, P, u, v
+
+
+def replay_recording(rec: Recording) -> dict[str, np.ndarray]:
+    """Re-run only the filters and the controller from a recording (no plant, no network) and
+    return the outputs: late_applied, node_x, node_P, x, P, u, v."""
+    flat = _flat(rec.model)
+    bank = FilterBank(flat, rec.ts, rec.q, rec.R, rec.node_x0, rec.node_P0, rec.master_x0, rec.master_P0,
+                      rec.gains, rec.max_lag, rec.oosm, rec.fusion)
+    K = rec.ref.shape[0]
+    out = _Outputs(rec.nodes, K, rec.n, rec.m)
+    late_at = np.searchsorted(rec.late_step, np.arange(K + 1))
+    sources = np.full((K, rec.nodes), -1, dtype=int)
+    sources[rec.pkt_step, rec.pkt_node] = rec.pkt_src
+    for k in range(K):
+        late = [(int(rec.late_node[e]), int(rec.late_lag[e]), rec.late_z[e]) for e in range(late_at[k], late_at[k + 1])]
+        out.put(k, bank.step(k, rec.z[:, k], rec.gamma[:, k], late, sources[k], rec.ref[k]))
+    return {"late_applied": np.array(out.applied, dtype=bool), "node_x": out.node_x, "node_P": out.node_P,
+            "x": out.x, "P": out.P, "u": out.u, "v": out.v}
+
+
+# --- the closed loop ------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def _flat(spec: str):
+    return flatness.derive(model_mod.load(spec))
+
+
+@lru_cache(maxsize=None)
+def _plant(spec: str, ts: float, substeps: int) -> Plant:
+    return Plant(_flat(spec).model, ts, substeps)
+
+
+@lru_cache(maxsize=None)
+def _camera(spec: str, scale: float, std) -> Camera:
+    return Camera(_flat(spec).model, std=std, scale=scale)
+
+
+def _per_chain(values, m) -> np.ndarray:
+    return np.broadcast_to(np.asarray(values, dtype=float), (m,)).copy()
+
+
+def initial_covariance(flat, p0_std) -> np.ndarray:
+    """P0 = diag(std^2), std per derivative order, the same for every chain."""
+    std = np.asarray(p0_std, dtype=float)
+    if std.size < max(flat.degrees):
+        raise ValueError(f"p0_std needs {max(flat.degrees)} entries (one per derivative order)")
+    return np.diag(np.concatenate([std[:r] for r in flat.degrees]) ** 2)
+
+
+def references(cfg: Config, m: int) -> list[Reference]:
+    amp, off = _per_chain(cfg.amplitude, m), _per_chain(cfg.offset, m)
+    return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics) for j in range(m)]
+
+
+def state_of_flags(flat, ref_flags) -> np.ndarray:
+    """The canonical state the reference flags describe (drop each chain's top derivative)."""
+    return np.concatenate([ref_flags[c.offset + j:c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
+
+
+def run(cfg: Config) -> Result:
+    """One closed-loop run, reproducible from `cfg.seed`."""
+    if cfg.method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, not {cfg.method!r}")
+    flat = _flat(cfg.model)
+    model = flat.model
+    ts = float(cfg.ts or model.ts)
+    n, m, M = flat.n, flat.m, len(cfg.sensor)
+    K = int(round(cfg.duration / ts))
+    plant = _plant(cfg.model, ts, cfg.substeps)
+    cams = [_camera(cfg.model, float(s), None if std is None else tuple(std))
+            for s, std in zip(cfg.noise_scale, cfg.noise_std)]
+    refs = references(cfg, m)
+    t = np.arange(K) * ts
+    ref = np.array([flags(refs, flat.degrees, tk) for tk in t])
+
+    net_rng, noise_rng, init_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(3))
+    net = Network(list(cfg.sensor), list(cfg.uplink), K, net_rng)
+    noise = [noise_rng.standard_normal((K, len(c.channels))) for c in cams]
+    P0 = initial_covariance(flat, cfg.p0_std)
+    x_hat0 = state_of_flags(flat, ref[0])     # everyone starts at the reference's start
+    zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
+    x = flat.phi_inv_num(zeta0)
+
+    q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
+    R = np.array([c.R for c in cams])
+    oosm = cfg.method if cfg.method in OOSM else "replay"
+    node_x0, node_P0 = np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1))
+    bank = FilterBank(flat, ts, q, R, node_x0, node_P0, x_hat0, P0, gains, cfg.max_lag, oosm, cfg.fusion)
+
+    frames = np.zeros((M, K, m))
+    z, gamma = np.zeros((M, K, m)), np.zeros((M, K), dtype=np.int8)
+    late_rows: list[tuple] = []
+    zeta, x_true = np.zeros((K, n)), np.zeros((K, n))
+    out = _Outputs(M, K, n, m)
+    for k in range(K):
+        x_true[k], zeta[k] = x, flat.phi_num(x)
+        late = []
+        for i in range(M):
+            frames[i, k] = cams[i].measure(x, noise[i][k])
+            arriving = net.late[i].get(k, [])
+            if net.lag[i, k] == 0:
+                z[i, k], gamma[i, k] = frames[i, k], 1
+            elif cfg.method == "as-current" and arriving:
+                z[i, k], gamma[i, k] = frames[i, k - min(arriving)], 1
+            if cfg.method in OOSM:
+                late += [(i, lag, frames[i, k - lag]) for lag in arriving]
+        late_rows += [(k, i, lag, zl) for i, lag, zl in late]
+        out.put(k, bank.step(k, z[:, k], gamma[:, k], late, net.source[:, k], ref[k]))
+        x = plant.step(x, out.u[k])
+        if not np.all(np.isfinite(x)):
+            raise FloatingPointError(f"the closed loop diverged at t = {t[k]:.2f} s ({cfg.method}, {cfg.fusion})")
+
+    pk, pn = np.nonzero(net.source.T >= 0)
+    rec = Recording(
+        model=cfg.model, n=n, m=m, nodes=M, max_lag=cfg.max_lag, method=cfg.method, oosm=oosm,
+        fusion=cfg.fusion, ts=ts, q=q, R=R, node_x0=node_x0, node_P0=node_P0, master_x0=x_hat0,
+        master_P0=P0, gains=gains, params=flat.param_vector, seed=cfg.seed, z=z, gamma=gamma, ref=ref,
+        late_step=np.array([r[0] for r in late_rows], dtype=int),
+        late_node=np.array([r[1] for r in late_rows], dtype=int),
+        late_lag=np.array([r[2] for r in late_rows], dtype=int),
+        late_z=np.array([r[3] for r in late_rows]).reshape(-1, m),
+        pkt_step=pk, pkt_node=pn, pkt_src=net.source.T[pk, pn],
+        late_applied=np.array(out.applied, dtype=bool), node_x=out.node_x, node_P=out.node_P,
+        x=out.x, P=out.P, u=out.u, v=out.v)
+    result = Result(cfg, t, zeta, x_true, net.lag.copy(), rec, [dict(nd.counters) for nd in bank.nodes])
+    result.metrics = metrics(result)
+    return result
+
+
+# --- metrics ----------------------------------------------------------------------------------------
+
+def _errors(flat, est, zeta) -> np.ndarray:
+    err = est - zeta
+    for c in flat.chains:
+        if c.angle:
+            err[..., c.offset] = wrap(err[..., c.offset], True)
+    return err
+
+
+def _nees(err, P) -> np.ndarray:
+    return np.einsum("...i,...i->...", err, np.linalg.solve(P, err[..., None])[..., 0])
+
+
+def metrics(res: Result) -> dict:
+    """Per run, from `metrics_from` on: estimation RMSE per canonical state (nodes, master),
+    mean tr P, NEES per step (averaged later over runs), tracking RMSE of the true plant."""
+    flat = _flat(res.config.model)
+    rec = res.recording
+    k0 = min(int(round(res.config.metrics_from / rec.ts)), len(res.t) - 1)
+    zeta = res.zeta[k0:]
+    node_err = _errors(flat, rec.node_x[:, k0:], zeta[None])
+    err = _errors(flat, rec.x[k0:], zeta)
+    track = _errors(flat, zeta, np.array([state_of_flags(flat, r) for r in rec.ref[k0:]]))
+    return {
+        "rmse_nodes": np.sqrt(np.mean(node_err ** 2, axis=1)),
+        "rmse_master": np.sqrt(np.mean(err ** 2, axis=0)),
+        "trace_nodes": np.trace(rec.node_P[:, k0:], axis1=2, axis2=3).mean(axis=1),
+        "trace_master": np.trace(rec.P[k0:], axis1=1, axis2=2).mean(),
+        "nees_nodes": _nees(node_err, rec.node_P[:, k0:]),
+        "nees_master": _nees(err, rec.P[k0:]),
+        "rmse_tracking": np.sqrt(np.mean(track ** 2, axis=0)),
+        "late_applied": sum(c["late_applied"] for c in res.counters),
+        "late_rejected": sum(c["late_rejected"] for c in res.counters),
+    }

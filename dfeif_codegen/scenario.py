@@ -1,0 +1,256 @@
+"""Experiment scenarios: the built-in "paper" one (scenarios/paper.toml) or a user's TOML file.
+
+A scenario fixes everything `codegen simulate` runs except the model: run length, filter and
+controller tuning, the reference, the cameras, the network and the delay grid (the rows of the
+chapter's tables). Every problem is one `ScenarioError` line naming the file, line and field.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+from .errors import ScenarioError
+from .model import _key_lines
+from .reference.experiment import BASELINES, OOSM
+from .reference.fusion import RULES
+from .reference.network import Link
+from .reference.trajectory import KINDS
+
+BUILTIN = ("paper",)
+
+_ALLOWED = {
+    "scenario": {"name", "description", "duration", "ts", "runs", "substeps", "metrics_from", "references",
+                 "oosm", "fusion", "baselines"},
+    "filter": {"q", "p0_std", "initial_error"},
+    "control": {"poles"},
+    "reference": {"amplitude", "period", "offset", "harmonics"},
+    "nodes": {"noise_scale", "noise_std"},
+    "uplink": {"p", "d", "p_drop"},
+    "grid": {"d", "p", "p_drop"},
+}
+
+
+@dataclass
+class Row:
+    """One row of the tables: per node (d_i, p, p_drop) on the camera -> node link."""
+
+    d: list[int]
+    p: float
+    p_drop: float = 0.0
+
+    def links(self, nodes: int) -> tuple[Link, ...]:
+        return tuple(Link(self.p, self.d[i % len(self.d)], self.p_drop) for i in range(nodes))
+
+    @property
+    def label(self) -> tuple:
+        return (*self.d, self.p)
+
+
+@dataclass
+class Scenario:
+    name: str
+    source: str
+    description: str = ""
+    duration: float = 20.0
+    ts: float | None = None
+    runs: int = 5
+    substeps: int = 10
+    metrics_from: float = 1.0
+    references: list[str] = field(default_factory=lambda: list(KINDS))
+    oosm: list[str] = field(default_factory=lambda: ["replay"])
+    fusion: list[str] = field(default_factory=lambda: ["difference"])
+    baselines: list[str] = field(default_factory=lambda: list(BASELINES))
+    q: list[float] = field(default_factory=lambda: [20.0])
+    p0_std: list[float] = field(default_factory=lambda: [0.05, 0.1, 1.0])
+    initial_error: bool = True
+    poles: list[float] = field(default_factory=lambda: [10.0])
+    amplitude: list[float] = field(default_factory=lambda: [1.0])
+    period: float = 5.0
+    offset: list[float] = field(default_factory=lambda: [0.0])
+    harmonics: int = 4
+    noise_scale: list[float] = field(default_factory=lambda: [1.0, 1.0])
+    noise_std: list[list[float] | None] = field(default_factory=lambda: [None, None])
+    uplink: Link = field(default_factory=Link)
+    grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
+    _lines: dict = field(default_factory=dict, repr=False)
+
+    def where(self, key: str) -> str:
+        """`file:line: key`; entry i of an array of tables is looked up as `grid#i` and shown as `grid[i+1]`."""
+        head = key.split(".")[0]
+        inside = [n for k, n in self._lines.items() if k.startswith(head + ".")]
+        line = self._lines.get(key) or self._lines.get(head) or (min(inside) if inside else None)
+        shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
+        return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
+
+    def check_model(self, flat) -> None:
+        """What depends on the model: per-chain lengths, P0 orders, camera noise."""
+        m = flat.m
+        for key, values in (("filter.q", self.q), ("control.poles", self.poles),
+                            ("reference.amplitude", self.amplitude), ("reference.offset", self.offset)):
+            if len(values) not in (1, m):
+                raise ScenarioError(f"{self.where(key)}: needs 1 or {m} values (one per flat output) "
+                                    f"for model {flat.model.name}, got {len(values)}")
+        if len(self.p0_std) < max(flat.degrees):
+            raise ScenarioError(f"{self.where('filter.p0_std')}: needs {max(flat.degrees)} values (one per "
+                                f"derivative order) for model {flat.model.name}, got {len(self.p0_std)}")
+        meas = flat.model.measurement
+        channels = len(meas.observe) if meas else m
+        for i, std in enumerate(self.noise_std):
+            if std is None and meas is None:
+                raise ScenarioError(f"{self.where('nodes')}: node {i + 1}: model {flat.model.name} has no "
+                                    f"[measurement], so noise_std (one per flat output) is required")
+            if std is not None and len(std) not in (1, channels):
+                raise ScenarioError(f"{self.where('nodes')}: node {i + 1}: noise_std needs 1 or {channels} "
+                                    f"values (one per camera channel), got {len(std)}")
+
+
+# --- parsing ----------------------------------------------------------------------------------
+
+def load(spec: str) -> Scenario:
+    """A built-in scenario by name, or a path to a scenario `.toml` file."""
+    if spec in BUILTIN:
+        text = (resources.files("dfeif_codegen") / "scenarios" / f"{spec}.toml").read_text(encoding="utf-8")
+        return loads(text, f"{spec}.toml")
+    path = Path(spec)
+    if path.suffix != ".toml" and not path.exists():
+        raise ScenarioError(f"{spec}: not a built-in scenario ({', '.join(BUILTIN)}) nor a .toml file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(f"{spec}: cannot read scenario file ({exc.strerror})") from None
+    return loads(text, spec)
+
+
+def loads(text: str, source: str = "<string>") -> Scenario:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
+    lines = _key_lines(text)
+    sc = Scenario(name=Path(source).stem, source=source, _lines=lines)
+    where = sc.where
+
+    def fail(key: str, message: str):
+        raise ScenarioError(f"{where(key)}: {message}")
+
+    for section, value in data.items():
+        if section not in _ALLOWED:
+            fail(section, f"unknown section [{section}] (expected one of {', '.join(sorted(_ALLOWED))})")
+        tables = value if section in ("nodes", "grid") else [value]
+        if not isinstance(value, (dict, list)) or not all(isinstance(t, dict) for t in tables):
+            kind = f"[[{section}]] entries" if section in ("nodes", "grid") else f"a [{section}] table"
+            fail(section, f"must be {kind}")
+        for i, table in enumerate(tables):
+            for key in table:
+                if key not in _ALLOWED[section]:
+                    fail(f"{section}#{i}.{key}" if section in ("nodes", "grid") else f"{section}.{key}", f"unknown field (expected one of {', '.join(sorted(_ALLOWED[section]))})")
+
+    def number(table, section, key, default, positive=False, allow_zero=True, integer=False):
+        value = table.get(key, default)
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if integer:
+            ok = ok and float(value).is_integer()
+        if ok and value != value:
+            ok = False
+        if ok and positive and (value < 0 or (value == 0 and not allow_zero)):
+            ok = False
+        if not ok:
+            kind = "an integer" if integer else "a number"
+            sign = " > 0" if positive and not allow_zero else (" >= 0" if positive else "")
+            fail(f"{section}.{key}", f"must be {kind}{sign}, got {value!r}")
+        return int(value) if integer else float(value)
+
+    def numbers(table, section, key, default, positive=True):
+        value = table.get(key, default)
+        items = value if isinstance(value, list) else [value]
+        if not items or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items) \
+                or (positive and not all(v > 0 for v in items)):
+            fail(f"{section}.{key}", f"must be {'a positive' if positive else 'a'} number or a non-empty list "
+                                     f"of them, got {value!r}")
+        return [float(v) for v in items]
+
+    def names(table, section, key, default, allowed):
+        value = table.get(key, default)
+        if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+            fail(f"{section}.{key}", f"must be a non-empty list of names from {', '.join(allowed)}")
+        for v in value:
+            if v not in allowed:
+                fail(f"{section}.{key}", f"'{v}' is not one of {', '.join(allowed)}")
+        return list(value)
+
+    def link(table, section) -> Link:
+        p = number(table, section, "p", 0.0, positive=True)
+        d = number(table, section, "d", 0, positive=True, integer=True)
+        lk = Link(p, d, number(table, section, "p_drop", 0.0, positive=True))
+        if lk.problem():
+            fail(section, lk.problem())
+        return lk
+
+    head = data.get("scenario", {})
+    sc.name = head.get("name", sc.name)
+    if not isinstance(sc.name, str):
+        fail("scenario.name", "must be a string")
+    sc.description = str(head.get("description", ""))
+    sc.duration = number(head, "scenario", "duration", sc.duration, positive=True, allow_zero=False)
+    if "ts" in head:
+        sc.ts = number(head, "scenario", "ts", None, positive=True, allow_zero=False)
+        if sc.ts > sc.duration:
+            fail("scenario.ts", f"sampling period {sc.ts} s is longer than the run ({sc.duration} s)")
+    sc.runs = number(head, "scenario", "runs", sc.runs, positive=True, allow_zero=False, integer=True)
+    sc.substeps = number(head, "scenario", "substeps", sc.substeps, positive=True, allow_zero=False, integer=True)
+    sc.metrics_from = number(head, "scenario", "metrics_from", sc.metrics_from, positive=True)
+    if sc.metrics_from >= sc.duration:
+        fail("scenario.metrics_from", f"{sc.metrics_from} s leaves nothing of a {sc.duration} s run to measure")
+    sc.references = names(head, "scenario", "references", sc.references, KINDS)
+    sc.oosm = names(head, "scenario", "oosm", sc.oosm, OOSM)
+    sc.fusion = names(head, "scenario", "fusion", sc.fusion, RULES)
+    value = head.get("baselines", sc.baselines)
+    sc.baselines = [] if value == [] else names(head, "scenario", "baselines", value, BASELINES)
+
+    filt = data.get("filter", {})
+    sc.q = numbers(filt, "filter", "q", sc.q)
+    sc.p0_std = numbers(filt, "filter", "p0_std", sc.p0_std)
+    sc.initial_error = filt.get("initial_error", sc.initial_error)
+    if not isinstance(sc.initial_error, bool):
+        fail("filter.initial_error", "must be true or false")
+    sc.poles = numbers(data.get("control", {}), "control", "poles", sc.poles)
+
+    ref = data.get("reference", {})
+    sc.amplitude = numbers(ref, "reference", "amplitude", sc.amplitude, positive=False)
+    sc.offset = numbers(ref, "reference", "offset", sc.offset, positive=False)
+    sc.period = number(ref, "reference", "period", sc.period, positive=True, allow_zero=False)
+    sc.harmonics = number(ref, "reference", "harmonics", sc.harmonics, positive=True, allow_zero=False, integer=True)
+
+    if "nodes" in data:
+        if not data["nodes"]:
+            fail("nodes", "needs at least one [[nodes]] entry")
+        sc.noise_scale, sc.noise_std = [], []
+        for i, node in enumerate(data["nodes"]):
+            at = f"nodes#{i}"
+            sc.noise_scale.append(number(node, at, "noise_scale", 1.0, positive=True, allow_zero=False))
+            sc.noise_std.append(numbers(node, at, "noise_std", None) if "noise_std" in node else None)
+    if "uplink" in data:
+        sc.uplink = link(data["uplink"], "uplink")
+
+    if "grid" in data:
+        if not data["grid"]:
+            fail("grid", "needs at least one [[grid]] row")
+        sc.grid = []
+        for i, row in enumerate(data["grid"]):
+            at = f"grid#{i}"
+            d = row.get("d", 0)
+            ds = d if isinstance(d, list) else [d]
+            if not ds or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in ds):
+                fail(f"{at}.d", f"must be a whole number of steps >= 0 or a list of them (one per node), got {d!r}")
+            if len(ds) not in (1, len(sc.noise_scale)):
+                fail(f"{at}.d", f"needs 1 or {len(sc.noise_scale)} values (one per node), got {len(ds)}")
+            r = Row(list(ds), number(row, at, "p", 0.0, positive=True), number(row, at, "p_drop", 0.0, positive=True))
+            for lk in r.links(len(sc.noise_scale)):
+                if lk.problem():
+                    fail(at, lk.problem())
+            sc.grid.append(r)
+    return sc

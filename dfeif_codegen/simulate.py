@@ -1,0 +1,426 @@
+"""`codegen simulate`: the chapter's experiment (section 7) over a delay grid, averaged over seeds.
+
+Prints Tables I-IV in the chapter's layout (tr P per node and master; RMSE of the canonical
+states per node and at the master) plus the plant's tracking error and the average NEES with its
+95% chi-square band, for every reference and every (late-measurement method, fusion rule) asked
+for, baselines included. Runs go to worker processes (one per core); each run is reproducible from
+its seed, and the seed also fixes the noise and network draws shared by all methods (paired rows).
+
+Statistics without scipy at runtime: Student-t and chi-square quantiles from the normal quantile
+(Cornish-Fisher expansion; Wilson-Hilferty), accurate to well under 1% where they are used.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from statistics import NormalDist
+
+import numpy as np
+
+from . import scenario as scenario_mod
+from .errors import ScenarioError, SetupError
+from .reference import experiment as ex
+
+
+# --- statistics ---------------------------------------------------------------------------------
+
+def t_quantile(p: float, dof: int) -> float:
+    """Student-t quantile: exact for 1 and 2 degrees of freedom, Cornish-Fisher beyond."""
+    if dof == 1:
+        return math.tan(math.pi * (p - 0.5))
+    if dof == 2:
+        return (2 * p - 1) / math.sqrt(2 * p * (1 - p))
+    z, v = NormalDist().inv_cdf(p), float(dof)
+    g1 = (z ** 3 + z) / 4
+    g2 = (5 * z ** 5 + 16 * z ** 3 + 3 * z) / 96
+    g3 = (3 * z ** 7 + 19 * z ** 5 + 17 * z ** 3 - 15 * z) / 384
+    g4 = (79 * z ** 9 + 776 * z ** 7 + 1482 * z ** 5 - 1920 * z ** 3 - 945 * z) / 92160
+    return z + g1 / v + g2 / v ** 2 + g3 / v ** 3 + g4 / v ** 4
+
+
+def chi2_quantile(p: float, dof: float) -> float:
+    """Chi-square quantile by Wilson-Hilferty (cube of a normal)."""
+    z, c = NormalDist().inv_cdf(p), 2.0 / (9.0 * dof)
+    return dof * max(1 - c + z * math.sqrt(c), 0.0) ** 3
+
+
+def mean_ci(samples) -> tuple[np.ndarray, np.ndarray]:
+    """Mean over axis 0 and the half-width of its 95% confidence interval (NaN for one sample)."""
+    a = np.asarray(samples, dtype=float)
+    mean = a.mean(axis=0)
+    if a.shape[0] < 2:
+        return mean, np.full_like(mean, np.nan)
+    return mean, t_quantile(0.975, a.shape[0] - 1) * a.std(axis=0, ddof=1) / math.sqrt(a.shape[0])
+
+
+def nees_band(n: int, runs: int) -> tuple[float, float]:
+    """95% band of the NEES averaged over `runs` independent runs at one step (Bar-Shalom)."""
+    return chi2_quantile(0.025, n * runs) / runs, chi2_quantile(0.975, n * runs) / runs
+
+
+# --- the job list ---------------------------------------------------------------------------------
+
+def _pick(values, i):
+    return values[i % len(values)]
+
+
+def configurations(oosm: list[str], fusion: list[str], baselines: list[str]) -> list[tuple[str, str]]:
+    """(method, fusion) pairs: every late-measurement method with every rule, baselines with the first."""
+    return [(o, f) for o in oosm for f in fusion] + [(b, fusion[0]) for b in baselines]
+
+
+def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method: str, fusion: str,
+                seed: int) -> ex.Config:
+    return ex.Config(
+        model=model, ts=sc.ts, duration=sc.duration, substeps=sc.substeps, q=tuple(sc.q), poles=tuple(sc.poles),
+        p0_std=tuple(sc.p0_std), initial_error=sc.initial_error, reference=ref, amplitude=tuple(sc.amplitude),
+        period=sc.period, offset=tuple(sc.offset), harmonics=sc.harmonics,
+        noise_scale=tuple(_pick(sc.noise_scale, i) for i in range(nodes)),
+        noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
+        sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
+        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from)
+
+
+def _canonical(cfg: ex.Config) -> ex.Config:
+    """Without any late frame every method runs the same filters: run it once."""
+    if any(link.p > 0 for link in cfg.sensor):
+        return cfg
+    return ex.Config(**{**cfg.__dict__, "method": "replay"})
+
+
+def _series(res: ex.Result) -> dict:
+    rec = res.recording
+    return {"t": res.t, "zeta": res.zeta, "ref": np.array([ex.state_of_flags(ex._flat(res.config.model), r)
+                                                           for r in rec.ref]),
+            "node_x": rec.node_x, "x": rec.x, "u": rec.u, "v": rec.v, "delays": res.delays}
+
+
+def _work(cfg: ex.Config, series: bool):
+    """Worker: one run -> (metrics or error text, time series or None)."""
+    try:
+        res = ex.run(cfg)
+    except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        return f"{type(exc).__name__}: {exc}", None
+    return res.metrics, (_series(res) if series else None)
+
+
+class Progress:
+    """A plain-text bar on stderr, only on a terminal and without --quiet."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.total, self.done, self.enabled, self.start = total, 0, enabled, time.monotonic()
+
+    def step(self) -> None:
+        self.done += 1
+        if self.enabled:
+            width = 30
+            full = int(width * self.done / self.total)
+            elapsed = time.monotonic() - self.start
+            eta = elapsed / self.done * (self.total - self.done)
+            sys.stderr.write(f"\r[{'#' * full}{'.' * (width - full)}] {self.done}/{self.total} runs, "
+                             f"{elapsed:4.0f} s elapsed, ~{eta:3.0f} s left ")
+            sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+# --- aggregation ----------------------------------------------------------------------------------
+
+def summarize(runs: list[dict], n: int) -> dict:
+    """Mean and 95% CI of each metric over the successful runs; NEES averaged over runs per step,
+    then over time, with the band and the fraction of steps inside it."""
+    out: dict = {"runs": len(runs)}
+    if not runs:
+        return out
+    for key in ("trace_nodes", "trace_master", "rmse_nodes", "rmse_master", "rmse_tracking",
+                "late_applied", "late_rejected"):
+        mean, half = mean_ci([r[key] for r in runs])
+        out[key] = {"mean": mean.tolist(), "ci95": half.tolist()}
+    lo, hi = nees_band(n, len(runs))
+    out["nees_band"] = [lo, hi]
+    for key in ("nees_nodes", "nees_master"):
+        per_step = np.mean([r[key] for r in runs], axis=0)           # run-averaged NEES per step
+        out[key] = {"mean": per_step.mean(axis=-1).tolist(),
+                    "in_band": ((per_step >= lo) & (per_step <= hi)).mean(axis=-1).tolist()}
+    return out
+
+
+# --- printing -------------------------------------------------------------------------------------
+
+def _fmt(mean, half) -> str:
+    text = f"{mean:.3e}"
+    return text if not np.isfinite(half) else f"{text}±{half:.1e}"
+
+
+def _row_label(row, drop: bool = False) -> str:
+    return " ".join(f"{d:3d}" for d in row.d) + f"  {row.p:3.1f}" + (f"  {row.p_drop:6.2f}" if drop else "")
+
+
+def print_tables(out, sc, rows, groups, flat, nodes: int) -> None:
+    names = [str(z) for z in flat.zeta]
+    n = flat.n
+    drop = any(r.p_drop for r in rows)
+    head = " ".join(f"d{i + 1:<2d}" for i in range(len(rows[0].d))) + "   p " + ("  p_drop" if drop else "")
+    width = 21
+
+    def table(title, cols, values):
+        print(title, file=out)
+        print(f"  {head}  " + "".join(f"{c:>{width}}" for c in cols), file=out)
+        for row, cells in zip(rows, values):
+            print(f"  {_row_label(row, drop)}  " + "".join(f"{c:>{width}}" for c in cells), file=out)
+        print(file=out)
+
+    xcols = [f"x{i + 1}" for i in range(n)]
+    for (ref, method, fusion), summaries in groups.items():
+        ok = [s for s in summaries if s.get("runs")]
+        counts = sorted({s["runs"] for s in summaries})
+        print(f"=== reference {ref} | late measurements: {method} | fusion: {fusion} | "
+              f"runs per row: {'/'.join(map(str, counts))} (mean ± 95% CI) ===", file=out)
+        if not ok:
+            print("  every run failed\n", file=out)
+            continue
+
+        def cells(s, key, idx=None):
+            if not s.get("runs"):
+                return ["failed"] * (n if idx is None or isinstance(idx, int) else 1)
+            m, h = np.asarray(s[key]["mean"]), np.asarray(s[key]["ci95"])
+            if idx is not None:
+                m, h = m[idx], h[idx]
+            return [_fmt(a, b) for a, b in zip(np.atleast_1d(m), np.atleast_1d(h))]
+
+        table("Table I: traces of the covariance matrices",
+              [f"tr(P{i + 1})" for i in range(nodes)] + ["tr(P) master"],
+              [(cells(s, "trace_nodes") + cells(s, "trace_master")) if s.get("runs") else ["failed"] * (nodes + 1)
+               for s in summaries])
+        for i in range(nodes):
+            table(f"Table {'II' if i == 0 else 'III' if i == 1 else f'II.{i + 1}'}: RMSE of the estimation "
+                  f"error at node {i + 1}", xcols, [cells(s, "rmse_nodes", i) for s in summaries])
+        table("Table IV: RMSE of the estimation error at the master", xcols,
+              [cells(s, "rmse_master") for s in summaries])
+        table("Table IV-b: RMSE tracking error of the plant (x - x_d, the chapter's quantity)", xcols,
+              [cells(s, "rmse_tracking") for s in summaries])
+        nees_rows = []
+        for s in summaries:
+            if not s.get("runs"):
+                nees_rows.append(["failed"] * (nodes + 2))
+                continue
+            vals = list(zip(s["nees_nodes"]["mean"], s["nees_nodes"]["in_band"])) + \
+                [(s["nees_master"]["mean"], s["nees_master"]["in_band"])]
+            nees_rows.append([f"{m:.2f} ({100 * f:.0f}% in)" for m, f in vals] +
+                             [f"[{s['nees_band'][0]:.2f}, {s['nees_band'][1]:.2f}]"])
+        table(f"Table V: average NEES (n = {n}; in: % of steps whose run-averaged NEES is in the 95% band)",
+              [f"node {i + 1}" for i in range(nodes)] + ["master", "95% band"], nees_rows)
+        late = [f"{s['late_applied']['mean']:.0f}/{s['late_rejected']['mean']:.0f}" if s.get("runs") else "-"
+                for s in summaries]
+        print("  late frames applied/rejected per run (all nodes): " + ", ".join(late) + "\n", file=out)
+    print(f"x1..x{n} = {', '.join(names)} (canonical states, chain by chain)", file=out)
+
+
+def print_summary(out, rows, groups) -> None:
+    """One line per (reference, method, rule): the master's x1 RMSE and NEES along the grid."""
+    print("\nSummary: master RMSE of x1 (and average NEES) along the grid", file=out)
+    print("  " + " " * 38 + "".join(f"{_row_label(r):>24}" for r in rows), file=out)
+    for (ref, method, fusion), summaries in groups.items():
+        cells = []
+        for s in summaries:
+            if not s.get("runs"):
+                cells.append("failed")
+                continue
+            cells.append(f"{s['rmse_master']['mean'][0]:.3e} ({s['nees_master']['mean']:.2f})")
+        print(f"  {ref + ' ' + method + ' ' + fusion:38s}" + "".join(f"{c:>24}" for c in cells), file=out)
+
+
+# --- figures ----------------------------------------------------------------------------------------
+
+def _jsonable(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    return value
+
+
+def plot(directory: str, figures: dict, flat) -> list[str]:
+    """PNG figures like the chapter's Figs 9-13: states against the reference, input, delays."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
+    folder = Path(directory)
+    folder.mkdir(parents=True, exist_ok=True)
+    names = [str(z) for z in flat.zeta]
+    written = []
+
+    def states(path, title, t, est, truth, ref, u):
+        panels = len(names) + u.shape[1]
+        cols = 2
+        fig, axes = plt.subplots((panels + 1) // cols, cols, figsize=(10, 2.4 * ((panels + 1) // cols)), squeeze=False)
+        for i, name in enumerate(names):
+            ax = axes.flat[i]
+            ax.plot(t, ref[:, i], "r", lw=1, label="reference")
+            ax.plot(t, truth[:, i], "k", lw=0.8, label="true")
+            ax.plot(t, est[:, i], "b--", lw=0.8, label="estimate")
+            ax.set_ylabel(f"x{i + 1} ({name})")
+        for j in range(u.shape[1]):
+            ax = axes.flat[len(names) + j]
+            ax.plot(t, u[:, j], "g", lw=0.8)
+            ax.set_ylabel(f"control input u{j + 1}")
+        for ax in axes.flat:
+            ax.set_xlabel("t (sec)")
+        axes.flat[0].legend(fontsize=7)
+        fig.suptitle(title)
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(str(path))
+
+    for ref, fig in figures.items():
+        a, b = fig["no_delay"], fig["delay"]
+        states(folder / f"fig09_{ref}_master_no_delay.png", f"Fig. 9: master, no delays ({ref})",
+               a["t"], np.asarray(a["x"]), np.asarray(a["zeta"]), np.asarray(a["ref"]), np.asarray(a["u"]))
+        delays = np.asarray(b["delays"])
+        f, axes = plt.subplots(delays.shape[0], 1, figsize=(8, 2.2 * delays.shape[0]), squeeze=False)
+        for i, ax in enumerate(axes.flat):
+            ax.step(b["t"], np.where(delays[i] < 0, np.nan, delays[i]), where="post", lw=0.6)
+            ax.set_ylabel(f"node {i + 1} delay [Ts]")
+            ax.set_xlabel("t (sec)")
+        f.suptitle(f"Fig. 10: measurement delays ({b['row']}, {ref})")
+        f.tight_layout()
+        f.savefig(folder / f"fig10_{ref}_delays.png", dpi=110)
+        plt.close(f)
+        written.append(str(folder / f"fig10_{ref}_delays.png"))
+        node_x = np.asarray(b["node_x"])
+        for i in range(node_x.shape[0]):
+            states(folder / f"fig{11 + i}_{ref}_node{i + 1}_delay.png",
+                   f"Fig. {11 + i}: node {i + 1} under delays {b['row']} ({ref})",
+                   b["t"], node_x[i], np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]))
+        states(folder / f"fig{11 + node_x.shape[0]}_{ref}_master_delay.png",
+               f"Fig. {11 + node_x.shape[0]}: master under delays {b['row']} ({ref})",
+               b["t"], np.asarray(b["x"]), np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]))
+    return written
+
+
+# --- the command --------------------------------------------------------------------------------------
+
+def run(args) -> int:
+    from .model import load as load_model
+    from .flatness import derive
+
+    sc = scenario_mod.load(args.scenario)
+    flat = derive(load_model(args.model))
+    sc.check_model(flat)
+    # --nodes defaults to 2 in the parser: a scenario with another node count keeps its own
+    # unless --nodes asks for something other than 2 (node settings then repeat cyclically).
+    nodes = len(sc.noise_scale) if args.nodes is None else args.nodes
+    if nodes < 1:
+        raise ScenarioError(f"--nodes: needs at least one node, got {nodes}")
+    if args.max_lag < 1:
+        raise ScenarioError(f"--max-lag: needs at least 1, got {args.max_lag}")
+    runs = args.runs if args.runs is not None else sc.runs
+    if runs < 1:
+        raise ScenarioError(f"--runs: needs at least 1, got {runs}")
+    refs = args.reference or sc.references
+    configs = configurations(args.oosm or sc.oosm, args.fusion or sc.fusion, sc.baselines)
+    configs = list(dict.fromkeys(configs))
+    seeds = range(args.seed, args.seed + runs)
+    rows = [scenario_mod.Row([_pick(r.d, i) for i in range(nodes)], r.p, r.p_drop) for r in sc.grid]
+
+    # every (reference, config, row, seed), each distinct run once
+    wanted: dict = {}
+    for ref in refs:
+        for method, fusion in configs:
+            for ri, row in enumerate(rows):
+                for seed in seeds:
+                    cfg = make_config(sc, args.model, nodes, args.max_lag, ref, row, method, fusion, seed)
+                    wanted.setdefault(_canonical(cfg), []).append((ref, method, fusion, ri, seed))
+    figure_keys = {(ref, configs[0][0], configs[0][1], ri, args.seed) for ref in refs for ri in (0, len(rows) - 1)}
+    need_series = bool(args.plot or args.json)
+    show = not args.quiet and sys.stderr.isatty()
+    progress = Progress(len(wanted), show)
+    results: dict = {}
+    series: dict = {}
+    failures: list[str] = []
+    jobs = list(wanted.items())
+    workers = max(1, min(os.cpu_count() or 1, len(jobs)))
+    started = time.monotonic()
+
+    def collect(keys, value):
+        metrics, data = value
+        for key in keys:
+            if isinstance(metrics, str):
+                failures.append(f"{key[0]} {key[1]} {key[2]} row {key[3] + 1} seed {key[4]}: {metrics}")
+            else:
+                results.setdefault(key[:4], []).append(metrics)
+            if data is not None and key in figure_keys:
+                series[key] = data
+        progress.step()
+
+    if workers == 1:
+        for cfg, keys in jobs:
+            collect(keys, _work(cfg, need_series and any(k in figure_keys for k in keys)))
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(_work, cfg, need_series and any(k in figure_keys for k in keys)): keys
+                       for cfg, keys in jobs}
+            for fut in as_completed(futures):
+                collect(futures[fut], fut.result())
+    progress.close()
+    elapsed = time.monotonic() - started
+
+    groups = {(ref, m, f): [summarize(results.get((ref, m, f, ri), []), flat.n) for ri in range(len(rows))]
+              for ref in refs for m, f in configs}
+    ts = sc.ts or flat.model.ts
+    settings = {"scenario": sc.name, "source": sc.source, "model": flat.model.name, "nodes": nodes,
+                "max_lag": args.max_lag, "ts": ts, "duration": sc.duration, "runs": runs,
+                "seeds": [args.seed, args.seed + runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
+                "noise_scale": [_pick(sc.noise_scale, i) for i in range(nodes)], "metrics_from": sc.metrics_from,
+                "elapsed_s": round(elapsed, 1), "workers": workers}
+    to_stdout = args.json == "-"
+    if not to_stdout:
+        out = sys.stdout
+        print(f"codegen simulate: scenario {sc.name} on {flat.model.name}: {nodes} nodes, Ts = {ts:g} s, "
+              f"{sc.duration:g} s runs, N_max = {args.max_lag}, q = {sc.q}, poles {sc.poles}, "
+              f"seeds {args.seed}..{args.seed + runs - 1}, {len(jobs)} runs in {elapsed:.0f} s on {workers} "
+              f"process(es)\n", file=out)
+        print_tables(out, sc, rows, groups, flat, nodes)
+        print_summary(out, rows, groups)
+        if failures:
+            print(f"\n{len(failures)} run(s) failed (left out of the averages):", file=out)
+            for line in failures[:10]:
+                print(f"  {line}", file=out)
+    figures = {}
+    for ref in refs:
+        pair = [series.get((ref, configs[0][0], configs[0][1], ri, args.seed)) for ri in (0, len(rows) - 1)]
+        if all(p is not None for p in pair):
+            figures[ref] = {"no_delay": {**pair[0], "row": _row_label(rows[0])},
+                            "delay": {**pair[1], "row": _row_label(rows[-1]).strip()},
+                            "method": configs[0][0], "fusion": configs[0][1]}
+    if args.json:
+        doc = {"settings": settings, "rows": [{"d": r.d, "p": r.p, "p_drop": r.p_drop} for r in rows],
+               "states": [str(z) for z in flat.zeta],
+               "tables": [{"reference": ref, "method": m, "fusion": f, "rows": s} for (ref, m, f), s in groups.items()],
+               "failures": failures, "figures": figures}
+        text = json.dumps(_jsonable(doc))
+        if to_stdout:
+            sys.stdout.write(text + "\n")
+        else:
+            Path(args.json).write_text(text + "\n", encoding="utf-8")
+    if args.plot:
+        written = plot(args.plot, figures, flat)
+        if not to_stdout:
+            print(f"\nwrote {len(written)} figures into {args.plot}", file=sys.stdout)
+    return 0
