@@ -84,7 +84,3 @@ class Network:
             for k in range(steps):
                 if best[k] > last:
                     self.source[i, k] = last = best[k]
-
-    def delay_series(self, i: int) -> np.ndarray:
-        """Node i's camera delay per step (as in the chapter's Fig. 10); -1 for a dropped frame."""
-        return self.lag[i]
