@@ -140,8 +140,12 @@ def render_driver(model: ModelDir, out_dir: Path) -> Path:
 OUTPUTS = ("node_x", "node_P", "x", "P", "u", "v", "late_applied")
 
 
+INPUTS = ("recorded", "own")
+
+
 def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
-    """The driver's inputs, C-contiguous, reals in the build's precision, integers int32."""
+    """The driver's inputs, C-contiguous, reals in the build's precision, integers int32;
+    `v_in` is the reference's broadcast input, for runs that predict with the recorded inputs."""
     K = rec.ref.shape[0]
     source = np.full((K, rec.nodes), -1, dtype=np.int32)
     source[np.asarray(rec.pkt_step, int), np.asarray(rec.pkt_node, int)] = rec.pkt_src
@@ -154,7 +158,7 @@ def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
         "z": real(rec.z), "gamma": int32(rec.gamma), "ref": real(rec.ref),
         "late_step": int32(rec.late_step), "late_node": int32(rec.late_node),
         "late_lag": int32(rec.late_lag), "late_z": real(np.reshape(rec.late_z, (-1, rec.m))),
-        "source": source,
+        "source": source, "v_in": real(rec.v),
     }
 
 
@@ -171,16 +175,29 @@ _FILE_ORDER = ("node_x0", "node_P0", "R", "q", "master_x0", "master_P0", "gains"
                "ref", "late_step", "late_node", "late_lag", "late_z", "source")
 
 
-def write_scenario(rec, model: ModelDir, path: Path) -> Path:
+def write_scenario(rec, model: ModelDir, path: Path, inputs: str = "recorded") -> Path:
     """scenario.bin for the driver's stand-alone program (format in driver.c.j2)."""
     arrays = scenario_arrays(rec, model.dtype)
-    head = np.array([0x43534644, 1, np.dtype(model.dtype).itemsize, rec.n, rec.m, rec.nodes,
+    head = np.array([0x43534644, 2, np.dtype(model.dtype).itemsize, rec.n, rec.m, rec.nodes,
                      len(rec.params), rec.ref.shape[0], len(rec.late_step)], dtype="<i4")
     with open(path, "wb") as f:
         f.write(head.tobytes())
         for name in _FILE_ORDER:
             f.write(arrays[name].astype(arrays[name].dtype.newbyteorder("<")).tobytes())
+        f.write(np.array([recorded_inputs(inputs)], dtype="<i4").tobytes())
+        if recorded_inputs(inputs):
+            f.write(arrays["v_in"].astype(arrays["v_in"].dtype.newbyteorder("<")).tobytes())
     return path
+
+
+def recorded_inputs(inputs: str) -> bool:
+    """Whether the filters predict with the recorded inputs ("recorded": the input the plant
+    received, which the recorded measurements reflect) or with the v the C controller computes
+    ("own": the loop through the controller closed in C, so a rounding difference in v acts on
+    the filters as an input the recorded plant never received)."""
+    if inputs not in INPUTS:
+        raise ValueError(f"inputs must be one of {INPUTS}, not {inputs!r}")
+    return inputs == "recorded"
 
 
 def read_results(rec, model: ModelDir, path: Path) -> tuple[dict, dict]:
@@ -227,7 +244,7 @@ class Library:
         for name in ("harness_size", "node_size", "master_size", "packet_size"):
             getattr(self.lib, f"{self.p}_{name}").restype = ctypes.c_size_t
         getattr(self.lib, f"{self.p}_harness_step").argtypes = [ctypes.c_void_p] * 3 + [ctypes.c_int32] + \
-            [ctypes.c_void_p] * 8 + [ctypes.c_size_t] + [ctypes.c_void_p] * 5
+            [ctypes.c_void_p] * 9 + [ctypes.c_size_t] + [ctypes.c_void_p] * 5
 
     def sizeof(self, what: str) -> int:
         """sizeof of a state struct: node, master, packet, harness."""
@@ -236,9 +253,10 @@ class Library:
     def start(self, rec) -> "Harness":
         return Harness(self, rec)
 
-    def run(self, rec) -> dict[str, np.ndarray]:
-        """Replay the whole recording in one C call; the outputs, shaped as replay_recording's."""
-        return self.start(rec).run()
+    def run(self, rec, inputs: str = "recorded") -> dict[str, np.ndarray]:
+        """Replay the whole recording in one C call; the outputs, shaped as replay_recording's.
+        `inputs`: predict with the recorded v, or with the C controller's own ("own")."""
+        return self.start(rec).run(inputs)
 
 
 def _ptr(a: np.ndarray) -> int:
@@ -249,7 +267,7 @@ class Harness:
     """One initialized harness state (nodes, master, packet history) inside a Library."""
 
     _INIT = ("node_x0", "node_P0", "R", "q", "master_x0", "master_P0", "gains", "params")
-    _SCENARIO = ("z", "gamma", "ref", "late_step", "late_node", "late_lag", "late_z", "source")
+    _SCENARIO = ("z", "gamma", "ref", "late_step", "late_node", "late_lag", "late_z", "source", "v_in")
     _RESULTS = ("node_x", "node_P", "x", "P", "u", "v", "late_applied")
 
     def __init__(self, library: Library, rec):
@@ -266,8 +284,10 @@ class Harness:
         node = ctypes.addressof(self.state) + i * self.library.sizeof("node")
         getattr(self.lib, f"{self.library.p}_node_health")(ctypes.c_void_p(node), health)
         return dict(zip(("updates", "drops", "late_applied", "late_rejected"), map(int, health)))
-    def run(self) -> dict[str, np.ndarray]:
-        a, rec = self.arrays, self.rec
+    def run(self, inputs: str = "recorded") -> dict[str, np.ndarray]:
+        a, rec = dict(self.arrays), self.rec
+        if not recorded_inputs(inputs):
+            a["v_in"] = None
         out = output_arrays(rec, self.library.dtype)
 
         class Scenario(ctypes.Structure):
@@ -278,7 +298,8 @@ class Harness:
             _fields_ = [(k, ctypes.c_void_p) for k in Harness._RESULTS] + \
                 [("failed_step", ctypes.c_int32), ("failed_call", ctypes.c_int32)]
 
-        s = Scenario(rec.ref.shape[0], len(rec.late_step), *(_ptr(a[k]) for k in self._SCENARIO))
+        s = Scenario(rec.ref.shape[0], len(rec.late_step),
+                     *(None if a[k] is None else _ptr(a[k]) for k in self._SCENARIO))
         r = Results(*(_ptr(out[k]) for k in self._RESULTS), -1, 0)
         err = getattr(self.lib, f"{self.library.p}_harness_run")(self.state, ctypes.byref(s), ctypes.byref(r))
         if err != 0:
@@ -305,7 +326,7 @@ class Harness:
         err = ctypes.c_int(0)
         call = getattr(lib.lib, f"{lib.p}_harness_step")(
             self.state, _ptr(z), _ptr(gamma), len(late), _ptr(late_node), _ptr(late_lag), _ptr(late_z),
-            _ptr(applied), _ptr(sources), _ptr(ref), _ptr(nx), _ptr(nP), 1, _ptr(x), _ptr(P), _ptr(u),
+            _ptr(applied), _ptr(sources), _ptr(ref), None, _ptr(nx), _ptr(nP), 1, _ptr(x), _ptr(P), _ptr(u),
             _ptr(v), ctypes.byref(err))
         if call:
             raise MismatchError(failure({"failed_step": -1, "failed_call": call, "status": err.value}))
@@ -333,7 +354,7 @@ def filter_bank(library: Library):
             init = SimpleNamespace(nodes=len(R), n=flat.n, m=flat.m, ref=np.zeros((0, flat.n + flat.m)),
                                    pkt_step=[], pkt_node=[], pkt_src=[], z=np.zeros((len(R), 0, flat.m)),
                                    gamma=np.zeros((len(R), 0)), late_step=[], late_node=[], late_lag=[],
-                                   late_z=np.zeros((0, flat.m)), node_x0=node_x0, node_P0=node_P0, R=R, q=q,
+                                   late_z=np.zeros((0, flat.m)), v=np.zeros((0, flat.m)), node_x0=node_x0, node_P0=node_P0, R=R, q=q,
                                    master_x0=master_x0, master_P0=master_P0, gains=gains,
                                    params=flat.param_vector)
             self.harness = Harness(library, init)
@@ -346,14 +367,14 @@ def filter_bank(library: Library):
 
 
 def run_program(model: ModelDir, rec, work: Path, sanitize: bool = False, timeout: float = 600.0,
-                wrapper: Sequence[str] = ()) -> tuple[dict, dict]:
+                wrapper: Sequence[str] = (), inputs: str = "recorded") -> tuple[dict, dict]:
     """The driver as a stand-alone host program (scenario.bin in, results.bin out), optionally
     with AddressSanitizer and UBSan, or under a `wrapper` such as valgrind."""
     work = Path(work)
     driver = render_driver(model, work)
     exe = compile_program([*model.sources(), driver], work / f"{model.name}_harness", [model.path],
                           ["-DHARNESS_MAIN"], sanitize=sanitize)
-    write_scenario(rec, model, work / "scenario.bin")
+    write_scenario(rec, model, work / "scenario.bin", inputs)
     (work / "results.bin").unlink(missing_ok=True)
     env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:exitcode=86",
                UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:exitcode=87")

@@ -25,6 +25,7 @@ import sympy as sp
 
 from . import discretize
 from .errors import ModelError
+from .reference.fusion import CI_REGULARISER
 
 CI_ITERATIONS = 12
 
@@ -365,6 +366,7 @@ class _Builder:
         Mg, piv = _right_divide(self.head_cols(ca.mtimes(P, Phi1.T) + Pxw), W)
         xs = x + ca.mtimes(Mg, self.wrap(z - self.head_rows(xr)))
         Ps = P - ca.mtimes(ca.mtimes(Mg, W), Mg.T)
+        Ps = (Ps + Ps.T) / 2          # symmetric again: see algorithms.md, retrodict
         _, pivP = spd_inverse(Ps)     # with a stale history P* can lose definiteness: reject then
         return ca.Function(name, [N, x, P, PmN, usedN, z, R, q, sw, sQ, sX, su], [xs, Ps, piv, pivP],
                            ["N", "x", "P", "PmN", "usedN", "z", "R", "q", "sw", "sQ", "sX", "su"],
@@ -388,10 +390,10 @@ class _Builder:
             for j in range(i, M):
                 H[i, j] = 2 * _trace_of_product(Z[i], ZP[j])
                 H[j, i] = H[i, j]
-        rho = H[0, 0]                # the regulariser rho/2 |w|^2 makes the optimum unique
+        rho = H[0, 0]                # the regulariser rho/2 |w|^2 (reference/fusion.py)
         for i in range(1, M):
             rho = ca.fmax(rho, H[i, i])
-        rho = 1e-6 * rho
+        rho = CI_REGULARISER * rho
         g = g + rho * w
         H = H + rho * ca.SX.eye(M)
         return ca.Function(name, [w] + Ys, [g, H, piv], ["w"] + [f"Y{i}" for i in range(M)], ["g", "H", "piv"])

@@ -195,7 +195,8 @@ def public_functions(model_name: str, stack: dict[str, StackUse]) -> dict[str, S
             and "_kern_" not in f and "harness" not in f}
 
 
-def run_scenario(model, rec, work: Path, opt: str = "-O2", timeout: float = 600.0) -> TargetRun:
+def run_scenario(model, rec, work: Path, opt: str = "-O2", timeout: float = 600.0,
+                 inputs: str = "recorded") -> TargetRun:
     """Build the model folder (float or double) and the driver for the Cortex-M4F, replay the
     recording under QEMU, read the results back through semihosting files."""
     import time
@@ -209,7 +210,7 @@ def run_scenario(model, rec, work: Path, opt: str = "-O2", timeout: float = 600.
     drv_objs = compile_objects([driver], work / "driver", [model.path], opt=opt,
                                extra=["-DHARNESS_MAIN", "-DHARNESS_STACK_PAINT"])
     elf = link([*lib_objs, *drv_objs], work / "app.elf")
-    harness.write_scenario(rec, model, work / "scenario.bin")
+    harness.write_scenario(rec, model, work / "scenario.bin", inputs)
     results = work / "results.bin"
     results.unlink(missing_ok=True)
     start = time.perf_counter()

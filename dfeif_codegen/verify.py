@@ -90,12 +90,8 @@ def check(errors: list[SignalError]) -> None:
 # double: everything to round-off. float: the estimates to 1e-4 of their scale; u and v to 1e-3,
 # because v = y_d^(r) - sum k e multiplies the position error by the largest gain (lambda^r, 1000
 # for the paper's poles) and u = G^-1 (v - F) inherits that.
-# float retrodiction: its correction P - M W M' subtracts nearly equal matrices, and in single
-# precision it reaches 3.2e-4 on the estimates of two_link_arm (4.7e-5 on dc_motor_link). That is
-# a known gap against the 1e-4 goal, held to 1e-3 here so a regression still shows.
 TOLERANCE = {"double": {"x": 1e-10, "P": 1e-10, "u": 1e-10, "v": 1e-10},
-             "float": {"x": 1e-4, "P": 1e-4, "u": 1e-3, "v": 1e-3},
-             "float-retrodict": {"x": 1e-3, "P": 1e-3, "u": 1e-3, "v": 1e-3}}
+             "float": {"x": 1e-4, "P": 1e-4, "u": 1e-3, "v": 1e-3}}
 
 
 def signals(out: dict, nodes: int) -> dict[str, np.ndarray]:
@@ -108,8 +104,8 @@ def signals(out: dict, nodes: int) -> dict[str, np.ndarray]:
     return named
 
 
-def tolerances(names, precision: str, oosm: str = "replay") -> dict[str, float]:
-    tol = TOLERANCE["float-retrodict" if (precision, oosm) == ("float", "retrodict") else precision]
+def tolerances(names, precision: str) -> dict[str, float]:
+    tol = TOLERANCE[precision]
     return {name: tol[name.rsplit(".", 1)[-1]] for name in names}
 
 
@@ -124,7 +120,7 @@ def compare_run(got: dict, rec, precision: str) -> list[SignalError]:
     agree exactly (a disagreement is reported as an infinite error on 'late_applied')."""
     want = reference_outputs(rec)
     named_ref = signals(want, rec.nodes)
-    errors = compare(signals(got, rec.nodes), named_ref, tolerances(named_ref, precision, str(rec.oosm)))
+    errors = compare(signals(got, rec.nodes), named_ref, tolerances(named_ref, precision))
     same = np.array_equal(np.asarray(got["late_applied"], bool), np.asarray(want["late_applied"], bool))
     bad = np.nonzero(np.asarray(got["late_applied"], bool) != np.asarray(want["late_applied"], bool))[0]
     step = int(rec.late_step[bad[0]]) if bad.size else 0
@@ -178,6 +174,7 @@ def run(args) -> int:
 
     precision = args.precision or ("float" if args.target == "cortex-m4f" else "double")
     oosm, fusion = args.oosm or "replay", args.fusion or "difference"
+    inputs = getattr(args, "inputs", "recorded")
     if args.target == "host":
         harness.host_compiler()
     else:
@@ -190,7 +187,7 @@ def run(args) -> int:
         work = Path(tmp)
         model = harness.build_model(args.model, work / "gen", precision, oosm, fusion, args.nodes, args.max_lag)
         print(f"codegen verify: {model.name}, {precision}, oosm {oosm}, fusion {fusion}, "
-              f"{args.nodes} nodes, max lag {args.max_lag}, target {args.target}"
+              f"{args.nodes} nodes, max lag {args.max_lag}, target {args.target}, {inputs} inputs"
               f"{' with ASan+UBSan' if args.sanitize else ''}")
         try:
             rec = record(args.model, oosm, fusion, "sinusoid", VERIFY_ROW, args.nodes, args.max_lag)
@@ -202,14 +199,14 @@ def run(args) -> int:
               f"{len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
         extra = ""
         if args.target == "cortex-m4f":
-            result = target.run_scenario(model, rec, work / "target")
+            result = target.run_scenario(model, rec, work / "target", inputs=inputs)
             if result.status["status"] != 0:
                 raise MismatchError(harness.failure(result.status))
             got, extra = result.outputs, target.report(result)
         elif args.sanitize:
-            got = harness.run_program(model, rec, work / "host", sanitize=True)[1]
+            got = harness.run_program(model, rec, work / "host", sanitize=True, inputs=inputs)[1]
         else:
-            got = harness.Library(model, work / "host").run(rec)
+            got = harness.Library(model, work / "host").run(rec, inputs)
         errors = compare_run(got, rec, precision)
         print(table(errors))
         if extra:

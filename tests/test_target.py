@@ -173,4 +173,4 @@ def test_bench_measures_deterministically(store, run, tmp_path, cross_tools):
                           "node_update_delayed_lag1", "node_update_delayed_lag8", "node_update_delayed_lag32"}
     assert first["node_update_delayed_lag1"] < first["node_update_delayed_lag8"] < first["node_update_delayed_lag32"]
     sizes = bench.target_sizeof(model, tmp_path / "sizeof")
-    assert sizes["packet"] == 4 + 4 * (2 * 3 + 2 * 9)  # step + x, P, x_pred, P_pred in float
+    assert sizes["packet"] == 4 + 4 * (1 + 2 * 3 + 2 * 9)  # step + centre, x, P, x_pred, P_pred in float

@@ -15,14 +15,16 @@ from .linalg import spd_inv
 from .node import Packet
 
 RULES = ("paper", "difference", "ci")
+CI_REGULARISER = 1e-2
 
 
 def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int = 12) -> np.ndarray:
     """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"):
     Newton steps on the free weights; a weight the step would make negative stops the step at
-    zero and is fixed there, and is freed again once its gradient is the smallest. A tiny
+    zero and is fixed there, and is freed again once its gradient is the smallest. A small
     regulariser (rho/2)|w|^2 keeps the optimum unique when two Y_i are equal, so the split of
-    weight between equal nodes is not decided by round-off."""
+    weight between equal nodes is not decided by round-off, and makes the weights a Lipschitz
+    function of the Y_i, so that single precision reproduces them (docs/algorithms.md)."""
     count = len(Ys)
     w = np.full(count, 1.0 / count)
     free = np.ones(count, dtype=bool)
@@ -31,7 +33,7 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int = 12) 
         pyp = [P @ Y @ P for Y in Ys]
         g = -np.array([np.trace(a) for a in pyp])
         H = 2 * np.array([[np.trace(a @ Y @ P) for Y in Ys] for a in pyp])
-        rho = 1e-6 * np.max(np.diag(H))  # rho/2 |w|^2 makes the optimum unique (equal Y_i)
+        rho = CI_REGULARISER * np.max(np.diag(H))  # rho/2 |w|^2: a unique, well-conditioned optimum
         g, H = g + rho * w, H + rho * np.eye(count)
         free |= g < np.min(g[free])
         f = np.flatnonzero(free)
@@ -74,22 +76,24 @@ class Master:
         if not usable:
             self.x, self.P = self.x_prior, self.P_prior
             return
+        # information about the master's prior c: y = Y (x - c), x = c + P y; the same in exact
+        # arithmetic as y = Y x, without cancelling large Y x terms (docs/algorithms.md)
+        c = self.x_prior
         Ys = [spd_inv(P) for _, P, _, _ in usable]
-        ys = [Y @ x for Y, (x, _, _, _) in zip(Ys, usable)]
+        ys = [Y @ (x - c) for Y, (x, _, _, _) in zip(Ys, usable)]
         if self.rule == "paper":
             Y, y = sum(Ys), sum(ys)
         elif self.rule == "difference":
-            Y_prior = spd_inv(self.P_prior)
-            Y, y = Y_prior, Y_prior @ self.x_prior
+            Y, y = spd_inv(self.P_prior), np.zeros_like(c)
             for Yi, yi, (_, _, xp, Pp) in zip(Ys, ys, usable):
                 Y_pred = spd_inv(Pp)
-                Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ xp)
+                Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
         else:
             w = covariance_intersection_weights(Ys)
             Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
             y = sum(wi * yi for wi, yi in zip(w, ys))
         self.P = spd_inv(Y)
-        self.x = self.P @ y
+        self.x = c + self.P @ y
 
     def predict(self, v) -> None:
         v = np.atleast_1d(np.asarray(v, dtype=float))

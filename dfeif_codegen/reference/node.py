@@ -208,5 +208,6 @@ class NodeFilter:
         W = (phi1 @ self.P @ phi1.T + phi_pxw + phi_pxw.T + q_star)[np.ix_(h, h)] + self.R
         M = spd_solve(W, (self.P @ phi1.T + P_xw)[:, h].T).T
         P_star = self.P - M @ W @ M.T
+        P_star = (P_star + P_star.T) / 2          # rounding makes it asymmetric; see algorithms.md
         cholesky(P_star)                           # raises if P* lost definiteness
         return self.x + M @ wrap(z - x_back[h], self.angle), P_star

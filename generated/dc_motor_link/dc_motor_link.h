@@ -83,9 +83,13 @@ typedef struct {
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
- * measurement and the input v used to predict out of it.
+ * measurement and the input v used to predict out of it. Estimates, priors and measurements are
+ * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
+ * the estimate), so that single precision resolves the flat outputs to their own size, not to
+ * that of the distance travelled; the functions below add it back.
  */
 typedef struct {
+    dc_motor_link_real centre[DC_MOTOR_LINK_NY];               /**< flat outputs' origin for the fields below */
     dc_motor_link_real x[DC_MOTOR_LINK_NX];                    /**< estimate at step k (posterior once updated) */
     dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
     dc_motor_link_real x_pred[DC_MOTOR_LINK_NX];               /**< prediction into step k, before any update */
@@ -102,9 +106,11 @@ typedef struct {
     uint8_t ring_flags[DC_MOTOR_LINK_NMAX + 1];   /**< bit 0: has a measurement, bit 1: used by the filter */
 } dc_motor_link_node;
 
-/** What a node sends to the master after the updates of its step. */
+/** What a node sends to the master after the updates of its step: its estimate and its
+ * prediction, with the flat outputs relative to `centre` (add it back for absolute values). */
 typedef struct {
     uint32_t step;
+    dc_motor_link_real centre[DC_MOTOR_LINK_NY];
     dc_motor_link_real x[DC_MOTOR_LINK_NX];
     dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
     dc_motor_link_real x_pred[DC_MOTOR_LINK_NX];
@@ -119,8 +125,10 @@ typedef struct {
     uint32_t packets_ignored;  /**< present packets older than NMAX steps or from the future */
 } dc_motor_link_master_health;
 
-/** The master: fuses the nodes' estimates (difference rule) and predicts. */
+/** The master: fuses the nodes' estimates (difference rule) and predicts. Its estimate and
+ * prediction are stored relative to `centre`, as in the node. */
 typedef struct {
+    dc_motor_link_real centre[DC_MOTOR_LINK_NY];               /**< flat outputs' origin for x and x_prior */
     dc_motor_link_real x[DC_MOTOR_LINK_NX];                    /**< fused estimate at step k */
     dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
     dc_motor_link_real x_prior[DC_MOTOR_LINK_NX];              /**< the master's own prediction into step k */

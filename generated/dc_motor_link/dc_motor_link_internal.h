@@ -40,6 +40,34 @@ int dc_motor_link_kern_control(const dc_motor_link_real** arg, dc_motor_link_rea
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_RES 3
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 13
 
+/* Centring (see the node struct in dc_motor_link.h): flat outputs are stored relative to a centre that
+ * moves in exact steps of 1/8, so that single precision resolves them to their own size. */
+#define DC_MOTOR_LINK_CENTRE_STEP ((dc_motor_link_real)0.125)
+static const uint8_t dc_motor_link_heads[DC_MOTOR_LINK_NY] = {0};  /* zeta index of each flat output */
+
+/* The whole steps of 1/8 nearest to a stored flat output (0 when it is within 1/16, or so large
+ * that centring no longer matters and (long) could overflow). Subtracting it is exact. */
+static inline dc_motor_link_real dc_motor_link_centre_shift(dc_motor_link_real value)
+{
+    dc_motor_link_real d = value / DC_MOTOR_LINK_CENTRE_STEP;
+    if (!(d < (dc_motor_link_real)1048576 && d > (dc_motor_link_real)-1048576)) {
+        return 0;
+    }
+    return DC_MOTOR_LINK_CENTRE_STEP * (dc_motor_link_real)(long)(d + (d < 0 ? (dc_motor_link_real)-0.5 : (dc_motor_link_real)0.5));
+}
+
+/* x with the flat outputs' centre added back (x and out may be the same array). */
+static inline void dc_motor_link_absolute(const dc_motor_link_real* centre, const dc_motor_link_real* x, dc_motor_link_real* out)
+{
+    size_t i;
+    for (i = 0; i < DC_MOTOR_LINK_NX; i++) {
+        out[i] = x[i];
+    }
+    for (i = 0; i < DC_MOTOR_LINK_NY; i++) {
+        out[dc_motor_link_heads[i]] += centre[i];
+    }
+}
+
 /* 1 if all n values are finite (x - x is 0 for finite x, NaN otherwise; no math.h macros). */
 static inline int dc_motor_link_finite(const dc_motor_link_real* a, size_t n)
 {

@@ -59,6 +59,28 @@ static int info(const real* x, const real* P, const real* c, real* Y, real* y)
     return DC_MOTOR_LINK_OK;
 }
 
+/* A packet's vector relative to the master's centre (the centres differ by whole steps). */
+static void recentred(const dc_motor_link_master* master, const dc_motor_link_packet* pk, const real* xc, real* x)
+{
+    int j;
+    memcpy(x, xc, sizeof(real) * NX);
+    for (j = 0; j < NY; j++) {
+        x[dc_motor_link_heads[j]] += pk->centre[j] - master->centre[j];
+    }
+}
+
+/* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
+static void recentre(dc_motor_link_master* master)
+{
+    int j;
+    for (j = 0; j < NY; j++) {
+        real shift = dc_motor_link_centre_shift(master->x[dc_motor_link_heads[j]]);
+        master->centre[j] += shift;
+        master->x[dc_motor_link_heads[j]] -= shift;
+        master->x_prior[dc_motor_link_heads[j]] -= shift;
+    }
+}
+
 /* Predict (x, P) from step j to step k with the stored inputs (in place, through a copy). */
 static int catch_up(const dc_motor_link_master* master, uint32_t j, real* x, real* P)
 {
@@ -96,6 +118,7 @@ int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], c
     memcpy(master->x_prior, x0, sizeof(master->x_prior));
     memcpy(master->P_prior, P0, sizeof(master->P_prior));
     memcpy(master->q, q, sizeof(master->q));
+    recentre(master);
     return DC_MOTOR_LINK_OK;
 }
 
@@ -126,10 +149,10 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
             continue;
         }
         if (!dc_motor_link_finite(pk->x, NX) || !dc_motor_link_finite(pk->P, NXX) || !dc_motor_link_finite(pk->x_pred, NX) ||
-            !dc_motor_link_finite(pk->P_pred, NXX)) {
+            !dc_motor_link_finite(pk->P_pred, NXX) || !dc_motor_link_finite(pk->centre, NY)) {
             return DC_MOTOR_LINK_ERR_NONFINITE;
         }
-        memcpy(x, pk->x, sizeof(x));
+        recentred(master, pk, pk->x, x);
         memcpy(P, pk->P, sizeof(P));
         rc = catch_up(master, pk->step, x, P);
         if (rc == DC_MOTOR_LINK_OK) {
@@ -138,7 +161,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
         if (rc != DC_MOTOR_LINK_OK) {
             return rc;
         }
-        memcpy(xp, pk->x_pred, sizeof(xp));
+        recentred(master, pk, pk->x_pred, xp);
         memcpy(Pp, pk->P_pred, sizeof(Pp));
         rc = catch_up(master, pk->step, xp, Pp);
         if (rc == DC_MOTOR_LINK_OK) {
@@ -205,6 +228,7 @@ int dc_motor_link_master_predict(dc_motor_link_master* master, const real v[NY])
     memcpy(master->P_prior, P1, sizeof(P1));
     memcpy(master->x, x1, sizeof(x1));
     memcpy(master->P, P1, sizeof(P1));
+    recentre(master);
     return DC_MOTOR_LINK_OK;
 }
 
@@ -214,7 +238,7 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master, real x[NX]
         return DC_MOTOR_LINK_ERR_ARG;
     }
     if (x) {
-        memcpy(x, master->x, sizeof(master->x));
+        dc_motor_link_absolute(master->centre, master->x, x);
     }
     if (P) {
         memcpy(P, master->P, sizeof(master->P));

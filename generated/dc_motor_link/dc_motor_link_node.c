@@ -11,6 +11,7 @@
 #define SLOTS (DC_MOTOR_LINK_NMAX + 1)
 #define HAS 1u   /* the step has a measurement (on time or late) */
 #define USED 2u  /* the filter history used it (its gain is not zero) */
+#define HEADS dc_motor_link_heads
 
 typedef dc_motor_link_real real;
 
@@ -27,6 +28,36 @@ size_t dc_motor_link_packet_size(void)
 static uint32_t slot_of(uint32_t step)
 {
     return step % (uint32_t)SLOTS;
+}
+
+/* Measurement relative to the node's centre. */
+static void centred(const dc_motor_link_node* node, const real* z, real* zc)
+{
+    int j;
+    for (j = 0; j < NY; j++) {
+        zc[j] = z[j] - node->centre[j];
+    }
+}
+
+/* Move each output's centre by whole steps to within half a step of the estimate, and every
+ * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
+ * heads, and A maps a head-only vector to itself. */
+static void recentre(dc_motor_link_node* node)
+{
+    int j, s;
+    for (j = 0; j < NY; j++) {
+        real shift = dc_motor_link_centre_shift(node->x[HEADS[j]]);
+        if (shift == 0) {
+            continue;
+        }
+        node->centre[j] += shift;
+        node->x[HEADS[j]] -= shift;
+        node->x_pred[HEADS[j]] -= shift;
+        for (s = 0; s < SLOTS; s++) {
+            node->ring_x[s * NX + HEADS[j]] -= shift;
+            node->ring_z[s * NY + j] -= shift;
+        }
+    }
 }
 
 /* Filter update of one step from a prior; 0 or an error code. */
@@ -107,6 +138,7 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
     memcpy(node->ring_P, P0, sizeof(node->P));
     memcpy(node->R, R, sizeof(node->R));
     memcpy(node->q, q, sizeof(node->q));
+    recentre(node);
     return DC_MOTOR_LINK_OK;
 }
 
@@ -126,7 +158,7 @@ int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int ga
         if (!dc_motor_link_finite(z, NY)) {
             return DC_MOTOR_LINK_ERR_NONFINITE;
         }
-        memcpy(zz, z, sizeof(zz));
+        centred(node, z, zz);
     }
     slot = slot_of(node->k);
     rc = update_step(node->ring_x + slot * NX, node->ring_P + slot * NXX, zz, (real)gamma, node->R, x, P);
@@ -177,20 +209,21 @@ static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, int 
     }
 }
 
-int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z[NY], int32_t lag)
+int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs[NY], int32_t lag)
 {
-    real x[NX], P[NXX];
+    real x[NX], P[NXX], z[NY];
     uint32_t N, slot;
     int rc;
-    if (!node || !z) {
+    if (!node || !z_abs) {
         return DC_MOTOR_LINK_ERR_ARG;
     }
     if (!node->updated) {
         return DC_MOTOR_LINK_ERR_SEQUENCE;
     }
-    if (!dc_motor_link_finite(z, NY)) {
+    if (!dc_motor_link_finite(z_abs, NY)) {
         return DC_MOTOR_LINK_ERR_NONFINITE;
     }
+    centred(node, z_abs, z);
     if (lag < 1 || lag > DC_MOTOR_LINK_NMAX || (uint32_t)lag > node->k) {
         node->health.late_rejected++;
         return DC_MOTOR_LINK_ERR_LAG;
@@ -244,6 +277,7 @@ int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
     memcpy(node->x_pred, x1, sizeof(x1));
     memcpy(node->P_pred, P1, sizeof(P1));
     node->updated = 0;
+    recentre(node);
     return DC_MOTOR_LINK_OK;
 }
 
@@ -253,7 +287,7 @@ int dc_motor_link_node_estimate(const dc_motor_link_node* node, real x[NX], real
         return DC_MOTOR_LINK_ERR_ARG;
     }
     if (x) {
-        memcpy(x, node->x, sizeof(node->x));
+        dc_motor_link_absolute(node->centre, node->x, x);
     }
     if (P) {
         memcpy(P, node->P, sizeof(node->P));
@@ -263,7 +297,7 @@ int dc_motor_link_node_estimate(const dc_motor_link_node* node, real x[NX], real
 
 int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], real y[NX])
 {
-    real Yl[NXX], yl[NX], piv[NX], origin[NX];
+    real Yl[NXX], yl[NX], piv[NX], origin[NX], x[NX];
     real w[DC_MOTOR_LINK_KERN_INFO_SZ_W];
     const real* arg[DC_MOTOR_LINK_KERN_INFO_SZ_ARG];
     real* res[DC_MOTOR_LINK_KERN_INFO_SZ_RES];
@@ -271,7 +305,8 @@ int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], 
         return DC_MOTOR_LINK_ERR_ARG;
     }
     memset(origin, 0, sizeof(origin));
-    arg[0] = node->x;
+    dc_motor_link_absolute(node->centre, node->x, x);
+    arg[0] = x;
     arg[1] = node->P;
     arg[2] = origin;
     res[0] = Yl;
@@ -299,6 +334,7 @@ int dc_motor_link_node_packet(const dc_motor_link_node* node, dc_motor_link_pack
         return DC_MOTOR_LINK_ERR_ARG;
     }
     packet->step = node->k;
+    memcpy(packet->centre, node->centre, sizeof(packet->centre));
     memcpy(packet->x, node->x, sizeof(packet->x));
     memcpy(packet->P, node->P, sizeof(packet->P));
     memcpy(packet->x_pred, node->x_pred, sizeof(packet->x_pred));

@@ -86,9 +86,13 @@ typedef struct {
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
- * measurement and the input v used to predict out of it.
+ * measurement and the input v used to predict out of it. Estimates, priors and measurements are
+ * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
+ * the estimate), so that single precision resolves the flat outputs to their own size, not to
+ * that of the distance travelled; the functions below add it back.
  */
 typedef struct {
+    two_link_arm_real centre[TWO_LINK_ARM_NY];               /**< flat outputs' origin for the fields below */
     two_link_arm_real x[TWO_LINK_ARM_NX];                    /**< estimate at step k (posterior once updated) */
     two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
     two_link_arm_real x_pred[TWO_LINK_ARM_NX];               /**< prediction into step k, before any update */
@@ -105,9 +109,11 @@ typedef struct {
     uint8_t ring_flags[TWO_LINK_ARM_NMAX + 1];   /**< bit 0: has a measurement, bit 1: used by the filter */
 } two_link_arm_node;
 
-/** What a node sends to the master after the updates of its step. */
+/** What a node sends to the master after the updates of its step: its estimate and its
+ * prediction, with the flat outputs relative to `centre` (add it back for absolute values). */
 typedef struct {
     uint32_t step;
+    two_link_arm_real centre[TWO_LINK_ARM_NY];
     two_link_arm_real x[TWO_LINK_ARM_NX];
     two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
     two_link_arm_real x_pred[TWO_LINK_ARM_NX];
@@ -122,8 +128,10 @@ typedef struct {
     uint32_t packets_ignored;  /**< present packets older than NMAX steps or from the future */
 } two_link_arm_master_health;
 
-/** The master: fuses the nodes' estimates (difference rule) and predicts. */
+/** The master: fuses the nodes' estimates (difference rule) and predicts. Its estimate and
+ * prediction are stored relative to `centre`, as in the node. */
 typedef struct {
+    two_link_arm_real centre[TWO_LINK_ARM_NY];               /**< flat outputs' origin for x and x_prior */
     two_link_arm_real x[TWO_LINK_ARM_NX];                    /**< fused estimate at step k */
     two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
     two_link_arm_real x_prior[TWO_LINK_ARM_NX];              /**< the master's own prediction into step k */

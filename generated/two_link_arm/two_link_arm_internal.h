@@ -40,6 +40,34 @@ int two_link_arm_kern_control(const two_link_arm_real** arg, two_link_arm_real**
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_RES 3
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_W 54
 
+/* Centring (see the node struct in two_link_arm.h): flat outputs are stored relative to a centre that
+ * moves in exact steps of 1/8, so that single precision resolves them to their own size. */
+#define TWO_LINK_ARM_CENTRE_STEP ((two_link_arm_real)0.125)
+static const uint8_t two_link_arm_heads[TWO_LINK_ARM_NY] = {0, 3};  /* zeta index of each flat output */
+
+/* The whole steps of 1/8 nearest to a stored flat output (0 when it is within 1/16, or so large
+ * that centring no longer matters and (long) could overflow). Subtracting it is exact. */
+static inline two_link_arm_real two_link_arm_centre_shift(two_link_arm_real value)
+{
+    two_link_arm_real d = value / TWO_LINK_ARM_CENTRE_STEP;
+    if (!(d < (two_link_arm_real)1048576 && d > (two_link_arm_real)-1048576)) {
+        return 0;
+    }
+    return TWO_LINK_ARM_CENTRE_STEP * (two_link_arm_real)(long)(d + (d < 0 ? (two_link_arm_real)-0.5 : (two_link_arm_real)0.5));
+}
+
+/* x with the flat outputs' centre added back (x and out may be the same array). */
+static inline void two_link_arm_absolute(const two_link_arm_real* centre, const two_link_arm_real* x, two_link_arm_real* out)
+{
+    size_t i;
+    for (i = 0; i < TWO_LINK_ARM_NX; i++) {
+        out[i] = x[i];
+    }
+    for (i = 0; i < TWO_LINK_ARM_NY; i++) {
+        out[two_link_arm_heads[i]] += centre[i];
+    }
+}
+
 /* 1 if all n values are finite (x - x is 0 for finite x, NaN otherwise; no math.h macros). */
 static inline int two_link_arm_finite(const two_link_arm_real* a, size_t n)
 {

@@ -59,6 +59,28 @@ static int info(const real* x, const real* P, const real* c, real* Y, real* y)
     return TWO_LINK_ARM_OK;
 }
 
+/* A packet's vector relative to the master's centre (the centres differ by whole steps). */
+static void recentred(const two_link_arm_master* master, const two_link_arm_packet* pk, const real* xc, real* x)
+{
+    int j;
+    memcpy(x, xc, sizeof(real) * NX);
+    for (j = 0; j < NY; j++) {
+        x[two_link_arm_heads[j]] += pk->centre[j] - master->centre[j];
+    }
+}
+
+/* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
+static void recentre(two_link_arm_master* master)
+{
+    int j;
+    for (j = 0; j < NY; j++) {
+        real shift = two_link_arm_centre_shift(master->x[two_link_arm_heads[j]]);
+        master->centre[j] += shift;
+        master->x[two_link_arm_heads[j]] -= shift;
+        master->x_prior[two_link_arm_heads[j]] -= shift;
+    }
+}
+
 /* Predict (x, P) from step j to step k with the stored inputs (in place, through a copy). */
 static int catch_up(const two_link_arm_master* master, uint32_t j, real* x, real* P)
 {
@@ -96,6 +118,7 @@ int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], con
     memcpy(master->x_prior, x0, sizeof(master->x_prior));
     memcpy(master->P_prior, P0, sizeof(master->P_prior));
     memcpy(master->q, q, sizeof(master->q));
+    recentre(master);
     return TWO_LINK_ARM_OK;
 }
 
@@ -126,10 +149,10 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
             continue;
         }
         if (!two_link_arm_finite(pk->x, NX) || !two_link_arm_finite(pk->P, NXX) || !two_link_arm_finite(pk->x_pred, NX) ||
-            !two_link_arm_finite(pk->P_pred, NXX)) {
+            !two_link_arm_finite(pk->P_pred, NXX) || !two_link_arm_finite(pk->centre, NY)) {
             return TWO_LINK_ARM_ERR_NONFINITE;
         }
-        memcpy(x, pk->x, sizeof(x));
+        recentred(master, pk, pk->x, x);
         memcpy(P, pk->P, sizeof(P));
         rc = catch_up(master, pk->step, x, P);
         if (rc == TWO_LINK_ARM_OK) {
@@ -138,7 +161,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
         if (rc != TWO_LINK_ARM_OK) {
             return rc;
         }
-        memcpy(xp, pk->x_pred, sizeof(xp));
+        recentred(master, pk, pk->x_pred, xp);
         memcpy(Pp, pk->P_pred, sizeof(Pp));
         rc = catch_up(master, pk->step, xp, Pp);
         if (rc == TWO_LINK_ARM_OK) {
@@ -205,6 +228,7 @@ int two_link_arm_master_predict(two_link_arm_master* master, const real v[NY])
     memcpy(master->P_prior, P1, sizeof(P1));
     memcpy(master->x, x1, sizeof(x1));
     memcpy(master->P, P1, sizeof(P1));
+    recentre(master);
     return TWO_LINK_ARM_OK;
 }
 
@@ -214,7 +238,7 @@ int two_link_arm_master_estimate(const two_link_arm_master* master, real x[NX], 
         return TWO_LINK_ARM_ERR_ARG;
     }
     if (x) {
-        memcpy(x, master->x, sizeof(master->x));
+        two_link_arm_absolute(master->centre, master->x, x);
     }
     if (P) {
         memcpy(P, master->P, sizeof(master->P));

@@ -11,6 +11,7 @@
 #define SLOTS (TWO_LINK_ARM_NMAX + 1)
 #define HAS 1u   /* the step has a measurement (on time or late) */
 #define USED 2u  /* the filter history used it (its gain is not zero) */
+#define HEADS two_link_arm_heads
 
 typedef two_link_arm_real real;
 
@@ -27,6 +28,36 @@ size_t two_link_arm_packet_size(void)
 static uint32_t slot_of(uint32_t step)
 {
     return step % (uint32_t)SLOTS;
+}
+
+/* Measurement relative to the node's centre. */
+static void centred(const two_link_arm_node* node, const real* z, real* zc)
+{
+    int j;
+    for (j = 0; j < NY; j++) {
+        zc[j] = z[j] - node->centre[j];
+    }
+}
+
+/* Move each output's centre by whole steps to within half a step of the estimate, and every
+ * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
+ * heads, and A maps a head-only vector to itself. */
+static void recentre(two_link_arm_node* node)
+{
+    int j, s;
+    for (j = 0; j < NY; j++) {
+        real shift = two_link_arm_centre_shift(node->x[HEADS[j]]);
+        if (shift == 0) {
+            continue;
+        }
+        node->centre[j] += shift;
+        node->x[HEADS[j]] -= shift;
+        node->x_pred[HEADS[j]] -= shift;
+        for (s = 0; s < SLOTS; s++) {
+            node->ring_x[s * NX + HEADS[j]] -= shift;
+            node->ring_z[s * NY + j] -= shift;
+        }
+    }
 }
 
 /* Filter update of one step from a prior; 0 or an error code. */
@@ -107,6 +138,7 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
     memcpy(node->ring_P, P0, sizeof(node->P));
     memcpy(node->R, R, sizeof(node->R));
     memcpy(node->q, q, sizeof(node->q));
+    recentre(node);
     return TWO_LINK_ARM_OK;
 }
 
@@ -126,7 +158,7 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
         if (!two_link_arm_finite(z, NY)) {
             return TWO_LINK_ARM_ERR_NONFINITE;
         }
-        memcpy(zz, z, sizeof(zz));
+        centred(node, z, zz);
     }
     slot = slot_of(node->k);
     rc = update_step(node->ring_x + slot * NX, node->ring_P + slot * NXX, zz, (real)gamma, node->R, x, P);
@@ -177,20 +209,21 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, int c
     }
 }
 
-int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z[NY], int32_t lag)
+int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[NY], int32_t lag)
 {
-    real x[NX], P[NXX];
+    real x[NX], P[NXX], z[NY];
     uint32_t N, slot;
     int rc;
-    if (!node || !z) {
+    if (!node || !z_abs) {
         return TWO_LINK_ARM_ERR_ARG;
     }
     if (!node->updated) {
         return TWO_LINK_ARM_ERR_SEQUENCE;
     }
-    if (!two_link_arm_finite(z, NY)) {
+    if (!two_link_arm_finite(z_abs, NY)) {
         return TWO_LINK_ARM_ERR_NONFINITE;
     }
+    centred(node, z_abs, z);
     if (lag < 1 || lag > TWO_LINK_ARM_NMAX || (uint32_t)lag > node->k) {
         node->health.late_rejected++;
         return TWO_LINK_ARM_ERR_LAG;
@@ -244,6 +277,7 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
     memcpy(node->x_pred, x1, sizeof(x1));
     memcpy(node->P_pred, P1, sizeof(P1));
     node->updated = 0;
+    recentre(node);
     return TWO_LINK_ARM_OK;
 }
 
@@ -253,7 +287,7 @@ int two_link_arm_node_estimate(const two_link_arm_node* node, real x[NX], real P
         return TWO_LINK_ARM_ERR_ARG;
     }
     if (x) {
-        memcpy(x, node->x, sizeof(node->x));
+        two_link_arm_absolute(node->centre, node->x, x);
     }
     if (P) {
         memcpy(P, node->P, sizeof(node->P));
@@ -263,7 +297,7 @@ int two_link_arm_node_estimate(const two_link_arm_node* node, real x[NX], real P
 
 int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], real y[NX])
 {
-    real Yl[NXX], yl[NX], piv[NX], origin[NX];
+    real Yl[NXX], yl[NX], piv[NX], origin[NX], x[NX];
     real w[TWO_LINK_ARM_KERN_INFO_SZ_W];
     const real* arg[TWO_LINK_ARM_KERN_INFO_SZ_ARG];
     real* res[TWO_LINK_ARM_KERN_INFO_SZ_RES];
@@ -271,7 +305,8 @@ int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], re
         return TWO_LINK_ARM_ERR_ARG;
     }
     memset(origin, 0, sizeof(origin));
-    arg[0] = node->x;
+    two_link_arm_absolute(node->centre, node->x, x);
+    arg[0] = x;
     arg[1] = node->P;
     arg[2] = origin;
     res[0] = Yl;
@@ -299,6 +334,7 @@ int two_link_arm_node_packet(const two_link_arm_node* node, two_link_arm_packet*
         return TWO_LINK_ARM_ERR_ARG;
     }
     packet->step = node->k;
+    memcpy(packet->centre, node->centre, sizeof(packet->centre));
     memcpy(packet->x, node->x, sizeof(packet->x));
     memcpy(packet->P, node->P, sizeof(packet->P));
     memcpy(packet->x_pred, node->x_pred, sizeof(packet->x_pred));
