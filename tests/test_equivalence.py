@@ -13,8 +13,13 @@ rules x 2 references x 6 delay rows): the whole delay grid for one combination, 
 appear; a lossy, late node -> master link with camera drops for both methods (one with a window
 shorter than the delays, so late measurements are also rejected); float builds for
 every model x method x fusion rule. Retrodiction is sampled on rows 1-2 (dc_motor_link) and 1
-(two_link_arm) only: beyond, the reference's own retrodiction stops early with a singular matrix
-(several late measurements against a stale history, see equations.md section 4).
+(two_link_arm), 3 and 4 in double: beyond, several late measurements per step meet a stale
+history (by design, equations.md section 4) and the problem itself amplifies rounding, so row 5
+has its own test against the reference's sensitivity (test_retrodict_where_it_is_ill_conditioned)
+and float retrodiction is held to 1e-4 on rows 1-2 only: on rows 3-5 single precision drifts to
+1e-4..1e-3 of the reference, and an independent float32 run of the reference's own node filter
+(numpy/LAPACK, master in double) drifts as far (8e-4 at (18, 20, 0.6) on two_link_arm), so no
+single-precision implementation of the method can do better there.
 """
 
 from __future__ import annotations
@@ -39,12 +44,15 @@ DIAGONAL = [
     Case("two_link_arm", "retrodict", "difference", "sinusoid", 1),
     Case("two_link_arm", "retrodict", "paper", "seesaw", 1),
     Case("two_link_arm", "retrodict", "ci", "sinusoid", 1),
+    Case("dc_motor_link", "retrodict", "paper", "seesaw", 3),
+    Case("two_link_arm", "retrodict", "ci", "sinusoid", 4),
 ]
+ILL_CONDITIONED = Case("two_link_arm", "retrodict", "difference", "sinusoid", 5)
 LOSSY = [
     Case("dc_motor_link", "replay", "difference", "sinusoid", 4, max_lag=16, uplink=(0.5, 6, 0.1), sensor_drop=0.1),
     Case("two_link_arm", "retrodict", "paper", "seesaw", 1, uplink=(0.5, 6, 0.1), sensor_drop=0.1),
 ]
-FLOAT = [GRID[2], *DIAGONAL, LOSSY[1]]
+FLOAT = [GRID[2], *DIAGONAL[:11], LOSSY[1]]
 
 DOUBLE_RUNS = [(c, "double") for c in GRID + DIAGONAL + LOSSY]
 FLOAT_RUNS = [(c, "float") for c in FLOAT]
@@ -70,6 +78,27 @@ def test_float_equals_reference(store, run):
     single precision costs, accumulated over 2000 steps."""
     errors = check(store, *run)
     verify.check(errors)
+
+
+def test_retrodict_where_it_is_ill_conditioned(store):
+    """At (25, 30, 0.6) retrodiction folds many late frames into a stale history and the problem
+    itself amplifies rounding: changing the initial covariances by one ulp moves the reference's
+    own outputs by about 1e-10. There the C must agree with the reference to within a few times
+    that sensitivity (and to 1e-9), which is all any implementation can promise."""
+    import dataclasses
+
+    rec = store.recording(ILL_CONDITIONED)
+    rng = np.random.default_rng(0)
+    P0 = rec.node_P0 * (1 + np.finfo(float).eps * rng.choice([-1, 1], rec.node_P0.shape))
+    nudged = experiment.replay_recording(dataclasses.replace(rec, node_P0=(P0 + np.swapaxes(P0, 1, 2)) / 2))
+    own = {e.signal: e.worst for e in verify.compare_run(nudged, rec, "double")}
+    errors = verify.compare_run(store.library(ILL_CONDITIONED, "double").run(rec), rec, "double")
+    print(f"\n{ILL_CONDITIONED}: C vs reference / reference vs its one-ulp-nudged self")
+    for e in errors[:-1]:
+        print(f"  {e.signal:8s} {e.worst:.1e} / {own[e.signal]:.1e}")
+        assert e.worst <= max(10 * own[e.signal], 1e-12) and e.worst <= 1e-9, e.signal
+    assert max(own.values()) > 1e-11, "the scenario is ill-conditioned (else it belongs in DIAGONAL)"
+    assert errors[-1].ok, "the same late measurements accepted and rejected"
 
 
 @pytest.mark.parametrize("case", [GRID[2], DIAGONAL[8]], ids=str)
