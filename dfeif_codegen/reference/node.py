@@ -59,20 +59,25 @@ class NodeFilter:
     """Local filter of one node. Per step: `update` once, `update_delayed` any number of times,
     then `predict` with the broadcast input."""
 
-    def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay"):
+    def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay",
+                 dtype=np.float64):
+        """`dtype` is the precision of every stored value and operation: float64 for the
+        reference; float32 gives a second single-precision implementation (numpy and LAPACK
+        instead of the generated C), to tell the method's conditioning from the C's rounding."""
         if oosm not in ("replay", "retrodict"):
             raise ValueError(f"oosm must be 'replay' or 'retrodict', not {oosm!r}")
         if max_lag < 1:
             raise ValueError("max_lag must be at least 1")
         self.flat, self.ts, self.q, self.oosm, self.max_lag = flat, ts, q, oosm, max_lag
-        self.A, self.B, self.C = flat.discrete(ts)
-        self.Q = flat.process_noise(ts, q)
-        self.R = measurement_covariance(R, flat.m)
+        self.dtype = np.dtype(dtype)
+        self.A, self.B, self.C = (a.astype(self.dtype) for a in flat.discrete(ts))
+        self.Q = flat.process_noise(ts, q).astype(self.dtype)
+        self.R = measurement_covariance(R, flat.m).astype(self.dtype)
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])
         self.k = 0
-        self.x = np.array(x0, dtype=float)
-        self.P = np.array(P0, dtype=float)
+        self.x = np.array(x0, dtype=self.dtype)
+        self.P = np.array(P0, dtype=self.dtype)
         self.x_pred, self.P_pred = self.x, self.P
         self.counters = dict.fromkeys(COUNTERS, 0)
         self._ring: list[_Slot | None] = [None] * (max_lag + 1)
@@ -87,7 +92,7 @@ class NodeFilter:
             raise RuntimeError(f"update called twice at step {self.k}")
         slot = self._slot(self.k)
         slot.gamma = bool(gamma)
-        slot.z = self._z(z) if gamma else np.full(self.flat.m, np.nan)
+        slot.z = self._z(z) if gamma else np.full(self.flat.m, np.nan, dtype=self.dtype)
         self.x, self.P = self._correct(slot)
         self.counters["updates" if gamma else "drops"] += 1
         self._updated = True
@@ -119,7 +124,7 @@ class NodeFilter:
         """Predict to step k + 1 with the input the master broadcast for step k."""
         if not self._updated:
             raise RuntimeError(f"predict before update at step {self.k}")
-        v = np.atleast_1d(np.asarray(v, dtype=float))
+        v = np.atleast_1d(np.asarray(v, dtype=self.dtype))
         self._slot(self.k).v = v
         self.x, self.P = self._propagate(self.x, self.P, v)
         self.k += 1
@@ -135,7 +140,7 @@ class NodeFilter:
         return self._ring[step % (self.max_lag + 1)]
 
     def _z(self, z) -> np.ndarray:
-        return np.atleast_1d(np.asarray(z, dtype=float)).reshape(self.flat.m)
+        return np.atleast_1d(np.asarray(z, dtype=self.dtype)).reshape(self.flat.m)
 
     def _propagate(self, x, P, v):
         return self.A @ x + self.B @ v, self.A @ P @ self.A.T + self.Q
@@ -147,11 +152,11 @@ class NodeFilter:
         slot.S = Pp[np.ix_(h, h)] + self.R
         if slot.gamma:
             slot.K = spd_solve(slot.S, Pp[:, h].T).T
-            ikc = np.eye(self.flat.n)
+            ikc = np.eye(self.flat.n, dtype=self.dtype)
             ikc[:, h] -= slot.K
             x, P = xp + slot.K @ slot.e, ikc @ Pp @ ikc.T + slot.K @ self.R @ slot.K.T
         else:
-            slot.K = np.zeros((self.flat.n, self.flat.m))
+            slot.K = np.zeros((self.flat.n, self.flat.m), dtype=self.dtype)
             x, P = xp, Pp
         slot.P_post = P
         return x, P
@@ -170,11 +175,11 @@ class NodeFilter:
         """Xia et al.'s one-shot update (equations.md section 4) by the O(N) backward recursion
         of algorithms.md: the corrected (x, P). Only steps updated in sequence (nonzero K)
         contribute a term. Raises SingularMatrixError if W or the corrected P is indefinite."""
-        A, Q, h, n, k = self.A, self.Q, self.heads, self.flat.n, self.k
-        eye = np.eye(n)
+        A, Q, h, n, k, dt = self.A, self.Q, self.heads, self.flat.n, self.k, self.dtype
+        eye = np.eye(n, dtype=dt)
 
         def apow(i: int) -> np.ndarray:   # A^i in closed form, exact also for negative i
-            return self.flat.discrete(i * self.ts)[0]
+            return self.flat.discrete(i * self.ts)[0].astype(dt)
 
         def lmat(i: int) -> np.ndarray:   # L_i = I - K(k-i) C
             out = eye.copy()
@@ -182,7 +187,7 @@ class NodeFilter:
             return out
 
         P_old = self._slot(k - N).P_post
-        sum_w, sum_q, sum_xw = np.zeros(n), np.zeros((n, n)), np.zeros((n, n))
+        sum_w, sum_q, sum_xw = np.zeros(n, dt), np.zeros((n, n), dt), np.zeros((n, n), dt)
         T, E = apow(N - 1) @ Q, eye
         for i in range(N - 1, -1, -1):
             if i < N - 1:
@@ -198,9 +203,9 @@ class NodeFilter:
                 sum_xw += P_old @ D.T @ s_ct
         phi1, a_n = apow(-N), apow(N)
         w_a = -phi1 @ sum_w
-        q_star = phi1 @ (self.flat.process_noise(N * self.ts, self.q) - sum_q) @ phi1.T
+        q_star = phi1 @ (self.flat.process_noise(N * self.ts, self.q).astype(dt) - sum_q) @ phi1.T
         P_xw = a_n @ sum_xw @ phi1.T - a_n @ q_star
-        forced = np.zeros(n)                       # sum_j A^(N-j) B v(k-N+j-1)
+        forced = np.zeros(n, dt)                   # sum_j A^(N-j) B v(k-N+j-1)
         for j in range(k - N, k):
             forced = A @ forced + self.B @ self._slot(j).v
         x_back = phi1 @ (self.x - forced) + w_a
