@@ -174,7 +174,7 @@ def run(args) -> int:
 
     precision = args.precision or ("float" if args.target == "cortex-m4f" else "double")
     oosm, fusion = args.oosm or "replay", args.fusion or "difference"
-    inputs = getattr(args, "inputs", "recorded")
+    inputs = args.inputs
     if args.target == "host":
         harness.host_compiler()
     else:

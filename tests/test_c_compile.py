@@ -115,15 +115,21 @@ def test_example_runs(built, tmp_path, variant):
     assert "RMS error" in out and "late applied" in out
 
 
-@pytest.mark.parametrize("variant", FLOAT_VARIANTS)
-def test_arm_float_objects_have_no_double(built, tmp_path, variant):
-    cc, nm = tool("arm-none-eabi-gcc"), tool("arm-none-eabi-nm")
-    folder = built(variant)
+def arm_objects(folder, out_dir, flags) -> list:
+    """Every library source of `folder` compiled for the Cortex-M4F with `flags`."""
+    cc = tool("arm-none-eabi-gcc")
     objects = []
     for src in sources(folder):
-        obj = tmp_path / (src.stem + ".o")
-        run([cc, *ARM, *WARN, "-I", folder, "-c", src, "-o", obj])
+        obj = out_dir / (src.stem + ".o")
+        run([cc, *ARM, *flags, "-I", folder, "-c", src, "-o", obj])
         objects.append(obj)
+    return objects
+
+
+@pytest.mark.parametrize("variant", FLOAT_VARIANTS)
+def test_arm_float_objects_have_no_double(built, tmp_path, variant):
+    nm = tool("arm-none-eabi-nm")
+    objects = arm_objects(built(variant), tmp_path, WARN)
     symbols = run([nm, "-u", *objects]).stdout.split()
     assert not [s for s in symbols if s.startswith("__aeabi_d") or s in DOUBLE_MATH], symbols
 
@@ -131,13 +137,8 @@ def test_arm_float_objects_have_no_double(built, tmp_path, variant):
 @pytest.mark.parametrize("variant", ["dc-float", "dc-float-retro-ci"])
 def test_arm_sizes_within_budget(built, tmp_path, variant):
     """Node + master + control objects of dc_motor_link at -Os: .text <= 16 KiB, no .data/.bss."""
-    cc, size = tool("arm-none-eabi-gcc"), tool("arm-none-eabi-size")
-    folder = built(variant)
-    objects = []
-    for src in sources(folder):
-        obj = tmp_path / (src.stem + ".o")
-        run([cc, *ARM, "-std=c99", "-I", folder, "-c", src, "-o", obj])
-        objects.append(obj)
+    size = tool("arm-none-eabi-size")
+    objects = arm_objects(built(variant), tmp_path, ["-std=c99"])
     table = run([size, "-t", *objects]).stdout.splitlines()
     print("\n".join(table))
     text, data, bss = (int(v) for v in table[-1].split()[:3])

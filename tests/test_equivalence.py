@@ -58,11 +58,11 @@ DOUBLE_RUNS = [(c, "double") for c in GRID + DIAGONAL + LOSSY]
 FLOAT_RUNS = [(c, "float") for c in FLOAT]
 
 
-def check(store, case: Case, precision: str) -> list[verify.SignalError]:
+def check(store, case: Case, precision: str, inputs: str = "recorded") -> list[verify.SignalError]:
     rec = store.recording(case)
-    got = store.library(case, precision).run(rec)
+    got = store.library(case, precision).run(rec, inputs)
     errors = verify.compare_run(got, rec, precision)
-    print(f"\n{case} ({precision})\n{verify.table(errors)}")
+    print(f"\n{case} ({precision}, {inputs} inputs)\n{verify.table(errors)}")
     return errors
 
 
@@ -133,10 +133,7 @@ def test_float_retrodict_where_it_is_ill_conditioned(store, monkeypatch):
 def test_own_inputs(store, case):
     """The nodes and the master predict with the v the C controller computes (the loop through
     the controller closed in C, one run call): still the reference's numbers in double."""
-    rec = store.recording(case)
-    errors = verify.compare_run(store.library(case, "double").run(rec, "own"), rec, "double")
-    print(f"\n{case} (double, own inputs)\n{verify.table(errors)}")
-    verify.check(errors)
+    verify.check(check(store, case, "double", "own"))
 
 
 def test_the_lossy_scenarios_exercise_the_protocol(store):

@@ -56,15 +56,16 @@ static inline dc_motor_link_real dc_motor_link_centre_shift(dc_motor_link_real v
     return DC_MOTOR_LINK_CENTRE_STEP * (dc_motor_link_real)(long)(d + (d < 0 ? (dc_motor_link_real)-0.5 : (dc_motor_link_real)0.5));
 }
 
-/* x with the flat outputs' centre added back (x and out may be the same array). */
-static inline void dc_motor_link_absolute(const dc_motor_link_real* centre, const dc_motor_link_real* x, dc_motor_link_real* out)
+/* x stored relative to centre `from`, rewritten relative to centre `to` (NULL: absolute). */
+static inline void dc_motor_link_move_origin(const dc_motor_link_real* x, const dc_motor_link_real* from, const dc_motor_link_real* to,
+                                        dc_motor_link_real* out)
 {
     size_t i;
     for (i = 0; i < DC_MOTOR_LINK_NX; i++) {
         out[i] = x[i];
     }
     for (i = 0; i < DC_MOTOR_LINK_NY; i++) {
-        out[dc_motor_link_heads[i]] += centre[i];
+        out[dc_motor_link_heads[i]] += to ? from[i] - to[i] : from[i];
     }
 }
 

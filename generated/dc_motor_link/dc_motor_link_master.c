@@ -59,16 +59,6 @@ static int info(const real* x, const real* P, const real* c, real* Y, real* y)
     return DC_MOTOR_LINK_OK;
 }
 
-/* A packet's vector relative to the master's centre (the centres differ by whole steps). */
-static void recentred(const dc_motor_link_master* master, const dc_motor_link_packet* pk, const real* xc, real* x)
-{
-    int j;
-    memcpy(x, xc, sizeof(real) * NX);
-    for (j = 0; j < NY; j++) {
-        x[dc_motor_link_heads[j]] += pk->centre[j] - master->centre[j];
-    }
-}
-
 /* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
 static void recentre(dc_motor_link_master* master)
 {
@@ -152,7 +142,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
             !dc_motor_link_finite(pk->P_pred, NXX) || !dc_motor_link_finite(pk->centre, NY)) {
             return DC_MOTOR_LINK_ERR_NONFINITE;
         }
-        recentred(master, pk, pk->x, x);
+        dc_motor_link_move_origin(pk->x, pk->centre, master->centre, x);  /* centres differ by whole steps */
         memcpy(P, pk->P, sizeof(P));
         rc = catch_up(master, pk->step, x, P);
         if (rc == DC_MOTOR_LINK_OK) {
@@ -161,7 +151,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
         if (rc != DC_MOTOR_LINK_OK) {
             return rc;
         }
-        recentred(master, pk, pk->x_pred, xp);
+        dc_motor_link_move_origin(pk->x_pred, pk->centre, master->centre, xp);
         memcpy(Pp, pk->P_pred, sizeof(Pp));
         rc = catch_up(master, pk->step, xp, Pp);
         if (rc == DC_MOTOR_LINK_OK) {
@@ -238,7 +228,7 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master, real x[NX]
         return DC_MOTOR_LINK_ERR_ARG;
     }
     if (x) {
-        dc_motor_link_absolute(master->centre, master->x, x);
+        dc_motor_link_move_origin(master->x, master->centre, NULL, x);
     }
     if (P) {
         memcpy(P, master->P, sizeof(master->P));

@@ -11,7 +11,6 @@
 #define SLOTS (DC_MOTOR_LINK_NMAX + 1)
 #define HAS 1u   /* the step has a measurement (on time or late) */
 #define USED 2u  /* the filter history used it (its gain is not zero) */
-#define HEADS dc_motor_link_heads
 
 typedef dc_motor_link_real real;
 
@@ -46,15 +45,15 @@ static void recentre(dc_motor_link_node* node)
 {
     int j, s;
     for (j = 0; j < NY; j++) {
-        real shift = dc_motor_link_centre_shift(node->x[HEADS[j]]);
+        real shift = dc_motor_link_centre_shift(node->x[dc_motor_link_heads[j]]);
         if (shift == 0) {
             continue;
         }
         node->centre[j] += shift;
-        node->x[HEADS[j]] -= shift;
-        node->x_pred[HEADS[j]] -= shift;
+        node->x[dc_motor_link_heads[j]] -= shift;
+        node->x_pred[dc_motor_link_heads[j]] -= shift;
         for (s = 0; s < SLOTS; s++) {
-            node->ring_x[s * NX + HEADS[j]] -= shift;
+            node->ring_x[s * NX + dc_motor_link_heads[j]] -= shift;
             node->ring_z[s * NY + j] -= shift;
         }
     }
@@ -287,7 +286,7 @@ int dc_motor_link_node_estimate(const dc_motor_link_node* node, real x[NX], real
         return DC_MOTOR_LINK_ERR_ARG;
     }
     if (x) {
-        dc_motor_link_absolute(node->centre, node->x, x);
+        dc_motor_link_move_origin(node->x, node->centre, NULL, x);
     }
     if (P) {
         memcpy(P, node->P, sizeof(node->P));
@@ -305,7 +304,7 @@ int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], 
         return DC_MOTOR_LINK_ERR_ARG;
     }
     memset(origin, 0, sizeof(origin));
-    dc_motor_link_absolute(node->centre, node->x, x);
+    dc_motor_link_move_origin(node->x, node->centre, NULL, x);
     arg[0] = x;
     arg[1] = node->P;
     arg[2] = origin;

@@ -56,15 +56,16 @@ static inline two_link_arm_real two_link_arm_centre_shift(two_link_arm_real valu
     return TWO_LINK_ARM_CENTRE_STEP * (two_link_arm_real)(long)(d + (d < 0 ? (two_link_arm_real)-0.5 : (two_link_arm_real)0.5));
 }
 
-/* x with the flat outputs' centre added back (x and out may be the same array). */
-static inline void two_link_arm_absolute(const two_link_arm_real* centre, const two_link_arm_real* x, two_link_arm_real* out)
+/* x stored relative to centre `from`, rewritten relative to centre `to` (NULL: absolute). */
+static inline void two_link_arm_move_origin(const two_link_arm_real* x, const two_link_arm_real* from, const two_link_arm_real* to,
+                                        two_link_arm_real* out)
 {
     size_t i;
     for (i = 0; i < TWO_LINK_ARM_NX; i++) {
         out[i] = x[i];
     }
     for (i = 0; i < TWO_LINK_ARM_NY; i++) {
-        out[two_link_arm_heads[i]] += centre[i];
+        out[two_link_arm_heads[i]] += to ? from[i] - to[i] : from[i];
     }
 }
 

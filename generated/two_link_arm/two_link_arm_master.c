@@ -59,16 +59,6 @@ static int info(const real* x, const real* P, const real* c, real* Y, real* y)
     return TWO_LINK_ARM_OK;
 }
 
-/* A packet's vector relative to the master's centre (the centres differ by whole steps). */
-static void recentred(const two_link_arm_master* master, const two_link_arm_packet* pk, const real* xc, real* x)
-{
-    int j;
-    memcpy(x, xc, sizeof(real) * NX);
-    for (j = 0; j < NY; j++) {
-        x[two_link_arm_heads[j]] += pk->centre[j] - master->centre[j];
-    }
-}
-
 /* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
 static void recentre(two_link_arm_master* master)
 {
@@ -152,7 +142,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
             !two_link_arm_finite(pk->P_pred, NXX) || !two_link_arm_finite(pk->centre, NY)) {
             return TWO_LINK_ARM_ERR_NONFINITE;
         }
-        recentred(master, pk, pk->x, x);
+        two_link_arm_move_origin(pk->x, pk->centre, master->centre, x);  /* centres differ by whole steps */
         memcpy(P, pk->P, sizeof(P));
         rc = catch_up(master, pk->step, x, P);
         if (rc == TWO_LINK_ARM_OK) {
@@ -161,7 +151,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
         if (rc != TWO_LINK_ARM_OK) {
             return rc;
         }
-        recentred(master, pk, pk->x_pred, xp);
+        two_link_arm_move_origin(pk->x_pred, pk->centre, master->centre, xp);
         memcpy(Pp, pk->P_pred, sizeof(Pp));
         rc = catch_up(master, pk->step, xp, Pp);
         if (rc == TWO_LINK_ARM_OK) {
@@ -238,7 +228,7 @@ int two_link_arm_master_estimate(const two_link_arm_master* master, real x[NX], 
         return TWO_LINK_ARM_ERR_ARG;
     }
     if (x) {
-        two_link_arm_absolute(master->centre, master->x, x);
+        two_link_arm_move_origin(master->x, master->centre, NULL, x);
     }
     if (P) {
         memcpy(P, master->P, sizeof(master->P));

@@ -11,7 +11,6 @@
 #define SLOTS (TWO_LINK_ARM_NMAX + 1)
 #define HAS 1u   /* the step has a measurement (on time or late) */
 #define USED 2u  /* the filter history used it (its gain is not zero) */
-#define HEADS two_link_arm_heads
 
 typedef two_link_arm_real real;
 
@@ -46,15 +45,15 @@ static void recentre(two_link_arm_node* node)
 {
     int j, s;
     for (j = 0; j < NY; j++) {
-        real shift = two_link_arm_centre_shift(node->x[HEADS[j]]);
+        real shift = two_link_arm_centre_shift(node->x[two_link_arm_heads[j]]);
         if (shift == 0) {
             continue;
         }
         node->centre[j] += shift;
-        node->x[HEADS[j]] -= shift;
-        node->x_pred[HEADS[j]] -= shift;
+        node->x[two_link_arm_heads[j]] -= shift;
+        node->x_pred[two_link_arm_heads[j]] -= shift;
         for (s = 0; s < SLOTS; s++) {
-            node->ring_x[s * NX + HEADS[j]] -= shift;
+            node->ring_x[s * NX + two_link_arm_heads[j]] -= shift;
             node->ring_z[s * NY + j] -= shift;
         }
     }
@@ -287,7 +286,7 @@ int two_link_arm_node_estimate(const two_link_arm_node* node, real x[NX], real P
         return TWO_LINK_ARM_ERR_ARG;
     }
     if (x) {
-        two_link_arm_absolute(node->centre, node->x, x);
+        two_link_arm_move_origin(node->x, node->centre, NULL, x);
     }
     if (P) {
         memcpy(P, node->P, sizeof(node->P));
@@ -305,7 +304,7 @@ int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], re
         return TWO_LINK_ARM_ERR_ARG;
     }
     memset(origin, 0, sizeof(origin));
-    two_link_arm_absolute(node->centre, node->x, x);
+    two_link_arm_move_origin(node->x, node->centre, NULL, x);
     arg[0] = x;
     arg[1] = node->P;
     arg[2] = origin;
