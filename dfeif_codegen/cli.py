@@ -61,6 +61,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--precision", choices=["double", "float"], default=None,
                    help="default: double on the host, float on cortex-m4f")
     p.add_argument("--sanitize", action="store_true", help="host: build with -fsanitize=address,undefined")
+    p.add_argument("--scenario", default="paper",
+                   help="'paper' or a scenario .toml to record (its first row with late frames)")
     p.add_argument("--inputs", choices=["recorded", "own"], default="recorded",
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")

@@ -42,10 +42,16 @@ def _matrix(rows: list[list[float]]) -> str:
     return "\n".join("    [" + "  ".join(f"{v:12.6g}" for v in row) + " ]" for row in rows)
 
 
+def _variable(s: dict) -> str:
+    unit = f"[{s['unit']}]" if s["unit"] else ""
+    return f"  {s['name']:<10} {unit:<12} {s['description']}".rstrip()
+
+
 def render_text(info: dict) -> str:
-    lines = [f"model {info['model']}: {info['description']}", f"  from {info['source']}", "", "states:"]
-    lines += [f"  {s['name']:<10} [{s['unit']}]  {s['description']}" for s in info["states"]]
-    lines += ["inputs:"] + [f"  {s['name']:<10} [{s['unit']}]  {s['description']}" for s in info["inputs"]]
+    title = f"model {info['model']}" + (f": {info['description']}" if info["description"] else "")
+    lines = [title, f"  from {info['source']}", "", "states:"]
+    lines += [_variable(s) for s in info["states"]]
+    lines += ["inputs:"] + [_variable(s) for s in info["inputs"]]
     lines += ["flat outputs:"] + [
         f"  {o['name']:<10} = {o['expr']}   relative degree {o['relative_degree']}" + ("   (angle)" if o["angle"] else "")
         for o in info["flat_outputs"]]

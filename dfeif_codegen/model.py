@@ -191,6 +191,10 @@ def _table(data: Mapping, key: str, where: str, required: bool = True) -> dict:
     return value
 
 
+def _positive(values) -> bool:
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in values)
+
+
 def _items(data: Mapping, key: str, where, required: bool = True) -> list[dict]:
     value = data.get(key)
     if value is None:
@@ -314,7 +318,16 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
 
     measurement = None
     meas = _table(data, "measurement", source, required=False)
-    if meas:
+    if meas and "observe" not in meas and "recover" not in meas:
+        # Only [measurement.noise]: the cameras measure the flat outputs themselves.
+        observe = {o.name: o.expr for o in outputs}
+        recover = {o.name: sp.Symbol(o.name) for o in outputs}
+        noise = _table(meas, "noise", where("measurement"))
+        if sorted(noise) != sorted(observe) or not _positive(noise.values()):
+            raise ModelError(f"{where('measurement.noise')}: without [measurement.observe], needs one positive "
+                             f"std dev per flat output ({', '.join(observe)})")
+        measurement = Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
+    elif meas:
         observe = {k: parse(f"measurement.observe.{k}", v)
                    for k, v in _table(meas, "observe", where("measurement")).items()}
         seen = {k: sp.Symbol(k) for k in observe}
@@ -324,8 +337,7 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
         recover = {k: parse(f"measurement.recover.{k}", v, {**seen, **{p.name: sp.Symbol(p.name) for p in parameters}})
                    for k, v in recover_table.items()}
         noise = _table(meas, "noise", where("measurement"))
-        if sorted(noise) != sorted(observe) or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in noise.values()):
+        if sorted(noise) != sorted(observe) or not _positive(noise.values()):
             raise ModelError(f"{where('measurement.noise')}: needs one positive std dev per observed channel")
         measurement = Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
 

@@ -89,23 +89,30 @@ class Scenario:
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
         m = flat.m
+        hint = (f" (the built-in scenario does not fit model {flat.model.name}: copy "
+                f"dfeif_codegen/scenarios/{self.source}, edit it and pass it with --scenario FILE)"
+                if self.source in {f"{b}.toml" for b in BUILTIN} else "")
+
+        def fail(key: str, message: str):
+            raise ScenarioError(f"{self.where(key)}: {message}{hint}")
+
         for key, values in (("filter.q", self.q), ("control.poles", self.poles),
                             ("reference.amplitude", self.amplitude), ("reference.offset", self.offset)):
             if len(values) not in (1, m):
-                raise ScenarioError(f"{self.where(key)}: needs 1 or {m} values (one per flat output) "
-                                    f"for model {flat.model.name}, got {len(values)}")
+                fail(key, f"needs 1 or {m} values (one per flat output) for model {flat.model.name}, "
+                          f"got {len(values)}")
         if len(self.p0_std) < max(flat.degrees):
-            raise ScenarioError(f"{self.where('filter.p0_std')}: needs {max(flat.degrees)} values (one per "
-                                f"derivative order) for model {flat.model.name}, got {len(self.p0_std)}")
+            fail("filter.p0_std", f"needs {max(flat.degrees)} values (one per derivative order) for model "
+                                  f"{flat.model.name}, got {len(self.p0_std)}")
         meas = flat.model.measurement
         channels = len(meas.observe) if meas else m
         for i, std in enumerate(self.noise_std):
             if std is None and meas is None:
-                raise ScenarioError(f"{self.where('nodes')}: node {i + 1}: model {flat.model.name} has no "
-                                    f"[measurement], so noise_std (one per flat output) is required")
+                fail("nodes", f"node {i + 1}: model {flat.model.name} has no [measurement], so noise_std "
+                              f"(one per flat output) is required")
             if std is not None and len(std) not in (1, channels):
-                raise ScenarioError(f"{self.where('nodes')}: node {i + 1}: noise_std needs 1 or {channels} "
-                                    f"values (one per camera channel), got {len(std)}")
+                fail("nodes", f"node {i + 1}: noise_std needs 1 or {channels} values (one per camera "
+                              f"channel), got {len(std)}")
 
 
 # --- parsing ----------------------------------------------------------------------------------

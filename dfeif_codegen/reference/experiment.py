@@ -147,9 +147,10 @@ class Result:
 class FilterBank:
     """Nodes, master and controller, stepped exactly as the protocol says."""
 
-    def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion):
-        self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm)
-                      for i in range(len(R))]
+    def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
+                 node_dtype=np.float64):
+        self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
+                                 dtype=node_dtype) for i in range(len(R))]
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag)
         self.control = FlatController(flat, gains=gains)
         self.max_lag = max_lag
@@ -190,12 +191,13 @@ class _Outputs:
         self.x[k], self.P[k], self.u[k], self.v[k] = x, P, u, v
 
 
-def replay_recording(rec: Recording) -> dict[str, np.ndarray]:
+def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndarray]:
     """Re-run only the filters and the controller from a recording (no plant, no network) and
-    return the outputs: late_applied, node_x, node_P, x, P, u, v."""
+    return the outputs: late_applied, node_x, node_P, x, P, u, v. `node_dtype=np.float32` runs
+    the node filters in single precision: a second single-precision implementation to judge the C's."""
     flat = _flat(rec.model)
     bank = FilterBank(flat, rec.ts, rec.q, rec.R, rec.node_x0, rec.node_P0, rec.master_x0, rec.master_P0,
-                      rec.gains, rec.max_lag, rec.oosm, rec.fusion)
+                      rec.gains, rec.max_lag, rec.oosm, rec.fusion, node_dtype)
     K = rec.ref.shape[0]
     out = _Outputs(rec.nodes, K, rec.n, rec.m)
     late_at = np.searchsorted(rec.late_step, np.arange(K + 1))

@@ -31,5 +31,7 @@ def spd_inv(a: np.ndarray) -> np.ndarray:
 
 def wrap(e: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """Wrap the entries of `e` flagged in `angle` to (-pi, pi]."""
+    if not np.any(angle):
+        return e
     wrapped = e - 2 * np.pi * np.ceil((e - np.pi) / (2 * np.pi))
     return np.where(angle, wrapped, e)

@@ -75,6 +75,8 @@ class NodeFilter:
         self.R = measurement_covariance(R, flat.m).astype(self.dtype)
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])
+        self._head_block = np.ix_(self.heads, self.heads)   # hot path: index arrays made once
+        self._eye = np.eye(flat.n, dtype=self.dtype)
         self.k = 0
         self.x = np.array(x0, dtype=self.dtype)
         self.P = np.array(P0, dtype=self.dtype)
@@ -149,10 +151,10 @@ class NodeFilter:
         """The update of one step from its slot's prior (Joseph form); fills e, S, K, P_post."""
         h, xp, Pp = self.heads, slot.x_prior, slot.P_prior
         slot.e = wrap(slot.z - xp[h], self.angle)
-        slot.S = Pp[np.ix_(h, h)] + self.R
+        slot.S = Pp[self._head_block] + self.R
         if slot.gamma:
             slot.K = spd_solve(slot.S, Pp[:, h].T).T
-            ikc = np.eye(self.flat.n, dtype=self.dtype)
+            ikc = self._eye.copy()
             ikc[:, h] -= slot.K
             x, P = xp + slot.K @ slot.e, ikc @ Pp @ ikc.T + slot.K @ self.R @ slot.K.T
         else:
