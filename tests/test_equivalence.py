@@ -87,8 +87,6 @@ def test_retrodict_where_it_is_ill_conditioned(store):
     itself amplifies rounding: changing the initial covariances by one ulp moves the reference's
     own outputs by about 1e-10. There the C must agree with the reference to within a few times
     that sensitivity (and to 1e-9), which is all any implementation can promise."""
-    import dataclasses
-
     rec = store.recording(ILL_CONDITIONED)
     rng = np.random.default_rng(0)
     P0 = rec.node_P0 * (1 + np.finfo(float).eps * rng.choice([-1, 1], rec.node_P0.shape))
