@@ -8,18 +8,18 @@ import importlib
 import os
 import sys
 
-from . import __version__
-from .errors import CodegenError
+from dfeif_codegen import __version__
+from dfeif_codegen.errors import CodegenError
 
 DEFAULT_MODEL = "dc_motor_link"
 
 # subcommand -> (module, one-line help)
 COMMANDS = {
-    "build": ("dfeif_codegen.build", "generate the C module for a model into generated/<model>"),
-    "verify": ("dfeif_codegen.verify", "compile the generated C and compare it with the Python reference"),
-    "simulate": ("dfeif_codegen.simulate", "run the closed-loop experiment (chapter tables, plots, JSON)"),
-    "inspect": ("dfeif_codegen.inspect_model", "show the derived flatness transform and discrete model"),
-    "bench": ("dfeif_codegen.bench", "measure build time, code size, stack and instruction counts"),
+    "build": ("dfeif_codegen.cli", "generate the C module for a model into generated/<model>"),
+    "verify": ("dfeif_codegen.check.verify", "compile the generated C and compare it with the Python reference"),
+    "simulate": ("dfeif_codegen.experiment.simulate", "run the closed-loop experiment (chapter tables, plots, JSON)"),
+    "inspect": ("dfeif_codegen.symbolic.inspect_model", "show the derived flatness transform and discrete model"),
+    "bench": ("dfeif_codegen.check.bench", "measure build time, code size, stack and instruction counts"),
 }
 
 
@@ -86,6 +86,28 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
     p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures (median reported)")
     return top
+
+
+def run(args: argparse.Namespace) -> int:
+    """`codegen build`: the API's build, then what was written and the struct sizes."""
+    from dfeif_codegen.codegen import build
+
+    module = build.build(args.model, args.out, precision=args.precision, max_lag=args.max_lag,
+                         nodes=args.nodes, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
+                         ts=args.ts)
+    o = module.options
+    print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
+          f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")
+    width = max(len(f) for f in module.files)
+    for fname in module.files:
+        print(f"  {fname:<{width}}  {(module.path / fname).stat().st_size:>7} bytes")
+    sizes = build.measure_sizes(module.path, module.name)
+    if sizes is None:
+        print("  sizeof: skipped (no working host C compiler: set CC)")
+    else:
+        print(f"  sizeof: node {sizes['node']} B, master {sizes['master']} B, packet {sizes['packet']} B "
+              f"(host compiler)")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -55,7 +55,7 @@ def cross_tools():
 @pytest.fixture(scope="session")
 def host_cc():
     """The host C compiler the harness uses (cc, as the harness picks it)."""
-    from dfeif_codegen import harness
+    from dfeif_codegen.check import harness
 
     name = os.path.basename(harness.host_compiler_name())
     require_tool(name, "gcc" if "gcc" in name or name == "cc" else name)
@@ -91,8 +91,8 @@ class Case:
 
 def _record(case: Case):
     """The reference's closed-loop run (an experiment.Result, recording included)."""
-    from dfeif_codegen import verify
-    from dfeif_codegen.reference.network import Link
+    from dfeif_codegen.check import verify
+    from dfeif_codegen.experiment.network import Link
 
     uplink = None if case.uplink is None else Link(*case.uplink)
     return verify.closed_loop(case.model, case.oosm, case.fusion, case.reference, case.row,
@@ -101,7 +101,7 @@ def _record(case: Case):
 
 
 def _build(key: tuple, root: str) -> str:
-    from dfeif_codegen import harness
+    from dfeif_codegen.check import harness
 
     model, precision, oosm, fusion, max_lag = key
     out = Path(root) / "-".join(map(str, key))
@@ -162,7 +162,7 @@ class Store:
         return self.result(case).recording
 
     def library(self, case: Case, precision: str):
-        from dfeif_codegen import harness
+        from dfeif_codegen.check import harness
 
         if not self.prepared:
             self._prepare()

@@ -18,7 +18,10 @@ import jinja2
 import pytest
 import sympy as sp
 
-from dfeif_codegen import build, cli, kernels, render
+from dfeif_codegen import cli
+from dfeif_codegen.codegen import build, kernels, render
+from dfeif_codegen.codegen.options import Options
+from dfeif_codegen.symbolic import model
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ["dc_motor_link", "two_link_arm"]
@@ -151,7 +154,7 @@ def test_template_error_is_one_line_and_keeps_old_output(tmp_path, monkeypatch):
         return (text + "{{ no_such_variable }}" if name == "node.c.j2" else text), path, uptodate
     monkeypatch.setattr(render, "_load", broken)
     with pytest.raises(build.BuildError, match="template error: UndefinedError"):
-        build.generate("dc_motor_link", cli.parser().parse_args(["build"]))
+        build.generate(model.load("dc_motor_link"), Options(ts=0.01))
     assert cli.main(["build", "--out", str(tmp_path)]) == 2
     assert tree(tmp_path) == before
 

@@ -14,12 +14,13 @@ import re
 import shutil
 import subprocess
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from dfeif_codegen import build, discretize, flatness, model, render
+from dfeif_codegen.codegen import build, render
+from dfeif_codegen.codegen.options import Options
+from dfeif_codegen.symbolic import discretize, flatness, model
 
 WARN = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow", "-Wdouble-promotion",
         "-Wfloat-conversion", "-Wcast-qual", "-Wstrict-prototypes", "-Wmissing-prototypes", "-Wvla", "-Werror"]
@@ -59,15 +60,10 @@ def _flat(name: str):
     return flatness.derive(model.load(name))
 
 
-def args_for(name: str, **opts) -> SimpleNamespace:
-    return SimpleNamespace(model=name, max_lag=opts.get("max_lag", 32), nodes=opts.get("nodes", 2),
-                           oosm=opts.get("oosm"), fusion=opts.get("fusion"),
-                           precision=opts.get("precision", "double"), ts=opts.get("ts"))
-
-
 def render_files(name: str, **opts) -> dict[str, str]:
     flat = _flat(name)
-    return render.render(build.context(flat, build.options_from_args(args_for(name, **opts), flat.model.ts)))
+    opts.setdefault("ts", flat.model.ts)
+    return render.render(build.context(flat, Options(**opts)))
 
 
 @pytest.fixture(scope="session")
@@ -577,9 +573,9 @@ def test_discrete_constants_match_discretize():
     """The kernels' closed-form A_d(t) for a symbolic t equals discretize's A_d at t = N Ts."""
     import casadi as ca
 
-    from dfeif_codegen import kernels
+    from dfeif_codegen.codegen import kernels
     flat = _flat("two_link_arm")
-    b = kernels._Builder(flat, kernels.Options(ts=0.01))
+    b = kernels._Builder(flat, Options(ts=0.01))
     t = ca.SX.sym("t")
     f = ca.Function("f", [t], [b.A_of(t), b.Q_of(ca.DM([2.0, 3.0]), t)])
     for N in (1, 7, -5):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from dfeif_codegen import flatness, model
+from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.reference.control import FlatController, hurwitz_gains
 
 MODELS = ("dc_motor_link", "two_link_arm")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from dfeif_codegen import discretize
+from dfeif_codegen.symbolic import discretize
 
 
 def van_loan(a, b, q_density, ts):

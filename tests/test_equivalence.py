@@ -1,9 +1,9 @@
 """Proof that the generated C equals the Python reference on the host.
 
-Each test replays a scenario recorded by the reference's closed loop (reference/experiment.py)
+Each test replays a scenario recorded by the reference's closed loop (experiment/closed_loop.py)
 through the C, in one call (templates/harness/driver.c.j2), and compares every output of every
 step: node x and P, master x and P, u, v, and which late measurements were accepted. Relative
-error as defined in dfeif_codegen/verify.py; double to 1e-10, float to 1e-4. The filters predict
+error as defined in dfeif_codegen/check/verify.py; double to 1e-10, float to 1e-4. The filters predict
 with the recorded inputs v, the ones the recorded measurements reflect; the C controller's own v
 is compared as an output (and closes the loop in test_own_inputs and test_closed_loop_through_c).
 
@@ -30,8 +30,8 @@ import numpy as np
 import pytest
 
 from conftest import Case
-from dfeif_codegen import harness, verify
-from dfeif_codegen.reference import experiment
+from dfeif_codegen.check import harness, verify
+from dfeif_codegen.experiment import closed_loop as experiment
 
 GRID = [Case(row=row) for row in range(6)]
 DIAGONAL = [
@@ -84,19 +84,33 @@ def test_float_equals_reference(store, run):
 
 def test_retrodict_where_it_is_ill_conditioned(store):
     """At (25, 30, 0.6) retrodiction folds many late frames into a stale history and the problem
-    itself amplifies rounding: changing the initial covariances by one ulp moves the reference's
-    own outputs by about 1e-10. There the C must agree with the reference to within a few times
-    that sensitivity (and to 1e-9), which is all any implementation can promise."""
+    itself amplifies rounding. The bound is the problem's own sensitivity, measured, times a factor
+    that holds for any two correct IEEE double implementations:
+
+    - sensitivity: the reference rerun with P0 nudged by one ulp (random signs), worst over an
+      ensemble of 6 nudges. One nudge is a single random draw (it has been 5x below the ensemble's
+      worst); the ensemble's worst is the amplification of a one-ulp perturbation.
+    - factor 2n (n the state dimension): every inner product of length n that either side computes
+      is within gamma_n = n u / (1 - n u) of the exact one in any summation order (Higham, Accuracy
+      and Stability of Numerical Algorithms, Thm. 3.1), whatever the BLAS kernel or compiler picks;
+      two implementations are then within 2 gamma_n ~ 2n ulp of each other per operation, 2n times
+      the one-ulp perturbation whose amplification was measured.
+    And never worse than 1e-9: both stay accurate in absolute terms (measured ratio: at most ~5)."""
     rec = store.recording(ILL_CONDITIONED)
-    rng = np.random.default_rng(0)
-    P0 = rec.node_P0 * (1 + np.finfo(float).eps * rng.choice([-1, 1], rec.node_P0.shape))
-    nudged = experiment.replay_recording(dataclasses.replace(rec, node_P0=(P0 + np.swapaxes(P0, 1, 2)) / 2))
-    own = {e.signal: e.worst for e in verify.compare_run(nudged, rec, "double")}
+    eps = np.finfo(float).eps
+    own: dict[str, float] = {}
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        P0 = rec.node_P0 * (1 + eps * rng.choice([-1, 1], rec.node_P0.shape))
+        nudged = experiment.replay_recording(dataclasses.replace(rec, node_P0=(P0 + np.swapaxes(P0, 1, 2)) / 2))
+        for e in verify.compare_run(nudged, rec, "double"):
+            own[e.signal] = max(own.get(e.signal, 0.0), e.worst)
     errors = verify.compare_run(store.library(ILL_CONDITIONED, "double").run(rec), rec, "double")
-    print(f"\n{ILL_CONDITIONED}: C vs reference / reference vs its one-ulp-nudged self")
+    factor = 2 * rec.n
+    print(f"\n{ILL_CONDITIONED}: C vs reference / reference vs its one-ulp-nudged self (worst of 6)")
     for e in errors[:-1]:
         print(f"  {e.signal:8s} {e.worst:.1e} / {own[e.signal]:.1e}")
-        assert e.worst <= max(10 * own[e.signal], 1e-12) and e.worst <= 1e-9, e.signal
+        assert e.worst <= max(factor * own[e.signal], 1e-12) and e.worst <= 1e-9, e.signal
     assert max(own.values()) > 1e-11, "the scenario is ill-conditioned (else it belongs in DIAGONAL)"
     assert errors[-1].ok, "the same late measurements accepted and rejected"
 

@@ -20,10 +20,11 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from dfeif_codegen import scenario, simulate, verify
-from dfeif_codegen.reference import experiment as ex
+from dfeif_codegen.experiment import scenario, simulate
+from dfeif_codegen.check import verify
+from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.reference.fusion import Master
-from dfeif_codegen.reference.network import Network
+from dfeif_codegen.experiment.network import Network
 from dfeif_codegen.reference.node import NodeFilter
 
 

@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from dfeif_codegen import cli, model as model_mod, scenario as scenario_mod, simulate
-from dfeif_codegen.reference import experiment as ex
-from dfeif_codegen.reference.network import Link, Network
-from dfeif_codegen.reference.plant import Camera, Plant
-from dfeif_codegen.reference.trajectory import Reference
+from dfeif_codegen import cli
+from dfeif_codegen.symbolic import model as model_mod
+from dfeif_codegen.experiment import scenario as scenario_mod, simulate
+from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment.network import Link, Network
+from dfeif_codegen.experiment.plant import Camera, Plant
+from dfeif_codegen.experiment.trajectory import Reference
 
 DELAYED = (Link(0.8, 8), Link(0.8, 10))
 

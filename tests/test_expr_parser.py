@@ -8,9 +8,9 @@ import time
 import pytest
 import sympy
 
-from dfeif_codegen import expr_parser
+from dfeif_codegen.symbolic import expr_parser
 from dfeif_codegen.errors import ModelError
-from dfeif_codegen.expr_parser import parse_expression
+from dfeif_codegen.symbolic.expr_parser import parse_expression
 
 SYMS = {n: sympy.Symbol(n, real=True) for n in
         ("x", "y", "z", "a", "b", "c", "k_e", "k_d", "R", "J", "L", "x2", "theta")}

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from dfeif_codegen import flatness, model
+from dfeif_codegen.symbolic import flatness, model
 
 
 @pytest.fixture(scope="module")

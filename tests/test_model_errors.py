@@ -4,7 +4,8 @@ from importlib import resources
 
 import pytest
 
-from dfeif_codegen import cli, model
+from dfeif_codegen import cli
+from dfeif_codegen.symbolic import model
 
 MOTOR = (resources.files("dfeif_codegen") / "models" / "dc_motor_link.toml").read_text()
 

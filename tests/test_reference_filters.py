@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from dfeif_codegen import flatness, model
-from dfeif_codegen.reference.fusion import CI_REGULARISER, Master, covariance_intersection_weights
+from dfeif_codegen.symbolic import flatness, model
+from dfeif_codegen.constants import CI_REGULARISER
+from dfeif_codegen.reference.fusion import Master, covariance_intersection_weights
 from dfeif_codegen.reference.node import NodeFilter
 
 TS, Q_DENSITY = 0.01, 50.0

@@ -8,7 +8,7 @@ import struct
 import numpy as np
 import pytest
 
-from dfeif_codegen import target
+from dfeif_codegen.check import target
 
 pytestmark = pytest.mark.target
 
@@ -108,7 +108,8 @@ def test_harness_files_ship_in_the_wheel(tmp_path):
 
 from conftest import Case  # noqa: E402
 from conftest import require_tool  # noqa: E402
-from dfeif_codegen import harness, verify  # noqa: E402
+from dfeif_codegen.check import verify  # noqa: E402
+from dfeif_codegen.check import harness
 
 TARGET_RUNS = [(Case("dc_motor_link", "replay", "difference", "sinusoid", 1), "float"),
                (Case("two_link_arm", "retrodict", "paper", "seesaw", 1), "float")]
@@ -163,7 +164,7 @@ def test_missing_cross_tool_is_a_setup_error(monkeypatch):
 def test_bench_measures_deterministically(store, run, tmp_path, cross_tools):
     """`codegen bench`'s figures for one build: instruction counts repeat exactly, every section
     is measured, struct sizes come from the target compiler."""
-    from dfeif_codegen import bench
+    from dfeif_codegen.check import bench
 
     require_tool("valgrind", "valgrind")
     model = store.library(*run).model

@@ -5,8 +5,9 @@ through `codegen verify`: its generated C must reproduce the reference on its ow
 import numpy as np
 import pytest
 
-from dfeif_codegen import cli, model
-from dfeif_codegen.reference.plant import Camera
+from dfeif_codegen import cli
+from dfeif_codegen.symbolic import model
+from dfeif_codegen.experiment.plant import Camera
 
 # A flexible-joint link (Spong): the link angle is flat with relative degree 4. No [measurement].
 FLEX_JOINT = """

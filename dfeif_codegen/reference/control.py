@@ -9,7 +9,7 @@ from math import comb
 
 import numpy as np
 
-from .linalg import wrap
+from dfeif_codegen.reference.linalg import wrap
 
 
 def hurwitz_gains(degree: int, lam: float) -> np.ndarray:

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .linalg import spd_inv
-from .node import Packet
+from dfeif_codegen.constants import CI_REGULARISER
+from dfeif_codegen.reference.linalg import spd_inv
+from dfeif_codegen.reference.node import Packet
 
 RULES = ("paper", "difference", "ci")
-CI_REGULARISER = 1e-2
 
 
 def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int = 12) -> np.ndarray:

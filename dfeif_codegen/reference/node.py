@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linalg import SingularMatrixError, cholesky, spd_solve, wrap
+from dfeif_codegen.reference.linalg import SingularMatrixError, cholesky, spd_solve, wrap
 
 COUNTERS = ("updates", "drops", "late_applied", "late_rejected")
 

@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..model import Model
+from dfeif_codegen.symbolic.model import Model
 
 _CASADI = {"sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "exp": ca.exp, "log": ca.log, "sqrt": ca.sqrt,
            "atan2": ca.atan2, "atan": ca.atan, "asin": ca.asin, "acos": ca.acos, "sinh": ca.sinh,

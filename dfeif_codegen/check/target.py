@@ -19,7 +19,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from .errors import SetupError
+from dfeif_codegen.errors import SetupError
 
 CPU_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16"]
 # -fno-math-errno lets sqrtf be the VSQRT instruction instead of a libm call.
@@ -201,7 +201,7 @@ def run_scenario(model, rec, work: Path, opt: str = "-O2", timeout: float = 600.
     recording under QEMU, read the results back through semihosting files."""
     import time
 
-    from . import harness
+    from dfeif_codegen.check import harness
 
     work = Path(work)
     work.mkdir(parents=True, exist_ok=True)

@@ -8,9 +8,7 @@ whole recorded scenario in one call, so a comparison is not dominated by ctypes 
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
-import io
 import json
 import os
 import shutil
@@ -22,7 +20,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from .errors import MismatchError, SetupError
+from dfeif_codegen.errors import MismatchError, SetupError
 
 HOST_CFLAGS = ["-O2", "-Wall", "-Wextra", "-g"]
 SANITIZE_FLAGS = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"]
@@ -104,26 +102,18 @@ class ModelDir:
 
 
 def build_model(model: str, out: Path, precision: str = "double", oosm: str = "replay",
-                fusion: str = "difference", nodes: int = 2, max_lag: int = 32) -> ModelDir:
-    """Run `codegen build` into `out` and open what it wrote."""
-    from . import cli
+                fusion: str = "difference", nodes: int = 2, max_lag: int = 32, ts: float | None = None) -> ModelDir:
+    """Build a model into `out` through the public build API and open what it wrote."""
+    from dfeif_codegen.codegen.build import build
 
-    out = Path(out)
-    args = ["build", model, "--out", str(out), "--precision", precision, "--oosm", oosm,
-            "--fusion", fusion, "--nodes", str(nodes), "--max-lag", str(max_lag)]
-    with contextlib.redirect_stdout(io.StringIO()):
-        rc = cli.main(args)
-    if rc != 0:
-        raise SetupError(f"codegen {' '.join(args)} failed with exit code {rc}")
-    found = [p.parent for p in out.rglob("manifest.json")]
-    if len(found) != 1:
-        raise SetupError(f"expected one generated model under {out}, found {len(found)}")
-    return ModelDir.open(found[0])
+    module = build(model, out, precision=precision, oosm=oosm, fusion=fusion, nodes=nodes, max_lag=max_lag, ts=ts)
+    return ModelDir.open(module.path)
 
 
 def render_driver(model: ModelDir, out_dir: Path) -> Path:
     """The scenario driver for this model, from templates/harness/driver.c.j2."""
-    from . import __version__, render
+    from dfeif_codegen import __version__
+    from dfeif_codegen.codegen import render
 
     env = render.environment(model.precision)
     text = env.get_template("harness/driver.c.j2").render(
@@ -334,7 +324,7 @@ class Harness:
 
 
 def filter_bank(library: Library):
-    """A drop-in for `reference.experiment.FilterBank` that runs the compiled C: the closed loop
+    """A drop-in for `experiment.closed_loop.FilterBank` that runs the compiled C: the closed loop
     (plant, cameras, network) stays in Python, the filters and the controller are the C's."""
 
     class _Node:

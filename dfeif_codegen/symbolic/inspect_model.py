@@ -7,8 +7,8 @@ import json
 import numpy as np
 import sympy as sp
 
-from . import flatness, model
-from .errors import ModelError
+from dfeif_codegen.symbolic import flatness, model
+from dfeif_codegen.errors import ModelError
 
 
 def describe(flat: flatness.FlatSystem, ts: float) -> dict:

@@ -23,11 +23,10 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from . import discretize
-from .errors import ModelError
-from .reference.fusion import CI_REGULARISER
-
-CI_ITERATIONS = 12
+from dfeif_codegen.symbolic import discretize
+from dfeif_codegen.errors import ModelError
+from dfeif_codegen.codegen.options import Options
+from dfeif_codegen.constants import CI_ITERATIONS, CI_REGULARISER
 
 # --- sympy -> CasADi ------------------------------------------------------------------------
 
@@ -106,20 +105,6 @@ def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX]) -> ca.SX:
         return out
 
     return walk(sp.sympify(expr))
-
-
-# --- options ----------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Options:
-    """Build options baked into the C as #defines."""
-
-    ts: float
-    max_lag: int = 32
-    nodes: int = 2
-    oosm: str = "replay"
-    fusion: str = "difference"
-    precision: str = "double"
 
 
 # --- symbolic linear algebra on small matrices ------------------------------------------------

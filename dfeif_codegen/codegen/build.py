@@ -9,26 +9,24 @@ committed generated/ can be checked against a fresh build.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
-import math
 import os
 import shutil
 import subprocess
 import tempfile
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from importlib import metadata
 from pathlib import Path
 
 import jinja2
 import sympy as sp
 
-from . import __version__, flatness, kernels, model, render
-from .errors import CodegenError
-
-MAX_LAG_LIMIT = 4096
-NODES_LIMIT = 16
+from dfeif_codegen import __version__
+from dfeif_codegen.symbolic import flatness, model
+from dfeif_codegen.codegen import kernels, render
+from dfeif_codegen.constants import CI_ITERATIONS
+from dfeif_codegen.codegen.options import BuildError, Options
 
 GROUP_DOCS = {
     "filter": "Node filter kernels (the master reuses predict and info)",
@@ -37,21 +35,14 @@ GROUP_DOCS = {
 }
 
 
-class BuildError(CodegenError):
-    """A bad build option or an output folder that cannot be written."""
+@dataclass(frozen=True)
+class GeneratedModule:
+    """A folder written by `build`: where it is, the model's C prefix and the options baked in."""
 
-
-def options_from_args(args: argparse.Namespace, default_ts: float) -> kernels.Options:
-    ts = default_ts if getattr(args, "ts", None) is None else args.ts
-    if not (isinstance(ts, (int, float)) and math.isfinite(ts) and ts > 0):
-        raise BuildError(f"--ts must be a positive sampling period in seconds, got {ts}")
-    if not 1 <= args.max_lag <= MAX_LAG_LIMIT:
-        raise BuildError(f"--max-lag must be between 1 and {MAX_LAG_LIMIT} steps, got {args.max_lag}")
-    if not 1 <= args.nodes <= NODES_LIMIT:
-        raise BuildError(f"--nodes must be between 1 and {NODES_LIMIT}, got {args.nodes}")
-    return kernels.Options(ts=float(ts), max_lag=args.max_lag, nodes=args.nodes,
-                           oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                           precision=args.precision)
+    path: Path
+    name: str
+    options: Options
+    files: tuple[str, ...]
 
 
 def model_hash(m: model.Model) -> str:
@@ -82,7 +73,7 @@ def _comment(text: str) -> str:
     return " ".join(str(text).replace("*/", "* /").replace("/*", "/ *").split())
 
 
-def context(flat, opts: kernels.Options) -> dict:
+def context(flat, opts: Options) -> dict:
     """Everything the templates need, computed once."""
     m = flat.model
     p = m.name
@@ -103,7 +94,7 @@ def context(flat, opts: kernels.Options) -> dict:
         "degrees": flat.degrees, "heads": flat.heads, "angles": [int(c.angle) for c in flat.chains],
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
-        "opts": opts, "options": asdict(opts), "ci_iterations": kernels.CI_ITERATIONS,
+        "opts": opts, "options": asdict(opts), "ci_iterations": CI_ITERATIONS,
         "model_hash": model_hash(m), "versions": versions(),
         "dependencies": {k: v for k, v in versions().items() if k != "dfeif-codegen"},
         "kernel_code": kernel_code, "kernel_list": kernel_list,
@@ -111,16 +102,27 @@ def context(flat, opts: kernels.Options) -> dict:
     }
 
 
-def generate(spec: str, opts_args: argparse.Namespace) -> tuple[str, kernels.Options, dict[str, str]]:
-    """Model spec and options -> (model name, options, {file: text}); nothing is written."""
-    m = model.load(spec)
-    opts = options_from_args(opts_args, m.ts)
+def generate(m: model.Model, opts: Options) -> dict[str, str]:
+    """Model and options -> {file: text}; nothing is written."""
     flat = flatness.derive(m)
     try:
-        files = render.render(context(flat, opts))
+        return render.render(context(flat, opts))
     except jinja2.TemplateError as exc:
         raise BuildError(f"template error: {type(exc).__name__}: {exc}") from None
-    return m.name, opts, files
+
+
+def build(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
+          max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
+          ts: float | None = None) -> GeneratedModule:
+    """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
+
+    Options are checked before the derivation starts; the folder is replaced atomically."""
+    m = spec if isinstance(spec, model.Model) else model.load(str(spec))
+    opts = Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
+                   precision=precision)
+    files = generate(m, opts)
+    target = write_atomic(Path(out), m.name, files)
+    return GeneratedModule(target, m.name, opts, tuple(files))
 
 
 def write_atomic(out_root: Path, name: str, files: dict[str, str]) -> Path:
@@ -177,20 +179,3 @@ def measure_sizes(folder: Path, name: str) -> dict[str, int] | None:
             return None
     node, master, packet = (int(v) for v in out.split())
     return {"node": node, "master": master, "packet": packet}
-
-
-def run(args: argparse.Namespace) -> int:
-    name, opts, files = generate(args.model, args)
-    target = write_atomic(Path(args.out), name, files)
-    print(f"codegen build: {name} -> {target}/ ({opts.precision}, Ts {opts.ts:g} s, NMAX {opts.max_lag}, "
-          f"{opts.nodes} nodes, oosm {opts.oosm}, fusion {opts.fusion})")
-    width = max(len(f) for f in files)
-    for fname, text in files.items():
-        print(f"  {fname:<{width}}  {len(text.encode()):>7} bytes")
-    sizes = measure_sizes(target, name)
-    if sizes is None:
-        print("  sizeof: skipped (no working host C compiler: set CC)")
-    else:
-        print(f"  sizeof: node {sizes['node']} B, master {sizes['master']} B, packet {sizes['packet']} B "
-              f"(host compiler)")
-    return 0

@@ -21,15 +21,15 @@ from functools import lru_cache
 
 import numpy as np
 
-from .. import flatness
-from .. import model as model_mod
-from .control import FlatController
-from .fusion import Master
-from .linalg import wrap
-from .network import Link, Network
-from .node import NodeFilter
-from .plant import Camera, Plant
-from .trajectory import Reference, flags
+from dfeif_codegen.symbolic import flatness
+from dfeif_codegen.symbolic import model as model_mod
+from dfeif_codegen.reference.control import FlatController
+from dfeif_codegen.reference.fusion import Master
+from dfeif_codegen.reference.linalg import wrap
+from dfeif_codegen.experiment.network import Link, Network
+from dfeif_codegen.reference.node import NodeFilter
+from dfeif_codegen.experiment.plant import Camera, Plant
+from dfeif_codegen.experiment.trajectory import Reference, flags
 
 OOSM = ("replay", "retrodict")
 BASELINES = ("discard", "as-current")

@@ -12,9 +12,9 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from . import discretize
-from .errors import ModelError
-from .model import Model
+from dfeif_codegen.symbolic import discretize
+from dfeif_codegen.errors import ModelError
+from dfeif_codegen.symbolic.model import Model
 
 _ZERO_TOL = 1e-9
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import MismatchError, ScenarioError, SetupError
+from dfeif_codegen.errors import MismatchError, ScenarioError, SetupError
 
 TINY = np.finfo(float).tiny
 
@@ -111,7 +111,7 @@ def tolerances(names, precision: str) -> dict[str, float]:
 
 def reference_outputs(rec) -> dict[str, np.ndarray]:
     """What the Python reference computed in the closed loop (replay_recording gives the same
-    numbers bit for bit, see reference/experiment.py)."""
+    numbers bit for bit, see experiment/closed_loop.py)."""
     return {k: np.asarray(getattr(rec, k)) for k in ("late_applied", "node_x", "node_P", "x", "P", "u", "v")}
 
 
@@ -131,7 +131,7 @@ def compare_run(got: dict, rec, precision: str) -> list[SignalError]:
 def float32_reference_errors(rec) -> list[SignalError]:
     """A second single-precision implementation on the same recording: the reference's node
     filters in float32 (numpy and LAPACK), compared with the float64 reference like the C is."""
-    from .reference import experiment
+    from dfeif_codegen.experiment import closed_loop as experiment
 
     return compare_run(experiment.replay_recording(rec, node_dtype=np.float32), rec, "float")
 
@@ -168,8 +168,8 @@ def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", re
     node -> master packets late or lost; `sensor_drop` adds camera frame drops."""
     import dataclasses
 
-    from . import scenario, simulate
-    from .reference import experiment
+    from dfeif_codegen.experiment import scenario, simulate
+    from dfeif_codegen.experiment import closed_loop as experiment
 
     sc = scenario.load(scenario_spec)
     cfg = simulate.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
@@ -198,8 +198,9 @@ def run(args) -> int:
     import tempfile
     from pathlib import Path
 
-    from . import harness, scenario, target
-    from .reference import experiment
+    from dfeif_codegen.check import harness, target
+    from dfeif_codegen.experiment import scenario
+    from dfeif_codegen.experiment import closed_loop as experiment
 
     sc = scenario.load(args.scenario)
     sc.check_model(experiment._flat(args.model))   # the derivation the recording reuses (cached)

@@ -23,9 +23,9 @@ from statistics import NormalDist
 
 import numpy as np
 
-from . import scenario as scenario_mod
-from .errors import ScenarioError, SetupError
-from .reference import experiment as ex
+from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.errors import ScenarioError, SetupError
+from dfeif_codegen.experiment import closed_loop as ex
 
 
 # --- statistics ---------------------------------------------------------------------------------
@@ -317,8 +317,8 @@ def plot(directory: str, figures: dict, flat) -> list[str]:
 # --- the command --------------------------------------------------------------------------------------
 
 def run(args) -> int:
-    from .model import load as load_model
-    from .flatness import derive
+    from dfeif_codegen.symbolic.model import load as load_model
+    from dfeif_codegen.symbolic.flatness import derive
 
     sc = scenario_mod.load(args.scenario)
     flat = derive(load_model(args.model))

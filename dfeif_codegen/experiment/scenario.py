@@ -8,17 +8,21 @@ chapter's tables). Every problem is one `ScenarioError` line naming the file, li
 from __future__ import annotations
 
 import re
-import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from .errors import ScenarioError
-from .model import _key_lines
-from .reference.experiment import BASELINES, OOSM
-from .reference.fusion import RULES
-from .reference.network import Link
-from .reference.trajectory import KINDS
+from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.symbolic.model import _key_lines
+from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
+from dfeif_codegen.reference.fusion import RULES
+from dfeif_codegen.experiment.network import Link
+from dfeif_codegen.experiment.trajectory import KINDS
+
+try:  # the standard library's TOML reader from Python 3.11, its backport before
+    import tomllib  # novermin
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 BUILTIN = ("paper",)
 
@@ -90,7 +94,7 @@ class Scenario:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
         m = flat.m
         hint = (f" (the built-in scenario does not fit model {flat.model.name}: copy "
-                f"dfeif_codegen/scenarios/{self.source}, edit it and pass it with --scenario FILE)"
+                f"dfeif_codegen/experiment/scenarios/{self.source}, edit it and pass it with --scenario FILE)"
                 if self.source in {f"{b}.toml" for b in BUILTIN} else "")
 
         def fail(key: str, message: str):
@@ -120,7 +124,7 @@ class Scenario:
 def load(spec: str) -> Scenario:
     """A built-in scenario by name, or a path to a scenario `.toml` file."""
     if spec in BUILTIN:
-        text = (resources.files("dfeif_codegen") / "scenarios" / f"{spec}.toml").read_text(encoding="utf-8")
+        text = (resources.files("dfeif_codegen.experiment") / "scenarios" / f"{spec}.toml").read_text(encoding="utf-8")
         return loads(text, f"{spec}.toml")
     path = Path(spec)
     if path.suffix != ".toml" and not path.exists():

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import keyword
 import re
-import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -16,8 +15,13 @@ from typing import Mapping, Sequence
 
 import sympy as sp
 
-from .errors import ModelError
-from .expr_parser import parse_expression
+from dfeif_codegen.errors import ModelError
+from dfeif_codegen.symbolic.expr_parser import parse_expression
+
+try:  # the standard library's TOML reader from Python 3.11, its backport before
+    import tomllib  # novermin
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _RESERVED = {"pi", "e", "E", "I_", "t"}

@@ -30,7 +30,7 @@ from typing import Callable, Mapping, NamedTuple, NoReturn
 
 import sympy
 
-from .errors import ModelError
+from dfeif_codegen.errors import ModelError
 
 MAX_CHARS = 10_000
 MAX_TOKENS = 2_000  # real model terms use ~50 tokens; bounds sympy work (e.g. min() of many args)

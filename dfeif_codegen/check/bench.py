@@ -22,8 +22,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from . import __version__, harness, render, target
-from .errors import SetupError
+from dfeif_codegen import __version__
+from dfeif_codegen.check import harness, target
+from dfeif_codegen.codegen import render
+from dfeif_codegen.errors import SetupError
 
 MODELS = ("dc_motor_link", "two_link_arm")
 # (oosm, fusion) builds measured per model; the first is the reference configuration.

@@ -1,0 +1,44 @@
+"""Typed build options: what the C bakes in as #defines, validated once before any work starts."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from dfeif_codegen.errors import CodegenError
+
+MAX_LAG_LIMIT = 4096
+NODES_LIMIT = 16
+OOSM_METHODS = ("replay", "retrodict")
+FUSION_RULES = ("difference", "paper", "ci")
+PRECISIONS = ("double", "float")
+
+
+class BuildError(CodegenError):
+    """A bad build option or an output folder that cannot be written."""
+
+
+@dataclass(frozen=True)
+class Options:
+    """Build options baked into the C as #defines."""
+
+    ts: float
+    max_lag: int = 32
+    nodes: int = 2
+    oosm: str = "replay"
+    fusion: str = "difference"
+    precision: str = "double"
+
+    def __post_init__(self) -> None:
+        ts = self.ts
+        if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts) or ts <= 0:
+            raise BuildError(f"--ts must be a positive sampling period in seconds, got {ts}")
+        object.__setattr__(self, "ts", float(ts))
+        for name, limit in (("max_lag", MAX_LAG_LIMIT), ("nodes", NODES_LIMIT)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= limit:
+                flag = "--" + name.replace("_", "-")
+                raise BuildError(f"{flag} must be an integer between 1 and {limit}, got {value!r}")
+        for name, allowed in (("oosm", OOSM_METHODS), ("fusion", FUSION_RULES), ("precision", PRECISIONS)):
+            if getattr(self, name) not in allowed:
+                raise BuildError(f"--{name} must be one of {', '.join(allowed)}, got {getattr(self, name)!r}")
