@@ -6,6 +6,8 @@ The public API, in the order data flows:
     model = load_model("dc_motor_link")   # symbolic model (a built-in name, a .toml path)
     flat = derive(model)                  # flatness transform, canonical form, discretization
     module = build(model, "out")          # CasADi kernels + templates -> out/<model>/
+    lib = load(module)                    # compiled with the host compiler, loaded with ctypes
+    node = lib.Node(x0, P0, R, q)         # the generated C as Python objects (see README)
 
 Names are imported on first use, so `codegen --version` does not load sympy and CasADi.
 """
@@ -17,6 +19,9 @@ _API = {
     "from_sympy": ("dfeif_codegen.symbolic.model", "from_sympy"),
     "derive": ("dfeif_codegen.symbolic.flatness", "derive"),
     "build": ("dfeif_codegen.codegen.build", "build"),
+    "check_build": ("dfeif_codegen.codegen.build", "check"),
+    "load": ("dfeif_codegen.check.loader", "load"),
+    "CError": ("dfeif_codegen.check.loader", "CError"),
 }
 
 __all__ = ["__version__", *_API]
