@@ -1,11 +1,12 @@
-"""`codegen`: the command line. Each subcommand lives in its own module; this file only parses
-arguments and turns user errors into one line and a distinct exit code."""
+"""`codegen`: the command line. It only parses arguments, calls the API function of the
+subcommand (`build`, `check`, `inspect`, `verify`, `bench`: plain keyword arguments, usable from
+Python) and presents the result; user errors become one line and a distinct exit code."""
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
+import shlex
 import sys
 
 from dfeif_codegen import __version__
@@ -13,14 +14,20 @@ from dfeif_codegen.errors import CodegenError
 
 DEFAULT_MODEL = "dc_motor_link"
 
-# subcommand -> (module, one-line help)
+# subcommand -> one-line help
 COMMANDS = {
-    "build": ("dfeif_codegen.cli", "generate the C module for a model into generated/<model>"),
-    "verify": ("dfeif_codegen.check.verify", "compile the generated C and compare it with the Python reference"),
-    "simulate": ("dfeif_codegen.experiment.simulate", "run the closed-loop experiment (chapter tables, plots, JSON)"),
-    "inspect": ("dfeif_codegen.symbolic.inspect_model", "show the derived flatness transform and discrete model"),
-    "bench": ("dfeif_codegen.check.bench", "measure build time, code size, stack and instruction counts"),
+    "build": "generate the C module for a model into generated/<model>",
+    "verify": "compile the generated C and compare it with the Python reference",
+    "simulate": "run the closed-loop experiment (chapter tables, plots, JSON)",
+    "inspect": "show the derived flatness transform and discrete model",
+    "bench": "measure build time, code size, stack and instruction counts",
 }
+
+
+class StaleError(CodegenError):
+    """`codegen build --check`: the folder on disk differs from a fresh build."""
+
+    exit_code = 1
 
 
 def _model_arg(p: argparse.ArgumentParser) -> None:
@@ -36,7 +43,7 @@ def parser() -> argparse.ArgumentParser:
     sub = top.add_subparsers(dest="command", metavar="COMMAND")
 
     def add(name: str) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=COMMANDS[name][1], description=COMMANDS[name][1])
+        p = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
         _model_arg(p)
         return p
 
@@ -55,6 +62,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--precision", choices=["double", "float"], default="double")
     filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+    p.add_argument("--check", action="store_true",
+                   help="write nothing: exit 0 if DIR/<model> equals a fresh build, 1 (listing the files) if "
+                        "stale, 2 if missing")
 
     p = add("verify")
     p.add_argument("--target", choices=["host", "cortex-m4f"], default="host")
@@ -88,13 +98,24 @@ def parser() -> argparse.ArgumentParser:
     return top
 
 
-def run(args: argparse.Namespace) -> int:
-    """`codegen build`: the API's build, then what was written and the struct sizes."""
+def _build_options(args: argparse.Namespace) -> dict:
+    return dict(precision=args.precision, max_lag=args.max_lag, nodes=args.nodes, oosm=args.oosm or "replay",
+                fusion=args.fusion or "difference", ts=args.ts)
+
+
+def build(args: argparse.Namespace) -> int:
+    """`codegen build`: the API's build, then what was written and the struct sizes; with
+    `--check`, the API's check and the stale files on one line."""
     from dfeif_codegen.codegen import build
 
-    module = build.build(args.model, args.out, precision=args.precision, max_lag=args.max_lag,
-                         nodes=args.nodes, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                         ts=args.ts)
+    if args.check:
+        stale = build.check(args.model, args.out, **_build_options(args))
+        if stale:
+            raise StaleError(f"{args.out}: stale files for {args.model}: {', '.join(stale)} "
+                             f"(run `codegen build {args.model}{'' if args.out == 'generated' else ' --out ' + args.out}`)")
+        print(f"codegen build --check: {args.out} is up to date for {args.model}")
+        return 0
+    module = build.build(args.model, args.out, **_build_options(args))
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")
@@ -110,14 +131,59 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def inspect(args: argparse.Namespace) -> int:
+    from dfeif_codegen.symbolic import inspect_model
+
+    info = inspect_model.inspect(args.model, ts=args.ts)
+    print(inspect_model.render_json(info) if args.json else inspect_model.render_text(info))
+    return 0
+
+
+def verify(args: argparse.Namespace) -> int:
+    """`codegen verify`: the settings and scenario as they are known, the table, PASS or exit 1."""
+    from dfeif_codegen.check import verify
+
+    result = verify.verify(args.model, target=args.target, precision=args.precision, sanitize=args.sanitize,
+                           scenario=args.scenario, inputs=args.inputs, max_lag=args.max_lag, nodes=args.nodes,
+                           oosm=args.oosm or "replay", fusion=args.fusion or "difference",
+                           progress=lambda line: print(line, flush=True))
+    print(result.report())
+    verify.check(result.errors)
+    print("PASS")
+    return 0
+
+
+def simulate(args: argparse.Namespace) -> int:
+    from dfeif_codegen.experiment import simulate
+
+    return simulate.run(args)
+
+
+def bench(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from dfeif_codegen.check import bench
+
+    command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
+        else None
+    text = bench.bench(args.model, repeat=args.repeat, command=command,
+                       progress=lambda line: print(line, file=sys.stderr))
+    Path(args.out).write_text(text)
+    print(text)
+    print(f"codegen bench: wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     if args.command is None:
         parser().print_help()
         return 2
     try:
-        module = importlib.import_module(COMMANDS[args.command][0])
-        return int(module.run(args) or 0)
+        return int(HANDLERS[args.command](args) or 0)
     except CodegenError as exc:
         print(f"codegen {args.command}: error: {exc}", file=sys.stderr)
         return exc.exit_code

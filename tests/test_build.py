@@ -78,10 +78,49 @@ def test_every_file_has_banner_and_manifest_hashes(fresh):
     assert manifest["model"] == "dc_motor_link" and len(manifest["model_hash"]) == 64
     assert manifest["options"] == {"ts": 0.01, "max_lag": 32, "nodes": 2, "oosm": "replay",
                                    "fusion": "difference", "precision": "double"}
-    assert set(manifest["dependencies"]) >= {"casadi", "sympy", "numpy", "jinja2"}
+    assert "dependencies" not in manifest and manifest["tool"] == {"name": "dfeif-codegen", "version": "0.1.0"}
     assert set(manifest["files"]) == set(files) - {"manifest.json"}
     for fname, entry in manifest["files"].items():
         assert entry["sha256"] == hashlib.sha256(files[fname]).hexdigest()
+
+
+def test_dependency_patch_releases_change_nothing(fresh, tmp_path, monkeypatch):
+    """The output records no numpy, sympy or jinja2 version and only CasADi's major.minor: a build
+    under other patch releases is byte-identical to the one under the installed ones."""
+    from importlib import metadata
+
+    real = metadata.version
+    bumped = {"numpy": "9.9.9", "sympy": "9.9.9", "jinja2": "9.9.9",
+              "casadi": ".".join(real("casadi").split(".")[:2]) + ".99"}
+    monkeypatch.setattr(build.metadata, "version", lambda dist: bumped.get(dist) or real(dist))
+    build.build("dc_motor_link", tmp_path)
+    assert tree(tmp_path / "dc_motor_link") == tree(fresh / "dc_motor_link")
+    for data in tree(fresh / "dc_motor_link").values():
+        for dist in ("numpy", "sympy", "jinja2", "casadi"):
+            assert real(dist).encode() not in data or real(dist).count(".") < 2, dist
+
+
+def test_build_check_reports_up_to_date_stale_and_missing(fresh, tmp_path):
+    shutil.copytree(fresh / "dc_motor_link", tmp_path / "dc_motor_link")
+    ok = cli_run("build", "--check", "--out", str(tmp_path))
+    assert ok.returncode == 0 and "up to date" in ok.stdout, ok.stderr
+    before = tree(tmp_path / "dc_motor_link")
+    with open(tmp_path / "dc_motor_link" / "dc_motor_link.mk", "a") as f:
+        f.write("# edited\n")
+    (tmp_path / "dc_motor_link" / "notes.txt").write_text("mine")
+    (tmp_path / "dc_motor_link" / "example_main.c").unlink()
+    stale = cli_run("build", "--check", "--out", str(tmp_path))
+    assert stale.returncode == 1 and stale.stdout == ""
+    line, = stale.stderr.splitlines()
+    assert "dc_motor_link.mk, missing: example_main.c, extra: notes.txt" in line and "Traceback" not in line
+    assert tree(tmp_path / "dc_motor_link") != before and (tmp_path / "dc_motor_link" / "notes.txt").is_file()
+    # another option than the one built with is stale too (the check uses the options given)
+    shutil.rmtree(tmp_path / "dc_motor_link")
+    shutil.copytree(fresh / "dc_motor_link", tmp_path / "dc_motor_link")
+    assert cli_run("build", "--check", "--out", str(tmp_path), "--max-lag", "8").returncode == 1
+    missing = cli_run("build", "two_link_arm", "--check", "--out", str(tmp_path))
+    assert missing.returncode == 2 and "two_link_arm: missing" in missing.stderr
+    assert not (tmp_path / "two_link_arm").exists()
 
 
 def test_header_defines_and_options(tmp_path):

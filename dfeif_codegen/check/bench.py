@@ -13,7 +13,6 @@ benchmarks that model alone.
 from __future__ import annotations
 
 import re
-import shlex
 import shutil
 import statistics
 import subprocess
@@ -96,25 +95,22 @@ def target_sizeof(model: harness.ModelDir, work: Path) -> dict[str, int]:
     return dict(zip(kinds, words))
 
 
-def run(args) -> int:
-    repeat = max(1, int(args.repeat))
+def bench(model: str | None = None, *, repeat: int = 5, command: str | None = None, progress=None) -> str:
+    """BENCHMARKS.md's text for a model file, or (default, or a built-in name) both built-in
+    models side by side. `command` is the line the report says regenerates it."""
+    repeat = max(1, int(repeat))
     harness.host_compiler()
     for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size"):
         target.require(tool)
-    models = [args.model] if args.model not in (None, "all") and args.model not in MODELS else list(MODELS)
-    command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
-        else f"codegen bench --repeat {repeat}"
+    models = [model] if model not in (None, "all") and model not in MODELS else list(MODELS)
     sections = []
     with tempfile.TemporaryDirectory(prefix="codegen-bench-") as tmp:
         work = Path(tmp)
         for name in models:
-            print(f"codegen bench: {name}", file=sys.stderr)
+            if progress:
+                progress(f"codegen bench: {name}")
             sections.append(_bench_model(name, repeat, work / name))
-    text = _markdown(command, sections, repeat)
-    Path(args.out).write_text(text)
-    print(text)
-    print(f"codegen bench: wrote {args.out}", file=sys.stderr)
-    return 0
+    return _markdown(command or f"codegen bench --repeat {repeat}", sections, repeat)
 
 
 def _bench_model(name: str, repeat: int, work: Path) -> dict:

@@ -192,63 +192,82 @@ def verify_row(sc) -> int:
     return next((i for i, row in enumerate(sc.grid) if row.p > 0), 0)
 
 
-def run(args) -> int:
-    """`codegen verify`: build into a temporary folder, record a scenario (default the paper one,
-    delay row (4, 6, 0.8), sinusoid, 20 s) with the reference, run the C on it, print the worst errors."""
+@dataclass
+class Verification:
+    """What `verify` found: the settings, the scenario, the worst error per signal and, on the
+    Cortex-M4F, the target's figures; after a float mismatch the single-precision yardstick."""
+
+    settings: str
+    scenario: str
+    errors: list[SignalError]
+    target_report: str = ""
+    yardstick: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return all(e.ok for e in self.errors)
+
+    def report(self) -> str:
+        return "\n".join(t for t in (table(self.errors), self.target_report, self.yardstick) if t)
+
+
+def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str | None = None,
+           sanitize: bool = False, scenario: str = "paper", inputs: str = "recorded", max_lag: int = 32,
+           nodes: int = 2, oosm: str = "replay", fusion: str = "difference", progress=None) -> Verification:
+    """Build into a temporary folder, record a scenario (default the paper one, its first delay
+    row with late frames, sinusoid, 20 s) with the reference, run the C on it (host: ctypes, or a
+    program under ASan+UBSan with `sanitize`; cortex-m4f: QEMU) and compare. `progress(line)` is
+    told the settings and the scenario as soon as they are known. A mismatch is in the result
+    (`ok`, `check(result.errors)` raises it); bad input and missing tools raise before any work."""
     import tempfile
     from pathlib import Path
 
-    from dfeif_codegen.check import harness, target
-    from dfeif_codegen.experiment import scenario
+    from dfeif_codegen.check import harness, target as targets
+    from dfeif_codegen.experiment import scenario as scenarios
     from dfeif_codegen.experiment import closed_loop as experiment
 
-    sc = scenario.load(args.scenario)
-    sc.check_model(experiment._flat(args.model))   # the derivation the recording reuses (cached)
+    say = progress or (lambda line: None)
+    if target not in ("host", "cortex-m4f"):
+        raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
+    harness.recorded_inputs(inputs)
+    sc = scenarios.load(scenario)
+    sc.check_model(experiment._flat(model))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
-
-    precision = args.precision or ("float" if args.target == "cortex-m4f" else "double")
-    oosm, fusion = args.oosm or "replay", args.fusion or "difference"
-    inputs = args.inputs
-    if args.target == "host":
+    precision = precision or ("float" if target == "cortex-m4f" else "double")
+    if target == "host":
         harness.host_compiler()
     else:
         for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm"):
-            target.require(tool)
-        target.require_newlib()
-        if args.sanitize:
+            targets.require(tool)
+        targets.require_newlib()
+        if sanitize:
             raise SetupError("--sanitize applies to --target host only")
     with tempfile.TemporaryDirectory(prefix="codegen-verify-") as tmp:
         work = Path(tmp)
-        model = harness.build_model(args.model, work / "gen", precision, oosm, fusion, args.nodes, args.max_lag)
-        print(f"codegen verify: {model.name}, {precision}, oosm {oosm}, fusion {fusion}, "
-              f"{args.nodes} nodes, max lag {args.max_lag}, target {args.target}, {inputs} inputs"
-              f"{' with ASan+UBSan' if args.sanitize else ''}")
+        built = harness.build_model(model, work / "gen", precision, oosm, fusion, nodes, max_lag)
+        settings = (f"{built.name}, {precision}, oosm {oosm}, fusion {fusion}, {nodes} nodes, max lag {max_lag}, "
+                    f"target {target}, {inputs} inputs{' with ASan+UBSan' if sanitize else ''}")
+        say(f"codegen verify: {settings}")
         try:
-            rec = record(args.model, oosm, fusion, "sinusoid", row, args.nodes, args.max_lag,
-                         scenario_spec=args.scenario)
+            rec = record(model, oosm, fusion, "sinusoid", row, nodes, max_lag, scenario_spec=scenario)
         except (ArithmeticError, np.linalg.LinAlgError) as exc:
             raise ScenarioError(f"the Python reference itself failed on the scenario ({type(exc).__name__}: "
                                 f"{exc}), so there is nothing to compare the C with") from exc
         K = rec.ref.shape[0]
-        print(f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, {K} steps, "
-              f"{len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
-        extra = ""
-        if args.target == "cortex-m4f":
-            result = target.run_scenario(model, rec, work / "target", inputs=inputs)
-            if result.status["status"] != 0:
-                raise MismatchError(harness.failure(result.status))
-            got, extra = result.outputs, target.report(result)
-        elif args.sanitize:
-            got = harness.run_program(model, rec, work / "host", sanitize=True, inputs=inputs)[1]
+        about = (f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
+                 f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
+        say(about)
+        result = Verification(settings, about, [])
+        if target == "cortex-m4f":
+            run = targets.run_scenario(built, rec, work / "target", inputs=inputs)
+            if run.status["status"] != 0:
+                raise MismatchError(harness.failure(run.status))
+            got, result.target_report = run.outputs, targets.report(run)
+        elif sanitize:
+            got = harness.run_program(built, rec, work / "host", sanitize=True, inputs=inputs)[1]
         else:
-            got = harness.Library(model, work / "host").run(rec, inputs)
-        errors = compare_run(got, rec, precision)
-        print(table(errors))
-        if extra:
-            print(extra)
-        if precision == "float" and not all(e.ok for e in errors):
-            print(single_precision_yardstick(errors, float32_reference_errors(rec)))
-        check(errors)
-        print("PASS")
-    return 0
-
+            got = harness.Library(built, work / "host").run(rec, inputs)
+        result.errors = compare_run(got, rec, precision)
+        if precision == "float" and not result.ok:
+            result.yardstick = single_precision_yardstick(result.errors, float32_reference_errors(rec))
+    return result

@@ -58,14 +58,15 @@ def model_hash(m: model.Model) -> str:
 
 
 def versions() -> dict[str, str]:
-    """This tool's version and its code-generating dependencies' (recorded in the manifest)."""
-    out = {"dfeif-codegen": __version__}
-    for dist in ("casadi", "jinja2", "numpy", "sympy"):
-        try:
-            out[dist] = metadata.version(dist)
-        except metadata.PackageNotFoundError:
-            out[dist] = "unknown"
-    return out
+    """What the generated files may record of the tools that wrote them: this tool's version
+    and CasADi's release series (major.minor), which prints the kernels. Nothing that changes
+    without the generated code changing (no patch releases, no numpy or sympy versions), so the
+    committed output and `build --check` do not go stale on a dependency's patch release."""
+    try:
+        casadi = ".".join(metadata.version("casadi").split(".")[:2])
+    except metadata.PackageNotFoundError:
+        casadi = "unknown"
+    return {"dfeif-codegen": __version__, "casadi": casadi}
 
 
 def _comment(text: str) -> str:
@@ -96,7 +97,6 @@ def context(flat, opts: Options) -> dict:
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "ci_iterations": CI_ITERATIONS,
         "model_hash": model_hash(m), "versions": versions(),
-        "dependencies": {k: v for k, v in versions().items() if k != "dfeif-codegen"},
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
     }
@@ -111,18 +111,41 @@ def generate(m: model.Model, opts: Options) -> dict[str, str]:
         raise BuildError(f"template error: {type(exc).__name__}: {exc}") from None
 
 
+def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts) -> tuple[model.Model, Options]:
+    m = spec if isinstance(spec, model.Model) else model.load(str(spec))
+    return m, Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
+                      precision=precision)
+
+
 def build(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None) -> GeneratedModule:
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options are checked before the derivation starts; the folder is replaced atomically."""
-    m = spec if isinstance(spec, model.Model) else model.load(str(spec))
-    opts = Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
-                   precision=precision)
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts)
     files = generate(m, opts)
     target = write_atomic(Path(out), m.name, files)
     return GeneratedModule(target, m.name, opts, tuple(files))
+
+
+def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
+          max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
+          ts: float | None = None) -> list[str]:
+    """What `build` with these arguments would change in out/<model>, rendered in memory and
+    compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
+    empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
+    raised before the derivation. Nothing is written."""
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts)
+    target = Path(out) / m.name
+    if not target.is_dir():
+        raise BuildError(f"{target}: missing (run `codegen build {spec if isinstance(spec, (str, Path)) else m.name}"
+                         f"{'' if str(out) == 'generated' else f' --out {out}'}`)")
+    files = generate(m, opts)
+    on_disk = {p.name for p in target.iterdir()}
+    stale = [f for f in files if f in on_disk and (target / f).read_bytes() != files[f].encode("utf-8")]
+    stale += [f"missing: {f}" for f in files if f not in on_disk]
+    return stale + [f"extra: {f}" for f in sorted(on_disk - set(files))]
 
 
 def write_atomic(out_root: Path, name: str, files: dict[str, str]) -> Path:

@@ -65,11 +65,15 @@ def render_text(info: dict) -> str:
     return "\n".join(lines)
 
 
-def run(args) -> int:
-    mdl = model.load(args.model)
-    ts = mdl.ts if args.ts is None else args.ts
-    if not (np.isfinite(ts) and ts > 0):
-        raise ModelError(f"--ts {args.ts}: the sampling period must be a positive number")
-    info = describe(flatness.derive(mdl), ts)
-    print(json.dumps(info, indent=2) if args.json else render_text(info))
-    return 0
+def inspect(spec, ts: float | None = None) -> dict:
+    """What `codegen inspect` shows for a model (a built-in name, a .toml path or a Model), at
+    the sampling period `ts` (default the model's), as plain data."""
+    mdl = spec if isinstance(spec, model.Model) else model.load(str(spec))
+    ts = mdl.ts if ts is None else ts
+    if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not (np.isfinite(ts) and ts > 0):
+        raise ModelError(f"--ts {ts}: the sampling period must be a positive number")
+    return describe(flatness.derive(mdl), float(ts))
+
+
+def render_json(info: dict) -> str:
+    return json.dumps(info, indent=2)
