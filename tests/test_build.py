@@ -13,10 +13,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import casadi as ca
 import jinja2
 import pytest
-import sympy as sp
 
 from dfeif_codegen import cli
 from dfeif_codegen.codegen import build, kernels, render
@@ -233,22 +231,6 @@ def test_cmake_builds_library_and_example(fresh, tmp_path):
         result = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
         assert result.returncode == 0, result.stdout + result.stderr
     assert subprocess.run([str(b / "dc_motor_link_example")], capture_output=True, timeout=60).returncode == 0
-
-
-def test_sympy_to_casadi_converter():
-    x, y = sp.symbols("x y")
-    exprs = [sp.sin(x) * sp.cos(y) ** 3 / (1 + x ** 2), sp.sqrt(x + 2) - 1 / sp.sqrt(y + 3),
-             sp.atan2(y, x) + sp.Abs(x - y) + sp.exp(-x) * sp.log(y + 4), sp.Max(x, y, 0) + sp.Min(x, 1),
-             sp.tanh(x) + sp.pi * (x + 3) ** sp.Rational(3, 2),
-             x ** -3 + sp.sign(y) + sp.asin(x / 4)]
-    X, Y = ca.SX.sym("x"), ca.SX.sym("y")
-    for e in exprs:
-        f = ca.Function("f", [X, Y], [kernels.to_casadi(e, {x: X, y: Y})])
-        for point in ((0.3, -0.7), (1.2, 0.4)):
-            want = float(e.subs({x: point[0], y: point[1]}).evalf())
-            assert float(f(*point)) == pytest.approx(want, rel=1e-13), e
-    with pytest.raises(Exception, match="unexpected symbol"):
-        kernels.to_casadi(x + sp.Symbol("z"), {x: X})
 
 
 def test_float_post_processing():

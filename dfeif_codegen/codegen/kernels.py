@@ -5,7 +5,7 @@ known structure folded away (Brunovsky A_d is constant and sparse, C = e_head pi
 no generic matrix code ships to the microcontroller. Every kernel is one step of work; loops over
 the late-measurement window, over nodes and over the CI iterations are plain C in the templates.
 
-The sympy model is converted by walking its tree (`to_casadi`), never by printing and evaluating.
+The sympy model is converted by `symbolic.numeric.to_casadi`, the one sympy -> CasADi bridge.
 The C that CasADi prints is post-processed (`c_source`) into one file per group: internal helpers
 made `static`, the entry points renamed `<model>_kern_<name>` with only the arguments they use,
 the real type named, and, for single precision, `f` math calls and `f` literals so that no
@@ -21,91 +21,11 @@ from math import factorial
 
 import casadi as ca
 import numpy as np
-import sympy as sp
 
 from dfeif_codegen.symbolic import discretize
-from dfeif_codegen.errors import ModelError
+from dfeif_codegen.symbolic.numeric import to_casadi
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.constants import CI_ITERATIONS, CI_REGULARISER
-
-# --- sympy -> CasADi ------------------------------------------------------------------------
-
-_UNARY = {
-    sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.asin: ca.asin, sp.acos: ca.acos,
-    sp.atan: ca.atan, sp.sinh: ca.sinh, sp.cosh: ca.cosh, sp.tanh: ca.tanh, sp.exp: ca.exp,
-    sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
-}
-
-
-def _int_power(base, k: int):
-    """x**k by squaring: CasADi would print pow(), which is slow and double-only on newlib."""
-    result, square = None, base
-    while k:
-        if k & 1:
-            result = square if result is None else result * square
-        k >>= 1
-        if k:
-            square = square * square
-    return result
-
-
-def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX]) -> ca.SX:
-    """Convert a sympy expression to a CasADi SX scalar; shared subtrees stay shared."""
-    memo: dict[sp.Basic, ca.SX] = {}
-
-    def walk(e: sp.Basic) -> ca.SX:
-        if e in memo:
-            return memo[e]
-        if e.is_Symbol:
-            if e not in table:
-                raise ModelError(f"kernel: unexpected symbol '{e}' in a model expression")
-            out = table[e]
-        elif e.is_Number or e.is_NumberSymbol:
-            value = float(e)
-            if not math.isfinite(value):
-                raise ModelError(f"kernel: non-finite constant {e} in a model expression")
-            out = ca.SX(value)
-        elif e.is_Add:
-            terms = [walk(a) for a in e.args]
-            out = terms[0]
-            for t in terms[1:]:
-                out = out + t
-        elif e.is_Mul:
-            factors = [walk(a) for a in e.args]
-            out = factors[0]
-            for f in factors[1:]:
-                out = out * f
-        elif e.is_Pow:
-            base, exp = e.args
-            b = walk(base)
-            if exp.is_Integer and abs(int(exp)) <= 16:
-                k = int(exp)
-                out = ca.SX(1.0) if k == 0 else _int_power(b, abs(k))
-                if k < 0:
-                    out = 1 / out
-            elif exp == sp.Rational(1, 2):
-                out = ca.sqrt(b)
-            elif exp == sp.Rational(-1, 2):
-                out = 1 / ca.sqrt(b)
-            else:
-                out = ca.power(b, walk(exp))
-        elif e.func in _UNARY:
-            out = _UNARY[e.func](walk(e.args[0]))
-        elif e.func == sp.atan2:
-            out = ca.atan2(walk(e.args[0]), walk(e.args[1]))
-        elif e.func in (sp.Min, sp.Max):
-            op = ca.fmin if e.func == sp.Min else ca.fmax
-            args = [walk(a) for a in e.args]
-            out = args[0]
-            for a in args[1:]:
-                out = op(out, a)
-        else:
-            raise ModelError(f"kernel: cannot generate C for '{e.func.__name__}' in {e}")
-        memo[e] = out
-        return out
-
-    return walk(sp.sympify(expr))
-
 
 # --- symbolic linear algebra on small matrices ------------------------------------------------
 

@@ -12,7 +12,7 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from dfeif_codegen.symbolic import discretize
+from dfeif_codegen.symbolic import discretize, numeric
 from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic.model import Model
 
@@ -188,26 +188,27 @@ class FlatSystem:
 
     # numeric functions (numpy), parameters as a vector in model order -------------------------
     @cached_property
-    def _lambdas(self):
+    def _numeric(self) -> dict[str, numeric.Numeric]:
+        """F, G, Phi, Phi^-1 through the CasADi bridge the generated C is printed from."""
         z, p, x = self.zeta, self.params, list(self.model.x)
-        lam = lambda args, expr: sp.lambdify(args, expr, modules="numpy", cse=True)  # noqa: E731
-        return {"F": lam([z, p], self.F), "G": lam([z, p], self.G),
-                "phi": lam([x, p], self.phi), "phi_inv": lam([z, p], self.phi_inv)}
+        return {"F": numeric.Numeric.of("F", [z, p], self.F), "G": numeric.Numeric.of("G", [z, p], self.G),
+                "phi": numeric.Numeric.of("phi", [x, p], self.phi),
+                "phi_inv": numeric.Numeric.of("phi_inv", [z, p], self.phi_inv)}
 
     def F_num(self, zeta, p=None) -> np.ndarray:
-        return np.asarray(self._lambdas["F"](list(zeta), self._p(p)), dtype=float).reshape(self.m)
+        return self._numeric["F"](zeta, self._p(p)).reshape(self.m)
 
     def G_num(self, zeta, p=None) -> np.ndarray:
-        return np.asarray(self._lambdas["G"](list(zeta), self._p(p)), dtype=float).reshape(self.m, self.m)
+        return self._numeric["G"](zeta, self._p(p)).reshape(self.m, self.m)
 
     def phi_num(self, x, p=None) -> np.ndarray:
-        return np.asarray(self._lambdas["phi"](list(x), self._p(p)), dtype=float).reshape(self.n)
+        return self._numeric["phi"](x, self._p(p)).reshape(self.n)
 
     def phi_inv_num(self, zeta, p=None) -> np.ndarray:
-        return np.asarray(self._lambdas["phi_inv"](list(zeta), self._p(p)), dtype=float).reshape(self.n)
+        return self._numeric["phi_inv"](zeta, self._p(p)).reshape(self.n)
 
-    def _p(self, p) -> list[float]:
-        return list(self.param_vector if p is None else p)
+    def _p(self, p) -> np.ndarray:
+        return self.param_vector if p is None else p
 
     # python-control flatsys form --------------------------------------------------------------
     def forward(self, x, u, params=None) -> list[np.ndarray]:
