@@ -14,7 +14,7 @@ appear; a lossy, late node -> master link with camera drops for both methods (on
 shorter than the delays, so late measurements are also rejected); float builds for
 every model x method x fusion rule. Retrodiction is sampled on rows 1-2 (dc_motor_link) and 1
 (two_link_arm), 3 and 4 in double: beyond, several late measurements per step meet a stale
-history (by design, equations.md section 4) and the problem itself amplifies rounding, so row 5
+history (by design, docs/mathematics.md section 4) and the problem itself amplifies rounding, so row 5
 has its own test against the reference's sensitivity (test_retrodict_where_it_is_ill_conditioned)
 and float retrodiction is held to 1e-4 on rows 1-2 only: on rows 3-5 single precision drifts to
 1e-4..1e-3 of the reference, and a float32 run of the reference's own node filter (numpy/LAPACK)

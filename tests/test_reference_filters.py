@@ -136,7 +136,7 @@ def test_replay_equals_batch_kalman_filter(name):
 
 # 2. retrodiction -------------------------------------------------------------------------------
 def naive_retrodiction(flat, R, hist, vs, k, N, z, x, P):
-    """equations.md section 4 evaluated term by term, O(N^2), with matrix powers and inverses."""
+    """docs/mathematics.md section 4 evaluated term by term, O(N^2), with matrix powers and inverses."""
     A, B, C = flat.discrete(TS)
     Q = flat.process_noise(TS, Q_DENSITY)
     n, I = flat.n, np.eye(flat.n)

@@ -3,7 +3,7 @@
 The program links newlib with semihosting (`--specs=rdimon.specs`), so `printf` and `fopen` reach
 the host and `main`'s return value becomes QEMU's exit code: the scenario goes in and the results
 come out as binary files in the run folder, with no UART driver or hex parsing. Memory map, startup
-and the FPU switch-on are in `templates/harness/` (see /work/shared/notes/target.md).
+and the FPU switch-on are in `templates/harness/`.
 
 Sizes are measured on the library's own objects (not newlib), stack use from `-fstack-usage`
 combined with `-fcallgraph-info=su` into a worst case per entry point.

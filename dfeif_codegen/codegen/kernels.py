@@ -251,7 +251,7 @@ class _Builder:
                            ["Tp1", "E1", "sw1", "sQ1", "sX1", "su1", "piv"])
 
     def retro_finish(self, name: str) -> ca.Function:
-        """Xia et al.'s correction (equations.md section 4) from the sums of the recursion."""
+        """Xia et al.'s correction (docs/mathematics.md section 4) from the sums of the recursion."""
         n, m = self.n, self.m
         N, x, P, PmN, usedN = _sym("N"), _sym("x", n), _sym("P", n, n), _sym("PmN", n, n), _sym("usedN")
         z, R, q = _sym("z", m), _sym("R", m, m), _sym("q", m)

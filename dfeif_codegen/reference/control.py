@@ -1,4 +1,4 @@
-"""Flatness-based tracking control (equations.md section 6, docs/algorithms.md "Flatness-based
+"""Flatness-based tracking control (docs/mathematics.md section 6, docs/algorithms.md "Flatness-based
 control"): a linear tracking law on each canonical chain gives `v`, and `u = G^-1 (v - F)` makes
 the plant's `y^(r) = F + G u` equal to it, so the tracking error obeys a chosen linear ODE.
 """

@@ -1,4 +1,4 @@
-"""The master: fuses the nodes' estimates in information form (equations.md section 5, order of
+"""The master: fuses the nodes' estimates in information form (docs/mathematics.md section 5, order of
 operations in docs/algorithms.md "Master").
 
 Three rules: `paper` (the chapter's sum of informations, overconfident because the common prior

@@ -4,7 +4,7 @@ packet drops and late measurements, exactly in the order of docs/algorithms.md (
 The filter runs on the linear canonical model, so no Jacobian appears; the nonlinearity lives in
 the input `v = F + G u` that the master broadcasts. A window of the last `max_lag + 1` steps is
 kept so that a late measurement can either be replayed in time order (exact) or folded in at
-once by Xia et al.'s retrodiction (equations.md section 4).
+once by Xia et al.'s retrodiction (docs/mathematics.md section 4).
 """
 
 from __future__ import annotations
@@ -174,7 +174,7 @@ class NodeFilter:
         self.x, self.P = x, P
 
     def _retrodict(self, N: int, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Xia et al.'s one-shot update (equations.md section 4) by the O(N) backward recursion
+        """Xia et al.'s one-shot update (docs/mathematics.md section 4) by the O(N) backward recursion
         of algorithms.md: the corrected (x, P). Only steps updated in sequence (nonzero K)
         contribute a term. Raises SingularMatrixError if W or the corrected P is indefinite."""
         A, Q, h, n, k, dt = self.A, self.Q, self.heads, self.flat.n, self.k, self.dtype

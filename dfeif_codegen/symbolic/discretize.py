@@ -2,7 +2,7 @@
 
 A chain of r integrators driven by v has A_d = exp(A_c Ts) with entries Ts^(j-i)/(j-i)!, and
 white noise of density q on v gives Q_d by the Van Loan integral, also in closed form (see
-equations.md section 2). `chain_A(r, -N*Ts)` is A_d^-N, which the retrodiction needs.
+docs/mathematics.md section 2). `chain_A(r, -N*Ts)` is A_d^-N, which the retrodiction needs.
 """
 
 from __future__ import annotations
