@@ -241,6 +241,18 @@ def test_verify_command_passes(store, run, monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("run", [VERIFY_CASE], ids=["default"])
+def test_verify_api_returns_the_comparison(store, run, monkeypatch):
+    """The function behind `codegen verify`: keyword arguments in, the errors per signal out."""
+    monkeypatch.setattr(verify, "record", lambda *a, **k: store.recording(run[0]))
+    said = []
+    result = verify.verify("dc_motor_link", oosm="replay", fusion="difference", progress=said.append)
+    assert result.ok and said[0].startswith("codegen verify: dc_motor_link, double") and said[1].startswith("scenario:")
+    names = {e.signal for e in result.errors}
+    assert {"node0.x", "node1.P", "master.x", "u", "v", "late_applied"} <= names
+    assert all(e.worst <= 1e-10 for e in result.errors) and "master.x" in result.report()
+
+
+@pytest.mark.parametrize("run", [VERIFY_CASE], ids=["default"])
 def test_verify_command_reports_a_mismatch(store, run, monkeypatch, capsys):
     from dfeif_codegen import cli
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import dfeif_codegen as dc
+from dfeif_codegen.errors import ModelError
 from dfeif_codegen.reference.control import FlatController, hurwitz_gains
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.node import NodeFilter
@@ -141,3 +142,17 @@ def test_cache_reuses_the_library_and_float_builds_use_float32(tmp_path, host_cc
     assert x.dtype == np.float32 and P.dtype == np.float32
     other = dc.build("dc_motor_link", tmp_path / "out2", precision="double")
     assert dc.load(other, cache=tmp_path / "cache").path != first.path
+
+
+def test_build_check_and_inspect_are_api_functions():
+    """`codegen build --check` and `codegen inspect` as functions: the committed output is what
+    the build writes (the golden test's claim, by the other route), and inspect's A_d at another
+    Ts is the closed form Ts^(j-i)/(j-i)!."""
+    from dfeif_codegen.symbolic import inspect_model
+
+    root = Path(__file__).resolve().parents[1] / "generated"
+    assert dc.check_build("dc_motor_link", root) == []
+    info = inspect_model.inspect("dc_motor_link", ts=0.02)
+    assert info["A_d"] == [[1.0, 0.02, 0.02 ** 2 / 2], [0.0, 1.0, 0.02], [0.0, 0.0, 1.0]]
+    with pytest.raises(ModelError, match="sampling period must be a positive number"):
+        inspect_model.inspect("dc_motor_link", ts=-1.0)
