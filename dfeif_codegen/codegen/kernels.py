@@ -338,11 +338,11 @@ class _Builder:
                 vj = vj - gains[off + r - i - 1] * errs[i]
             v.append(vj)
         v = ca.vertcat(*v)
-        F = ca.vertcat(*[to_casadi(flat.F[j], table) for j in range(m)])
+        F = ca.vertcat(*[to_casadi(flat.F[j], table, f"F-bar[{j}]") for j in range(m)])
         G = ca.SX(m, m)
         for i in range(m):
             for j in range(m):
-                G[i, j] = to_casadi(flat.G[i, j], table)
+                G[i, j] = to_casadi(flat.G[i, j], table, f"G-bar[{i},{j}]")
         if m == 1:
             u, det = (v - F) / G, G
         else:

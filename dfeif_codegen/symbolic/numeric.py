@@ -36,7 +36,7 @@ def _int_power(base, k: int):
     return result
 
 
-def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX], where: str = "model expression") -> ca.SX:
+def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX], where: str = "expression") -> ca.SX:
     """Convert a sympy expression to a CasADi SX scalar by walking its tree (never by printing
     and evaluating); shared subtrees stay shared. `where` names the expression in errors."""
     memo: dict[sp.Basic, ca.SX] = {}
@@ -46,12 +46,12 @@ def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX], where: str = "model 
             return memo[e]
         if e.is_Symbol:
             if e not in table:
-                raise ModelError(f"{where}: unexpected symbol '{e}' in a model expression")
+                raise ModelError(f"{where}: unexpected symbol '{e}'")
             out = table[e]
         elif e.is_Number or e.is_NumberSymbol:
             value = float(e)
             if not math.isfinite(value):
-                raise ModelError(f"{where}: non-finite constant {e} in a model expression")
+                raise ModelError(f"{where}: non-finite constant {e}")
             out = ca.SX(value)
         elif e.is_Add:
             terms = [walk(a) for a in e.args]
