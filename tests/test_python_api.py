@@ -156,3 +156,61 @@ def test_build_check_and_inspect_are_api_functions():
     assert info["A_d"] == [[1.0, 0.02, 0.02 ** 2 / 2], [0.0, 1.0, 0.02], [0.0, 0.0, 1.0]]
     with pytest.raises(ModelError, match="sampling period must be a positive number"):
         inspect_model.inspect("dc_motor_link", ts=-1.0)
+
+
+def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc):
+    """Any flat model: a user's two-input model (relative degrees 2 and 3), three nodes, covariance
+    intersection and retrodiction, driven through the API for six steps with a drop, late frames
+    and a missing packet, against the reference (RTOL: the same argument as for the README; the
+    CI weights come from 12 Newton steps on a 3 x 3 system that is well conditioned here)."""
+    from test_user_models import MIXED
+
+    path = tmp_path / "mixed.toml"
+    path.write_text(MIXED)
+    mdl = dc.load_model(str(path))
+    lib = dc.load(dc.build(mdl, tmp_path / "out", nodes=3, oosm="retrodict", fusion="ci", max_lag=4),
+                  cache=tmp_path / "cache")
+    flat = flatness.derive(mdl)
+    n, m, ts = flat.n, flat.m, mdl.ts
+    assert (lib.nx, lib.ny, lib.nodes) == (n, m, 3)
+    rng = np.random.default_rng(3)
+    x0, P0, q = np.zeros(n), np.diag(rng.uniform(0.5, 2.0, n)), np.array([2.0, 5.0])
+    Rs = [np.diag(rng.uniform(1e-4, 4e-4, m)) for _ in range(3)]
+    c_nodes = [lib.Node(x0, P0, R, q) for R in Rs]
+    r_nodes = [NodeFilter(flat, ts, q, R, x0, P0, max_lag=4, oosm="retrodict") for R in Rs]
+    c_master, r_master = lib.Master(x0, P0, q), Master(flat, ts, q, x0, P0, n_nodes=3, rule="ci", max_lag=4)
+    gains = lib.gains([3.0, 4.0])
+    ctrl = FlatController(flat, gains=gains)
+    frames = rng.normal(0.0, 0.05, (6, 3, m))
+    for k in range(6):
+        for i, (c, r) in enumerate(zip(c_nodes, r_nodes)):
+            on_time = not (i == 1 and k in (2, 3))            # node 1's frames of steps 2, 3 come late
+            c.update(frames[k, i] if on_time else None, gamma=int(on_time))
+            r.update(frames[k, i], gamma=on_time)
+            if i == 1 and k in (3, 4):
+                c.update_delayed(frames[k - 1, i], lag=1)
+                assert r.update_delayed(frames[k - 1, i], lag=1)
+        present = [k != 4, True, True]                         # node 0's packet of step 4 is lost
+        c_master.fuse([c.packet() if p else None for c, p in zip(c_nodes, present)])
+        r_master.fuse([r.packet() if p else None for r, p in zip(r_nodes, present)])
+        flags = np.concatenate([[0.1 * k, 0.1, 0.0], [0.05, 0.0, 0.0, 0.0]])
+        u, v = lib.control(c_master.estimate()[0], flags, gains)
+        u_ref, v_ref = ctrl(r_master.x, flags)
+        assert rel(c_master.estimate()[0], r_master.x) < RTOL and rel(c_master.estimate()[1], r_master.P) < RTOL
+        assert rel(u, u_ref) < RTOL and rel(v, v_ref) < RTOL
+        for c, r in zip(c_nodes, r_nodes):
+            c.predict(v_ref)
+            r.predict(v_ref)
+        c_master.predict(v_ref)
+        r_master.predict(v_ref)
+    for c, r in zip(c_nodes, r_nodes):
+        x, P = c.estimate()
+        assert rel(x, r.x) < RTOL and rel(P, r.P) < RTOL
+
+
+def test_load_names_a_folder_that_is_not_a_module(tmp_path):
+    from dfeif_codegen.errors import SetupError
+
+    with pytest.raises(SetupError, match="is not a folder written by `codegen build`"):
+        dc.load(tmp_path)
+    assert list(tmp_path.iterdir()) == []
