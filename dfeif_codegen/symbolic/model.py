@@ -238,6 +238,7 @@ def _key_lines(text: str) -> dict[str, int]:
                 counters[section] = counters.get(section, -1) + 1
                 section = f"{section}#{counters[section]}"
             lines.setdefault(section.split("#")[0], number)
+            lines.setdefault(section, number)
             continue
         key = re.match(r"^([A-Za-z0-9_\"]+)\s*=", line)
         if key:
