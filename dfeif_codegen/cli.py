@@ -23,17 +23,24 @@ COMMANDS = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a bad option is one line and exit 2 (not a usage block)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message.splitlines()[0] if message else 'bad arguments'}\n")
+
+
 def _model_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
                    help=f"built-in model name or path to a .toml model file (default {DEFAULT_MODEL})")
 
 
 def parser() -> argparse.ArgumentParser:
-    top = argparse.ArgumentParser(prog="codegen", description=(
+    top = _Parser(prog="codegen", description=(
         "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
         "derivative-free Kalman filtering under packet drops and variable delays."))
     top.add_argument("--version", action="version", version=f"dfeif-codegen {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="COMMAND")
+    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     def add(name: str) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=COMMANDS[name][1], description=COMMANDS[name][1])
@@ -55,6 +62,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--precision", choices=["double", "float"], default="double")
     filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+    p.add_argument("--singular-rtol", type=float, default=1e-6, metavar="R",
+                   help="control returns ERR_SINGULAR when |det G| < R * |det G(nominal)| (default 1e-6)")
+    p.add_argument("--force", action="store_true",
+                   help="replace files in OUT/<model> that an earlier build did not write")
+    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
+                   help="time budget of the symbolic derivation (default 60)")
+    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
+                   help="memory budget of the symbolic derivation in GB (default 2)")
 
     p = add("verify")
     p.add_argument("--target", choices=["host", "cortex-m4f"], default="host")
@@ -94,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
 
     module = build.build(args.model, args.out, precision=args.precision, max_lag=args.max_lag,
                          nodes=args.nodes, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                         ts=args.ts)
+                         ts=args.ts, singular_rtol=args.singular_rtol, force=args.force,
+                         max_seconds=args.max_seconds, max_memory=args.max_memory * 1e9)
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")

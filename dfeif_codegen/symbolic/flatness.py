@@ -274,6 +274,32 @@ class FlatSystem:
     def phi_inv_num(self, zeta, p=None) -> np.ndarray:
         return np.asarray(self._lambdas["phi_inv"](list(zeta), self._p(p)), dtype=float).reshape(self.n)
 
+    def nominal_det(self) -> float:
+        """|det G| at the model's nominal state and parameters: the scale 'near singular' is
+        measured against (the C control and the reference refuse below a fraction of it)."""
+        zeta = self.phi_num(nominal_state(self.model))
+        with np.errstate(all="ignore"):
+            det = abs(float(np.linalg.det(self.G_num(zeta)))) if np.all(np.isfinite(zeta)) else float("nan")
+        if not np.isfinite(det) or det == 0.0:
+            raise ModelError(f"{self.model.where('states')}: the decoupling matrix G is singular or undefined at the "
+                             f"nominal state {list(nominal_state(self.model))}: declare a 'nominal' where it is not")
+        return det
+
+    def undefined_at(self, zeta_rows) -> tuple[int, str] | None:
+        """First row where Phi^-1 is undefined (not finite) or leaves the declared domain, with the
+        Phi^-1 entry responsible; None when every row maps to a state in the domain."""
+        zeta_rows = np.atleast_2d(np.asarray(zeta_rows, dtype=float))
+        with np.errstate(all="ignore"):
+            x = np.array([self.phi_inv_num(z) for z in zeta_rows])
+        for i, var in enumerate(self.model.states):
+            lo = -np.inf if var.min is None else var.min
+            hi = np.inf if var.max is None else var.max
+            bad = ~np.isfinite(x[:, i]) | (x[:, i] < lo) | (x[:, i] > hi)
+            if bad.any():
+                k = int(np.argmax(bad))
+                return k, f"{var.name} = {self.phi_inv[i]} = {x[k, i]:.6g} (domain [{lo:g}, {hi:g}])"
+        return None
+
     def _p(self, p) -> list[float]:
         return list(self.param_vector if p is None else p)
 
@@ -293,8 +319,10 @@ class FlatSystem:
         return self.phi_inv_num(zeta, params), u
 
 
-def derive(model: Model) -> FlatSystem:
-    """Derive the canonical form, or say in one line why the model is not flat in this sense."""
+def derive(model: Model, progress=None) -> FlatSystem:
+    """Derive the canonical form, or say in one line why the model is not flat in this sense.
+    `progress(text)` is told each stage (the budget in dfeif_codegen.budget names it on a stop)."""
+    say = progress or (lambda text: None)
     x, f, g, n = model.x, model.f, model.g, model.n
     points = _numeric_points(model)
     _check_denominators(model, {f"dynamics.f.{s.name}": e for s, e in zip(model.states, f)}
@@ -304,6 +332,7 @@ def derive(model: Model) -> FlatSystem:
     for out in model.outputs:
         derivs = [sp.sympify(out.expr)]
         while True:
+            say(f"differentiating flat output '{out.name}' ({model.where('outputs')}) {len(derivs)} time(s)")
             row = [_lie(derivs[-1], g.col(j), x) for j in range(model.m)]
             if not all(_is_zero(e, points) for e in row):
                 break
@@ -330,7 +359,9 @@ def derive(model: Model) -> FlatSystem:
         raise ModelError(f"{model.where('dynamics.g')}: the decoupling matrix is singular (det = 0): "
                          "the inputs cannot steer the flat outputs independently (not flat)")
     phi = sp.Matrix(phi_rows)
+    say("solving Phi(x) = zeta for the state (Phi^-1)")
     phi_inv = _solve_inverse(model, phi, zeta)
+    say("substituting Phi^-1 into F-bar and G-bar")
     back = dict(zip(x, phi_inv))
     F = sp.Matrix([_small_simplify(r.subs(back)) for r in top_rows])
     G = dec_x.subs(back).applyfunc(_small_simplify)

@@ -48,6 +48,34 @@ SCHEMA = {
 }
 
 
+MAX_POWER = 1024       # |integer exponent| after sympy folds (x**64)**64: real models stay far below
+MAX_CALL_NESTING = 16  # functions inside functions: every level multiplies the chain rule's terms
+
+
+def growth_problem(expr: sp.Expr) -> str | None:
+    """Why differentiating this expression n times would blow up before any budget could help
+    (a 63-character `((theta+1)**64)**64...` is x**(2**60)), or None."""
+    stack = [(sp.sympify(expr), 0, False)]
+    while stack:
+        node, calls, in_var_exponent = stack.pop()
+        if isinstance(node, sp.Pow):
+            base, exp = node.args
+            if exp.is_number and exp.is_real and abs(float(exp)) > MAX_POWER and base.free_symbols:
+                return f"power {base}**{exp} beyond +-{MAX_POWER}"
+            if not exp.is_number and base.free_symbols:
+                if in_var_exponent:
+                    return "a variable power inside a variable exponent (exponent tower)"
+                stack.append((base, calls, in_var_exponent))
+                stack.append((exp, calls, True))
+                continue
+        if isinstance(node, sp.Function):
+            calls += 1
+            if calls > MAX_CALL_NESTING:
+                return f"functions nested more than {MAX_CALL_NESTING} deep"
+        stack.extend((a, calls, in_var_exponent) for a in node.args)
+    return None
+
+
 def c_safe(name: str) -> bool:
     """A name that may become part of C identifiers without colliding with anything."""
     return (bool(_NAME.match(name)) and name not in C_KEYWORDS and not name.lower().startswith("casadi")
@@ -213,6 +241,10 @@ class Model:
                          [(f"dynamics.g.{u.name}.{s.name}", self.g[i, j]) for j, u in enumerate(self.inputs)
                           for i, s in enumerate(self.states)] + \
                          [(f"outputs.{o.name}", o.expr) for o in self.outputs]:
+            problem = growth_problem(expr)
+            if problem:
+                raise ModelError(f"{self.where(key)}: {problem}: its derivatives cannot be formed in bounded "
+                                 "time and memory")
             extra = sp.sympify(expr).free_symbols - allowed
             if extra:
                 bad = ", ".join(sorted(str(s) for s in extra))
