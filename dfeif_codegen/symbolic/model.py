@@ -61,17 +61,21 @@ def growth_problem(expr: sp.Expr) -> str | None:
         if isinstance(node, sp.Pow):
             base, exp = node.args
             if exp.is_number and exp.is_real and abs(float(exp)) > MAX_POWER and base.free_symbols:
-                return f"power {base}**{exp} beyond +-{MAX_POWER}"
+                return f"power ({base})**{exp} beyond +-{MAX_POWER}: its derivatives cannot be formed"
             if not exp.is_number and base.free_symbols:
                 if in_var_exponent:
-                    return "a variable power inside a variable exponent (exponent tower)"
+                    return "a variable power inside a variable exponent (exponent tower): its derivatives cannot be formed"
                 stack.append((base, calls, in_var_exponent))
                 stack.append((exp, calls, True))
                 continue
+        if not node.free_symbols and isinstance(node, (sp.Function, sp.Pow)):
+            value = complex(node.evalf(30)) if node.is_number else None
+            if value is not None and (value.imag != 0 or value.real != value.real or abs(value.real) == float("inf")):
+                return f"the constant {node} is not a finite real number"
         if isinstance(node, sp.Function):
             calls += 1
             if calls > MAX_CALL_NESTING:
-                return f"functions nested more than {MAX_CALL_NESTING} deep"
+                return f"functions nested more than {MAX_CALL_NESTING} deep: its derivatives cannot be formed"
         stack.extend((a, calls, in_var_exponent) for a in node.args)
     return None
 
@@ -243,8 +247,7 @@ class Model:
                          [(f"outputs.{o.name}", o.expr) for o in self.outputs]:
             problem = growth_problem(expr)
             if problem:
-                raise ModelError(f"{self.where(key)}: {problem}: its derivatives cannot be formed in bounded "
-                                 "time and memory")
+                raise ModelError(f"{self.where(key)}: {problem}")
             extra = sp.sympify(expr).free_symbols - allowed
             if extra:
                 bad = ", ".join(sorted(str(s) for s in extra))
