@@ -325,14 +325,14 @@ int main(void)
     for (i = 0; i < K(NFLAGS); i++) flags[i] = 0;
     for (i = 0; i < NX; i++) gains[i] = 1;
     memcpy(params, F(params_default), sizeof(params));
-    CHECK(F(control)(x, flags, gains, params, u, NULL) == K(OK));
+    CHECK(F(control)(x, flags, gains, params, u, NULL, NULL) == K(OK));
     u[0] = 42;
-    CHECK(F(control)(NULL, flags, gains, params, u, v) == K(ERR_ARG));
+    CHECK(F(control)(NULL, flags, gains, params, u, v, NULL) == K(ERR_ARG));
     flags[0] = nan;
-    CHECK(F(control)(x, flags, gains, params, u, v) == K(ERR_NONFINITE) && u[0] == 42);
+    CHECK(F(control)(x, flags, gains, params, u, v, NULL) == K(ERR_NONFINITE) && u[0] == 42);
     flags[0] = 0;
     memset(params, 0, sizeof(params));
-    CHECK(F(control)(x, flags, gains, params, u, v) == K(ERR_SINGULAR) && u[0] == 42);
+    CHECK(F(control)(x, flags, gains, params, u, v, NULL) == K(ERR_SINGULAR) && u[0] == 42);
     CHECK(F(gains)(NULL, gains) == K(ERR_ARG));
 
     printf(fails ? "FAILED\n" : "ok\n");

@@ -25,7 +25,7 @@ from pathlib import Path
 from dfeif_codegen import __version__
 from dfeif_codegen.check import harness, target
 from dfeif_codegen.codegen import render
-from dfeif_codegen.errors import SetupError
+from dfeif_codegen.errors import CodegenError, SetupError
 
 MODELS = ("dc_motor_link", "two_link_arm")
 # (oosm, fusion) builds measured per model; the first is the reference configuration.
@@ -97,7 +97,11 @@ def target_sizeof(model: harness.ModelDir, work: Path) -> dict[str, int]:
 
 
 def run(args) -> int:
-    repeat = max(1, int(args.repeat))
+    if not 1 <= args.repeat <= 1000:
+        raise CodegenError(f"--repeat must be between 1 and 1000, got {args.repeat}")
+    repeat = int(args.repeat)
+    from dfeif_codegen.paths import writable_file
+    writable_file(args.out, "--out")
     harness.host_compiler()
     for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size"):
         target.require(tool)

@@ -320,6 +320,17 @@ def run(args) -> int:
     from dfeif_codegen.symbolic.model import load as load_model
     from dfeif_codegen.symbolic.flatness import derive
 
+    from dfeif_codegen.paths import writable_dir, writable_file
+
+    # everything that can be wrong with the arguments is checked before the first run starts
+    if args.json and args.json != "-":
+        writable_file(args.json, "--json")
+    if args.plot:
+        writable_dir(args.plot, "--plot")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
     sc = scenario_mod.load(args.scenario)
     flat = derive(load_model(args.model))
     sc.check_model(flat)
@@ -330,6 +341,7 @@ def run(args) -> int:
         raise ScenarioError(f"--nodes: needs at least one node, got {nodes}")
     if args.max_lag < 1:
         raise ScenarioError(f"--max-lag: needs at least 1, got {args.max_lag}")
+    scenario_mod.check_window(sc, args.max_lag, nodes)
     runs = args.runs if args.runs is not None else sc.runs
     if runs < 1:
         raise ScenarioError(f"--runs: needs at least 1, got {runs}")
