@@ -499,7 +499,9 @@ def test_master_difference_and_control_match_numpy(built, tmp_path):
     flags = np.array([0.2, 0.1, -0.3, 0.7])
     params = flat.param_vector.copy()
     u, vv = np.zeros(1), np.zeros(1)
-    assert lib("control", x, flags, gains, params, u, vv) == 0
+    saturated = np.zeros(1, dtype=np.uint32)
+    assert lib("control", x, flags, gains, params, u, vv, saturated) == 0
+    assert saturated[0] == 0  # dc_motor_link declares no voltage limits: nothing is clamped
     e = x - flags[:3]
     e[0] = wrap(e[0])
     v_ref = flags[3] - gains[2] * e[0] - gains[1] * e[1] - gains[0] * e[2]

@@ -205,6 +205,7 @@ def run(args) -> int:
     sc = scenario.load(args.scenario)
     sc.check_model(experiment._flat(args.model))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
+    scenario.check_window(sc, args.max_lag, args.nodes)
 
     precision = args.precision or ("float" if args.target == "cortex-m4f" else "double")
     oosm, fusion = args.oosm or "replay", args.fusion or "difference"
@@ -219,7 +220,9 @@ def run(args) -> int:
             raise SetupError("--sanitize applies to --target host only")
     with tempfile.TemporaryDirectory(prefix="codegen-verify-") as tmp:
         work = Path(tmp)
-        model = harness.build_model(args.model, work / "gen", precision, oosm, fusion, args.nodes, args.max_lag)
+        # the C is built at the sampling period the scenario records at (its ts, else the model's)
+        model = harness.build_model(args.model, work / "gen", precision, oosm, fusion, args.nodes, args.max_lag,
+                                    ts=sc.ts or None)
         print(f"codegen verify: {model.name}, {precision}, oosm {oosm}, fusion {fusion}, "
               f"{args.nodes} nodes, max lag {args.max_lag}, target {args.target}, {inputs} inputs"
               f"{' with ASan+UBSan' if args.sanitize else ''}")
@@ -227,8 +230,9 @@ def run(args) -> int:
             rec = record(args.model, oosm, fusion, "sinusoid", row, args.nodes, args.max_lag,
                          scenario_spec=args.scenario)
         except (ArithmeticError, np.linalg.LinAlgError) as exc:
-            raise ScenarioError(f"the Python reference itself failed on the scenario ({type(exc).__name__}: "
-                                f"{exc}), so there is nothing to compare the C with") from exc
+            raise ScenarioError(f"{sc.source}: run sinusoid row {row + 1} seed 0: the Python reference itself "
+                                f"failed ({type(exc).__name__}: {exc}), so there is nothing to compare the C "
+                                "with") from None
         K = rec.ref.shape[0]
         print(f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, {K} steps, "
               f"{len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")

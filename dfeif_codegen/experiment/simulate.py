@@ -359,6 +359,11 @@ def run(args) -> int:
                 for seed in seeds:
                     cfg = make_config(sc, args.model, nodes, args.max_lag, ref, row, method, fusion, seed)
                     wanted.setdefault(_canonical(cfg), []).append((ref, method, fusion, ri, seed))
+    for cfg in {c.reference: c for c in wanted}.values():
+        try:  # a reference outside the model's domain is bad input, known before any run
+            ex.check_reference_of(cfg)
+        except ex.UndefinedReference as exc:
+            raise ScenarioError(f"{sc.where('reference')}: {cfg.reference}: {exc}") from None
     figure_keys = {(ref, configs[0][0], configs[0][1], ri, args.seed) for ref in refs for ri in (0, len(rows) - 1)}
     need_series = bool(args.plot or args.json)
     show = not args.quiet and sys.stderr.isatty()
@@ -435,4 +440,8 @@ def run(args) -> int:
         written = plot(args.plot, figures, flat)
         if not to_stdout:
             print(f"\nwrote {len(written)} figures into {args.plot}", file=sys.stdout)
+    if failures:  # a run that failed or diverged is a result to act on, not a footnote
+        print(f"codegen simulate: {len(failures)} of {sum(len(k) for _, k in jobs)} run(s) failed or diverged "
+              f"(first: {failures[0]})", file=sys.stderr)
+        return 1
     return 0
