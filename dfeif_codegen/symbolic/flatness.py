@@ -301,7 +301,15 @@ class FlatSystem:
         return None
 
     def _p(self, p) -> list[float]:
-        return list(self.param_vector if p is None else p)
+        """Parameters as a vector in model order: None or {} are the defaults, a dict overrides
+        by name (python-control's flatsys passes `params={}`), a sequence is taken as it is."""
+        if p is None or isinstance(p, dict):
+            given = dict(p or {})
+            unknown = set(given) - {q.name for q in self.model.parameters}
+            if unknown:
+                raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))} of model {self.model.name}")
+            return [float(given.get(q.name, q.value)) for q in self.model.parameters]
+        return list(p)
 
     # python-control flatsys form --------------------------------------------------------------
     def forward(self, x, u, params=None) -> list[np.ndarray]:
