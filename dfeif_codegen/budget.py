@@ -44,6 +44,8 @@ def _child(conn, fn, args, max_memory) -> None:
             conn.send(("error", pickle.dumps(CodegenError(str(exc)))))
     except MemoryError:
         conn.send(("memory", None))
+    except (ImportError, OSError) as exc:  # a library that cannot be mapped under the limit
+        conn.send(("memory", None) if "map" in str(exc) or "memory" in str(exc) else ("bug", f"{exc!r}"))
     except RecursionError:
         conn.send(("recursion", None))
     except BaseException as exc:  # a bug: the parent reports it as an internal error

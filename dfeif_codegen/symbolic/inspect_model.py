@@ -68,8 +68,8 @@ def render_text(info: dict) -> str:
 def run(args) -> int:
     mdl = model.load(args.model)
     ts = mdl.ts if args.ts is None else args.ts
-    if not (np.isfinite(ts) and ts > 0):
-        raise ModelError(f"--ts {args.ts}: the sampling period must be a positive number")
+    if not (np.isfinite(ts) and 1e-9 <= ts <= 1e3):
+        raise ModelError(f"--ts {args.ts}: the sampling period must be a number of seconds in [1e-9, 1e3]")
     info = describe(flatness.derive(mdl), ts)
     print(json.dumps(info, indent=2) if args.json else render_text(info))
     return 0
