@@ -5,6 +5,7 @@ diverged, `simulate` names the run, the time and the cause, exits 1 and lists it
 import json
 from importlib import resources
 
+import numpy as np
 import pytest
 
 from dfeif_codegen import cli
@@ -73,3 +74,21 @@ def test_verify_builds_at_the_scenarios_sampling_period(tmp_path, monkeypatch, c
     monkeypatch.setattr(harness, "build_model", stop)
     assert cli.main(["verify", "--scenario", str(scenario)]) == 2
     assert seen["ts"] == 0.005      # the model's own ts is 0.01: the recording is at the scenario's
+
+
+def test_nees_watch_needs_fifty_high_steps_in_a_row():
+    from dfeif_codegen.symbolic import model
+
+    watch = ex.DivergenceWatch(model.load("dc_motor_link"))
+    P, x = np.eye(3), np.zeros(3)
+    high = np.array([200.0, 0.0, 0.0])       # NEES 4e4 > 1e4 n = 3e4
+    low = np.array([1.0, 0.0, 0.0])          # NEES 1: a consistent filter's typical value
+    for k in range(ex.NEES_STEPS - 1):
+        watch.step(k * 0.01, x, high, P)
+    watch.step(0.49, x, low, P)              # one ordinary step resets the count
+    for k in range(ex.NEES_STEPS - 1):
+        watch.step(0.5 + k * 0.01, x, high, P)
+    with pytest.raises(ex.Diverged, match=r"t = 0\.99 s: master NEES above 10000 n = 30000 for 50 steps \(now 4e\+04\)"):
+        watch.step(0.99, x, high, P)
+    with pytest.raises(ex.Diverged, match="not finite"):
+        ex.DivergenceWatch(model.load("dc_motor_link")).step(0.0, np.array([np.nan, 0, 0]), low, P)

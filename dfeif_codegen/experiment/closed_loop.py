@@ -45,6 +45,33 @@ class Diverged(FloatingPointError):
     """The closed loop went wrong: the message says when and why."""
 
 
+class DivergenceWatch:
+    """Raises Diverged when the true state leaves its declared domain or the master's NEES has
+    stayed above NEES_DIVERGED * n for NEES_STEPS steps in a row."""
+
+    def __init__(self, model):
+        self.names = [v.name for v in model.states]
+        self.lo = np.array([-np.inf if v.min is None else v.min for v in model.states])
+        self.hi = np.array([np.inf if v.max is None else v.max for v in model.states])
+        self.high = 0
+
+    def step(self, t: float, x, err, P) -> None:
+        if not np.all(np.isfinite(x)):
+            raise Diverged(f"diverged at t = {t:.2f} s: the state is not finite")
+        outside = np.nonzero((x < self.lo) | (x > self.hi))[0]
+        if outside.size:
+            i = int(outside[0])
+            raise Diverged(f"diverged at t = {t:.2f} s: state {self.names[i]} = {x[i]:.4g} left its domain "
+                           f"[{self.lo[i]:g}, {self.hi[i]:g}]")
+        n = len(err)
+        with np.errstate(all="ignore"):
+            nees = float(err @ np.linalg.solve(P, err)) if np.all(np.isfinite(P)) else np.inf
+        self.high = self.high + 1 if not nees <= NEES_DIVERGED * n else 0
+        if self.high >= NEES_STEPS:
+            raise Diverged(f"diverged at t = {t:.2f} s: master NEES above {NEES_DIVERGED:g} n = "
+                           f"{NEES_DIVERGED * n:g} for {NEES_STEPS} steps (now {nees:.3g})")
+
+
 class UndefinedReference(ArithmeticError):
     """The reference asks for flat outputs (derivatives) where Phi^-1 is undefined or leaves the domain."""
 
@@ -309,9 +336,7 @@ def run(cfg: Config) -> Result:
     zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
     check_reference(flat, ref, t)
     x = flat.phi_inv_num(zeta0)
-    lo = np.array([-np.inf if v.min is None else v.min for v in model.states])
-    hi = np.array([np.inf if v.max is None else v.max for v in model.states])
-    high_nees = 0
+    watch = DivergenceWatch(model)
 
     q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
     R = np.array([c.R for c in cams])
@@ -339,21 +364,7 @@ def run(cfg: Config) -> Result:
         late_rows += [(k, i, lag, zl) for i, lag, zl in late]
         out.put(k, bank.step(k, z[:, k], gamma[:, k], late, net.source[:, k], ref[k]))
         x = plant.step(x, out.u[k])
-        if not np.all(np.isfinite(x)):
-            raise Diverged(f"the closed loop diverged at t = {t[k]:.2f} s ({cfg.method}, {cfg.fusion}): "
-                           "the state is not finite")
-        outside = np.nonzero((x < lo) | (x > hi))[0]
-        if outside.size:
-            i = int(outside[0])
-            raise Diverged(f"diverged at t = {t[k]:.2f} s: state {model.states[i].name} = {x[i]:.4g} left its "
-                           f"domain [{lo[i]:g}, {hi[i]:g}]")
-        err = _errors(flat, out.x[k], zeta[k])
-        with np.errstate(all="ignore"):
-            nees = float(err @ np.linalg.solve(out.P[k], err)) if np.all(np.isfinite(out.P[k])) else np.inf
-        high_nees = high_nees + 1 if not nees <= NEES_DIVERGED * n else 0
-        if high_nees >= NEES_STEPS:
-            raise Diverged(f"diverged at t = {t[k]:.2f} s: master NEES above {NEES_DIVERGED:g} n = "
-                           f"{NEES_DIVERGED * n:g} for {NEES_STEPS} steps (now {nees:.3g})")
+        watch.step(t[k], x, _errors(flat, out.x[k], zeta[k]), out.P[k])
 
     pk, pn = np.nonzero(net.source.T >= 0)
     rec = Recording(
