@@ -2,9 +2,10 @@
 
 Why a child process: a 63-character expression can make sympy expand for hours or allocate
 tens of GB before any Python-level check sees it. The work runs in a forked child with an
-address-space limit (RLIMIT_AS) while the parent watches the clock; the child reports each stage
+address-space limit (RLIMIT_AS: what it maps already plus the budget, so a machine whose BLAS
+reserves much address space is not refused for it) while the parent watches the clock; the child reports each stage
 it enters, so a refusal names what it was working on. Without fork (not Linux/macOS) the work
-runs inline, unbounded.
+runs inline, unbounded; DFEIF_NO_BUDGET=1 does the same (for a debugger).
 """
 
 from __future__ import annotations
@@ -24,11 +25,20 @@ class BudgetError(CodegenError):
     """The derivation ran out of its time or memory budget."""
 
 
+def _mapped() -> int:
+    """Bytes of address space this process maps now (Linux /proc; 0 where unknown)."""
+    try:
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
 def _child(conn, fn, args, max_memory) -> None:
     try:
         import resource
-        if max_memory:
-            resource.setrlimit(resource.RLIMIT_AS, (int(max_memory), int(max_memory)))
+        limit = int(_mapped() + max_memory)  # on top of what is mapped already (libraries, BLAS)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     except (ImportError, ValueError, OSError):
         pass
 
@@ -67,7 +77,7 @@ def bounded(fn, args: tuple, max_seconds: float, max_memory: float, what: str):
     proc = ctx.Process(target=_child, args=(child, fn, args, max_memory), daemon=True)
     proc.start()
     child.close()
-    stage, deadline = what, time.monotonic() + max_seconds
+    stage, deadline = "starting", time.monotonic() + max_seconds
     try:
         while True:
             left = deadline - time.monotonic()

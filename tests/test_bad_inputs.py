@@ -102,7 +102,7 @@ CLI = {
     "--singular-rtol 2": (["build", "--singular-rtol", "2"], {}, ["--singular-rtol", "[0, 1)"]),
     "--max-seconds 0": (["build", "--max-seconds", "0"], {}, ["--max-seconds", "positive"]),
     "time budget": (["build", "--max-seconds", "0.001"], {}, ["stopped after 0.001 s while", "--max-seconds"]),
-    "memory budget": (["build", "--max-memory", "0.05"], {}, ["dc_motor_link.toml", "--max-memory"]),
+    "memory budget": (["build", "--max-memory", "0.001"], {}, ["dc_motor_link.toml", "memory budget", "--max-memory"]),
     "--out is a file": (["build", "--out", "{d}/user/notes.txt"], {}, ["--out", "notes.txt", "not a folder"]),
     "user file in module folder": (["build"], {"@out/dc_motor_link/my_notes.c": "int mine;\n"},
                                    ["dc_motor_link/my_notes.c", "not written by codegen build", "--force"]),

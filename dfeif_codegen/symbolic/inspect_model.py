@@ -70,6 +70,8 @@ def run(args) -> int:
     ts = mdl.ts if args.ts is None else args.ts
     if not (np.isfinite(ts) and 1e-9 <= ts <= 1e3):
         raise ModelError(f"--ts {args.ts}: the sampling period must be a number of seconds in [1e-9, 1e3]")
-    info = describe(flatness.derive(mdl), ts)
+    from dfeif_codegen import budget  # the same time/memory budget as `build`
+    info = describe(budget.bounded(flatness.derive, (mdl,), budget.MAX_SECONDS, budget.MAX_MEMORY,
+                                   f"deriving {mdl.source}"), ts)
     print(json.dumps(info, indent=2) if args.json else render_text(info))
     return 0
