@@ -330,8 +330,14 @@ class FlatSystem:
 def derive(model: Model, progress=None) -> FlatSystem:
     """Derive the canonical form, or say in one line why the model is not flat in this sense.
     `progress(text)` is told each stage (the budget in dfeif_codegen.budget names it on a stop)."""
-    say = progress or (lambda text: None)
     x, f, g, n = model.x, model.f, model.g, model.n
+    if progress:  # a stop on the budget names the model's largest expression, the likely culprit
+        named = {f"dynamics.f.{v.name}": e for v, e in zip(model.states, f)}
+        named |= {f"outputs.{o.name}": o.expr for o in model.outputs}
+        worst = max(named, key=lambda k: sp.count_ops(named[k]))
+        say = lambda text: progress(f"{text}; largest expression {model.where(worst)}")  # noqa: E731
+    else:
+        say = lambda text: None  # noqa: E731
     points = _numeric_points(model)
     _check_denominators(model, {f"dynamics.f.{s.name}": e for s, e in zip(model.states, f)}
                         | {f"dynamics.g.{u.name}": sum(g.col(j)) for j, u in enumerate(model.inputs)})
