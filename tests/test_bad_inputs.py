@@ -34,6 +34,7 @@ def sqrt_model(old: str, new: str) -> str:
 
 
 NESTED = "theta = \"omega + 0.001*" + "sin(" * 20 + "theta" + ")" * 20 + "\""
+NESTED14 = NESTED.replace("sin(" * 20, "sin(" * 14).replace(")" * 20, ")" * 14)  # accepted, but heavy
 TOWER64 = "theta = \"omega + 1e-9*((((((((((theta+1)**64)**64)**64)**64)**64)**64)**64)**64)**64)\""
 
 # id: (argv ({d} is the case folder), input files {name: text or bytes}, words the line must hold)
@@ -102,7 +103,9 @@ CLI = {
     "--singular-rtol 2": (["build", "--singular-rtol", "2"], {}, ["--singular-rtol", "[0, 1)"]),
     "--max-seconds 0": (["build", "--max-seconds", "0"], {}, ["--max-seconds", "positive"]),
     "time budget": (["build", "--max-seconds", "0.001"], {}, ["stopped after 0.001 s while", "--max-seconds"]),
-    "memory budget": (["build", "--max-memory", "0.001"], {}, ["dc_motor_link.toml", "memory budget", "--max-memory"]),
+    "memory budget": (["build", "{d}/in/m.toml", "--max-memory", "0.001"],
+                      {"m.toml": motor('theta = "omega"', NESTED14)},
+                      ["m.toml", "memory budget", "--max-memory"]),
     "--out is a file": (["build", "--out", "{d}/user/notes.txt"], {}, ["--out", "notes.txt", "not a folder"]),
     "user file in module folder": (["build"], {"@out/dc_motor_link/my_notes.c": "int mine;\n"},
                                    ["dc_motor_link/my_notes.c", "not written by codegen build", "--force"]),
