@@ -150,7 +150,8 @@ def _solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Ma
         if everywhere:
             return everywhere[0]
         where_ = "its declared domain" if not free else "the test box [-1.3, 1.3]"
-        raise ModelError(f"{model.where('outputs')}: no branch of Phi^-1 for {names} ({shown}) is valid on all of "
+        at = model.where(f"states#{index[next(iter(candidates[0]))]}") if candidates else model.where("outputs")
+        raise ModelError(f"{at}: no branch of Phi^-1 for {names} ({shown}) is valid on all of "
                          f"{where_}: the flat outputs do not determine the state there")
 
     progress = True
