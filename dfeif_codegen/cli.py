@@ -28,6 +28,11 @@ class StaleError(CodegenError):
     """`codegen build --check`: the folder on disk differs from a fresh build."""
 
     exit_code = 1
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a bad option is one line and exit 2 (not a usage block)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message.splitlines()[0] if message else 'bad arguments'}\n")
 
 
 def _model_arg(p: argparse.ArgumentParser) -> None:
@@ -36,11 +41,11 @@ def _model_arg(p: argparse.ArgumentParser) -> None:
 
 
 def parser() -> argparse.ArgumentParser:
-    top = argparse.ArgumentParser(prog="codegen", description=(
+    top = _Parser(prog="codegen", description=(
         "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
         "derivative-free Kalman filtering under packet drops and variable delays."))
     top.add_argument("--version", action="version", version=f"dfeif-codegen {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="COMMAND")
+    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     def add(name: str) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
@@ -65,6 +70,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--check", action="store_true",
                    help="write nothing: exit 0 if DIR/<model> equals a fresh build, 1 (listing the files) if "
                         "stale, 2 if missing")
+    p.add_argument("--singular-rtol", type=float, default=1e-6, metavar="R",
+                   help="control returns ERR_SINGULAR when |det G| < R * |det G(nominal)| (default 1e-6)")
+    p.add_argument("--force", action="store_true",
+                   help="replace files in OUT/<model> that an earlier build did not write")
+    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
+                   help="time budget of the symbolic derivation (default 60)")
+    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
+                   help="memory budget of the symbolic derivation in GB (default 2)")
 
     p = add("verify")
     p.add_argument("--target", choices=["host", "cortex-m4f"], default="host")
@@ -100,7 +113,7 @@ def parser() -> argparse.ArgumentParser:
 
 def _build_options(args: argparse.Namespace) -> dict:
     return dict(precision=args.precision, max_lag=args.max_lag, nodes=args.nodes, oosm=args.oosm or "replay",
-                fusion=args.fusion or "difference", ts=args.ts)
+                fusion=args.fusion or "difference", ts=args.ts, singular_rtol=args.singular_rtol)
 
 
 def build(args: argparse.Namespace) -> int:
@@ -115,7 +128,8 @@ def build(args: argparse.Namespace) -> int:
                              f"(run `codegen build {args.model}{'' if args.out == 'generated' else ' --out ' + args.out}`)")
         print(f"codegen build --check: {args.out} is up to date for {args.model}")
         return 0
-    module = build.build(args.model, args.out, **_build_options(args))
+    module = build.build(args.model, args.out, **_build_options(args), force=args.force,
+                         max_seconds=args.max_seconds, max_memory=args.max_memory * 1e9)
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")
@@ -163,7 +177,9 @@ def bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from dfeif_codegen.check import bench
+    from dfeif_codegen.paths import writable_file
 
+    writable_file(args.out, "--out")
     command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
         else None
     text = bench.bench(args.model, repeat=args.repeat, command=command,

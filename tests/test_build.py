@@ -75,7 +75,7 @@ def test_every_file_has_banner_and_manifest_hashes(fresh):
     manifest = json.loads(files["manifest.json"])
     assert manifest["model"] == "dc_motor_link" and len(manifest["model_hash"]) == 64
     assert manifest["options"] == {"ts": 0.01, "max_lag": 32, "nodes": 2, "oosm": "replay",
-                                   "fusion": "difference", "precision": "double"}
+                                   "fusion": "difference", "precision": "double", "singular_rtol": 1e-6}
     assert "dependencies" not in manifest and manifest["tool"] == {"name": "dfeif-codegen", "version": "0.1.0"}
     assert set(manifest["files"]) == set(files) - {"manifest.json"}
     for fname, entry in manifest["files"].items():
@@ -163,7 +163,7 @@ def test_bad_input_is_one_line_exit_2_and_keeps_old_output(tmp_path, argv, fragm
 
 
 def test_failure_while_writing_leaves_old_output(tmp_path, monkeypatch):
-    files = {"a.h": "old a\n", "b.c": "old b\n"}
+    files = {"a.h": "old a\n", "b.c": "old b\n", "manifest.json": '{"files": {"a.h": {}, "b.c": {}}}'}
     build.write_atomic(tmp_path, "m", files)
     calls = {"n": 0}
     real_write = Path.write_bytes
@@ -175,7 +175,8 @@ def test_failure_while_writing_leaves_old_output(tmp_path, monkeypatch):
         return real_write(self, data)
     monkeypatch.setattr(Path, "write_bytes", flaky)
     with pytest.raises(build.BuildError, match="No space left"):
-        build.write_atomic(tmp_path, "m", {"a.h": "new a\n", "b.c": "new b\n", "c.c": "new c\n"})
+        build.write_atomic(tmp_path, "m", {"a.h": "new a\n", "b.c": "new b\n", "c.c": "new c\n",
+                                           "manifest.json": "{}"})
     monkeypatch.undo()
     assert tree(tmp_path / "m") == {k: v.encode() for k, v in files.items()}
     assert [p.name for p in tmp_path.iterdir()] == ["m"], "temporary folder left behind"
@@ -196,11 +197,20 @@ def test_template_error_is_one_line_and_keeps_old_output(tmp_path, monkeypatch):
     assert tree(tmp_path) == before
 
 
-def test_replaces_stale_files(tmp_path):
+def test_replaces_its_own_stale_files_but_not_the_users(tmp_path):
+    """A file an earlier build wrote (listed in its manifest) and this one does not is removed;
+    a file the user put there stops the build (exit 2) unless --force."""
     assert cli_run("build", "--out", str(tmp_path)).returncode == 0
-    (tmp_path / "dc_motor_link" / "stale.c").write_text("old\n")
+    folder = tmp_path / "dc_motor_link"
+    manifest = json.loads((folder / "manifest.json").read_text())
+    manifest["files"]["stale.c"] = {"bytes": 4, "sha256": "0" * 64}
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    (folder / "stale.c").write_text("old\n")
     assert cli_run("build", "--out", str(tmp_path)).returncode == 0
-    assert not (tmp_path / "dc_motor_link" / "stale.c").exists()
+    assert not (folder / "stale.c").exists()
+    (folder / "mine.c").write_text("mine\n")
+    result = cli_run("build", "--out", str(tmp_path))
+    assert result.returncode == 2 and "mine.c" in result.stderr and (folder / "mine.c").read_text() == "mine\n"
 
 
 def test_strict_undefined():

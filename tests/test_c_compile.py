@@ -325,14 +325,14 @@ int main(void)
     for (i = 0; i < K(NFLAGS); i++) flags[i] = 0;
     for (i = 0; i < NX; i++) gains[i] = 1;
     memcpy(params, F(params_default), sizeof(params));
-    CHECK(F(control)(x, flags, gains, params, u, NULL) == K(OK));
+    CHECK(F(control)(x, flags, gains, params, u, NULL, NULL) == K(OK));
     u[0] = 42;
-    CHECK(F(control)(NULL, flags, gains, params, u, v) == K(ERR_ARG));
+    CHECK(F(control)(NULL, flags, gains, params, u, v, NULL) == K(ERR_ARG));
     flags[0] = nan;
-    CHECK(F(control)(x, flags, gains, params, u, v) == K(ERR_NONFINITE) && u[0] == 42);
+    CHECK(F(control)(x, flags, gains, params, u, v, NULL) == K(ERR_NONFINITE) && u[0] == 42);
     flags[0] = 0;
     memset(params, 0, sizeof(params));
-    CHECK(F(control)(x, flags, gains, params, u, v) == K(ERR_SINGULAR) && u[0] == 42);
+    CHECK(F(control)(x, flags, gains, params, u, v, NULL) == K(ERR_SINGULAR) && u[0] == 42);
     CHECK(F(gains)(NULL, gains) == K(ERR_ARG));
 
     printf(fails ? "FAILED\n" : "ok\n");
@@ -407,6 +407,9 @@ def test_node_matches_numpy(built, tmp_path):
         assert lib("node_update", node, z, gamma) == 0
         got_x, got_P = np.zeros(3), np.zeros(9)
         lib("node_estimate", node, got_x, got_P)
+        # same Joseph-form formula in C and numpy on a 3x3 P: a few dozen flops per entry, each
+        # rounding once (eps = 1.1e-16), so 1e-12 relative is ~100x the worst accumulation on any
+        # IEEE machine; atol covers entries that cancel to ~0
         np.testing.assert_allclose(got_x, x, rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(got_P.reshape(3, 3), P, rtol=1e-12, atol=1e-16)
         v = np.array([np.sin(0.3 * k)])
@@ -414,6 +417,9 @@ def test_node_matches_numpy(built, tmp_path):
         assert lib("node_predict", node, v) == 0
     Y, y = np.zeros(9), np.zeros(3)
     assert lib("node_information", node, Y, y) == 0
+    # two backward-stable inversions of a 3x3 differ by at most ~2 n cond(P) eps relative,
+    # whatever LAPACK kernel numpy picks; with cond(P) < 1e5 (checked) that is 7e-11 < 1e-9
+    assert np.linalg.cond(P) < 1e5
     np.testing.assert_allclose(Y.reshape(3, 3), np.linalg.inv(P), rtol=1e-9)
     np.testing.assert_allclose(y, np.linalg.solve(P, x), rtol=1e-9)
 
@@ -445,9 +451,13 @@ def test_late_measurement_replay_and_retrodict_agree(built, tmp_path):
         drops = (30, 33, 35) if lag == 6 else (30, 35, 38)
         xr, Pr = _run_late(replay, lag, drops)
         xo, Po = _run_late(retro, lag, drops)
+        # retrodiction and replay are algebraically equal; they round differently through an
+        # A^-N back-propagation and a solve on a well-conditioned 3x3 (cond(P) ~1e4 at most), so
+        # 1e-9 is n cond eps times ~100 steps of accumulation with margin, on any IEEE machine
         np.testing.assert_allclose(xo, xr, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(Po, Pr, rtol=1e-9, atol=1e-15)
     xr, Pr = _run_late(replay, 6)
+    # replay re-runs exactly the on-time operations in the same order: equal up to a few ulps
     np.testing.assert_allclose(xr, on_time[0], rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(Pr, on_time[1], rtol=1e-12, atol=1e-18)
 
@@ -488,6 +498,9 @@ def test_master_difference_and_control_match_numpy(built, tmp_path):
     x, P = np.zeros(3), np.zeros(9)
     lib("master_estimate", master, x, P)
     P_ref = np.linalg.inv(Ysum)
+    # the C fuses in information form and inverts Ysum by Cholesky, numpy by LU: both backward
+    # stable, so they differ by ~2 n cond(Ysum) eps; cond < 1e6 (checked) bounds it by 7e-10 < 1e-8
+    assert np.linalg.cond(Ysum) < 1e6
     np.testing.assert_allclose(P.reshape(3, 3), P_ref, rtol=1e-8)
     np.testing.assert_allclose(x, P_ref @ ysum, rtol=1e-8, atol=1e-12)
 
@@ -499,11 +512,15 @@ def test_master_difference_and_control_match_numpy(built, tmp_path):
     flags = np.array([0.2, 0.1, -0.3, 0.7])
     params = flat.param_vector.copy()
     u, vv = np.zeros(1), np.zeros(1)
-    assert lib("control", x, flags, gains, params, u, vv) == 0
+    saturated = np.zeros(1, dtype=np.uint32)
+    assert lib("control", x, flags, gains, params, u, vv, saturated) == 0
+    assert saturated[0] == 0  # dc_motor_link declares no voltage limits: nothing is clamped
     e = x - flags[:3]
     e[0] = wrap(e[0])
     v_ref = flags[3] - gains[2] * e[0] - gains[1] * e[1] - gains[0] * e[2]
     u_ref = (v_ref - flat.F_num(x)[0]) / flat.G_num(x)[0, 0]
+    # v: 3 products and sums of O(1) numbers (a few ulps); u divides by G = k_e/(J L) = 5000 after
+    # F's ~30 flops with cancellation up to 100x, so 1e-10 for u on any IEEE machine
     np.testing.assert_allclose(vv, [v_ref], rtol=1e-12)
     np.testing.assert_allclose(u, [u_ref], rtol=1e-10)
 
@@ -529,6 +546,8 @@ def test_ci_weights_on_simplex(built, tmp_path):
     node_x, node_P = np.zeros(3), np.zeros(9)
     lib("node_estimate", node, node_x, node_P)
     # CI of identical estimates is that estimate
+    # CI with weights summing to 1 of identical (Y, y): an inversion round trip of a 3x3 with
+    # cond(P) < 1e5, i.e. ~2 n cond eps = 7e-11 relative, below 1e-9 on any IEEE machine
     np.testing.assert_allclose(P, node_P, rtol=1e-9)
     np.testing.assert_allclose(x, node_x, rtol=1e-9)
 
@@ -552,12 +571,15 @@ def test_ci_weights_match_reference_active_set(built, tmp_path):
         packets = (ctypes.c_char * (3 * psize))()
         for i, Y in enumerate(Ys):
             P = np.linalg.inv(Y)
+            P = (P + P.T) / 2  # node_init takes only an exactly symmetric P0 (inv leaves ulp asymmetry)
             pk = lib.new("packet")
             assert lib("node_packet", _fake_node(lib, P @ np.eye(3)[i], P), pk) == 0
             ctypes.memmove(ctypes.addressof(packets) + i * psize, pk, psize)
         assert lib("master_fuse", master, packets, np.ones(3, dtype=np.uint8)) == 0
         x, P = np.zeros(3), np.zeros(9)
         lib("master_estimate", master, x, P)
+        # the C's CI weights come from a few Newton steps on a convex 1-D problem stopped at
+        # gradient 1e-10-ish; 1e-8 absolute on y = P^-1 x (entries O(1)) is that stopping rule
         np.testing.assert_allclose(np.linalg.solve(P.reshape(3, 3), x), w_ref, atol=1e-8, err_msg=str(trial))
 
 
@@ -580,6 +602,7 @@ def test_discrete_constants_match_discretize():
     f = ca.Function("f", [t], [b.A_of(t), b.Q_of(ca.DM([2.0, 3.0]), t)])
     for N in (1, 7, -5):
         A_got, Q_got = (np.array(m) for m in f(N * 0.01))
+        # A_d entries are t^k/k! computed by the same few multiplications: at most 2-3 ulps apart
         np.testing.assert_allclose(A_got, flat.discrete(N * 0.01)[0], rtol=1e-14)
         if N > 0:
             np.testing.assert_allclose(Q_got, discretize.process_noise(flat.degrees, N * 0.01, [2.0, 3.0]),

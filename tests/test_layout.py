@@ -7,15 +7,16 @@ import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "dfeif_codegen"
-BASE = {"errors", "constants", "__version__"}
+BASE = {"errors", "constants", "__version__", "budget", "paths"}   # leaf utilities every stage may use
 ALLOWED = {
-    "errors": set(), "constants": set(),
+    "errors": set(), "constants": set(), "budget": {"errors"}, "paths": {"errors"},
     "symbolic": BASE,
     "codegen": BASE | {"symbolic"},                      # the generator never sees the reference
     "reference": BASE | {"symbolic"},
     "experiment": BASE | {"symbolic", "reference"},
     "check": BASE | {"symbolic", "codegen", "reference", "experiment"},
-    "cli": BASE | {"symbolic", "codegen", "reference", "experiment", "check"},
+    "net": BASE | {"symbolic", "codegen", "reference", "experiment", "check"},   # programs on a network
+    "cli": BASE | {"symbolic", "codegen", "reference", "experiment", "check", "net"},
     "__init__": BASE,
 }
 

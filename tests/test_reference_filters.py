@@ -131,6 +131,9 @@ def test_replay_equals_batch_kalman_filter(name):
     assert max(len(a) for a in arrivals.values()) >= 3        # several late ones in one step
     assert node.counters["late_applied"] == sum(len(a) for k, a in arrivals.items() if k < steps)
     print(f"\n{name}: replay vs batch Kalman filter, worst relative error {max(worst):.1e}")
+    # replay and the batch filter perform the same Kalman steps in a different order; on these
+    # well-conditioned 3x3 (cond(P) < 1e4) each step moves the rounding by ~n cond eps ~1e-11
+    # relative and the filter contracts it: 1e-10 holds on any IEEE machine
     assert max(worst) <= 1e-10
 
 
@@ -200,6 +203,9 @@ def test_retrodict_equals_replay_for_one_late_measurement(name, max_lag):
         worst_naive = max(worst_naive, rel(retro.x, x_n), rel(retro.P, P_n))
     print(f"\n{name} N_max={max_lag}: one late measurement, retrodict vs replay {worst_replay:.1e}, "
           f"recursion vs naive sums {worst_naive:.1e}")
+    # retrodiction back-propagates through A^-N (entries <= N Ts) and one gain solve: algebraically
+    # equal to replay, rounding ~N n cond eps ~1e-10 at N_max = 32; the naive sums differ only in
+    # summation order of the same terms (a few ulps times the number of terms)
     assert worst_replay <= 1e-9
     assert worst_naive <= 1e-11
 
@@ -291,6 +297,8 @@ def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes):
         master.predict(vs[k])
         x, P = A @ x + B @ vs[k], A @ P @ A.T + Q
     print(f"\n{name}, {n_nodes} nodes: difference rule vs centralized, worst relative error {worst:.1e}")
+    # difference fusion vs the centralized filter: information-form inversions of 3x3 with
+    # cond < 1e4 (~n cond eps = 7e-12 each, contracted by the filter): 1e-9 on any IEEE machine
     assert worst <= 1e-9
 
 

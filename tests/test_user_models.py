@@ -131,6 +131,7 @@ def test_cameras_that_measure_the_flat_outputs(tmp_path):
     cam = Camera(mdl, scale=1.5)
     np.testing.assert_array_equal(cam.R, np.diag([(1.5 * 0.002) ** 2, (1.5 * 0.004) ** 2]))
     x, noise = np.array([0.3, -1.0, 0.7, 2.0, 0.1]), np.array([0.5, -2.0])
+    # two products and a sum of O(1) numbers: the only difference is rounding order (<= 2 ulps)
     np.testing.assert_allclose(cam.measure(x, noise), [0.3 + 1.5 * 0.002 * 0.5, 0.7 - 1.5 * 0.004 * 2.0],
                                rtol=0, atol=1e-15)
 

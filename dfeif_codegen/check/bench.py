@@ -24,7 +24,7 @@ from pathlib import Path
 from dfeif_codegen import __version__
 from dfeif_codegen.check import harness, target
 from dfeif_codegen.codegen import render
-from dfeif_codegen.errors import SetupError
+from dfeif_codegen.errors import CodegenError, SetupError
 
 MODELS = ("dc_motor_link", "two_link_arm")
 # (oosm, fusion) builds measured per model; the first is the reference configuration.
@@ -98,7 +98,8 @@ def target_sizeof(model: harness.ModelDir, work: Path) -> dict[str, int]:
 def bench(model: str | None = None, *, repeat: int = 5, command: str | None = None, progress=None) -> str:
     """BENCHMARKS.md's text for a model file, or (default, or a built-in name) both built-in
     models side by side. `command` is the line the report says regenerates it."""
-    repeat = max(1, int(repeat))
+    if isinstance(repeat, bool) or not isinstance(repeat, int) or not 1 <= repeat <= 1000:
+        raise CodegenError(f"--repeat must be an integer between 1 and 1000, got {repeat!r}")
     harness.host_compiler()
     for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size"):
         target.require(tool)

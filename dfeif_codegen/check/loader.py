@@ -119,6 +119,7 @@ class Library:
         self.dims, self.codes = header_facts((folder.path / f"{folder.name}.h").read_text(), P)
         self.nx, self.ny, self.nu, self.np = (self.dims[k] for k in ("NX", "NY", "NU", "NP"))
         self.nflags, self.nodes = self.dims["NFLAGS"], self.dims["NNODES"]
+        self.saturated = 0   # inputs clamped to their declared limits by `control`, over all calls
         self._lib = ctypes.CDLL(str(path))
         self._real = ctypes.c_float if self.dtype == np.float32 else ctypes.c_double
         self.sizes = {}
@@ -163,13 +164,16 @@ class Library:
 
     def control(self, x, flags, gains, params=None) -> tuple[np.ndarray, np.ndarray]:
         """(u, v) of `<model>_control`: u = G^-1 (v - F), v from the tracking law on each chain;
-        `params` default to the model's nominal values."""
+        `params` default to the model's nominal values. Inputs clamped to their declared limits
+        are counted in `self.saturated`."""
         x = self.array(x, (self.nx,), "control: x")
         flags = self.array(flags, (self.nflags,), "control: flags")
         gains = self.array(gains, (self.nx,), "control: gains")
         params = self.array(self.params_default if params is None else params, (self.np,), "control: params")
         u, v = self.output(self.nu), self.output(self.ny)
-        self.call("control", *map(self.ptr, (x, flags, gains, params, u, v)))
+        count = ctypes.c_uint32(0)
+        self.call("control", *map(self.ptr, (x, flags, gains, params, u, v)), ctypes.byref(count))
+        self.saturated += count.value
         return u, v
 
     def gains(self, lam) -> np.ndarray:

@@ -233,6 +233,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     sc = scenarios.load(scenario)
     sc.check_model(experiment._flat(model))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
+    scenarios.check_window(sc, max_lag, nodes)
     precision = precision or ("float" if target == "cortex-m4f" else "double")
     if target == "host":
         harness.host_compiler()
@@ -244,15 +245,17 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
             raise SetupError("--sanitize applies to --target host only")
     with tempfile.TemporaryDirectory(prefix="codegen-verify-") as tmp:
         work = Path(tmp)
-        built = harness.build_model(model, work / "gen", precision, oosm, fusion, nodes, max_lag)
+        # the C is built at the sampling period the scenario records at (its ts, else the model's)
+        built = harness.build_model(model, work / "gen", precision, oosm, fusion, nodes, max_lag, ts=sc.ts or None)
         settings = (f"{built.name}, {precision}, oosm {oosm}, fusion {fusion}, {nodes} nodes, max lag {max_lag}, "
                     f"target {target}, {inputs} inputs{' with ASan+UBSan' if sanitize else ''}")
         say(f"codegen verify: {settings}")
         try:
             rec = record(model, oosm, fusion, "sinusoid", row, nodes, max_lag, scenario_spec=scenario)
         except (ArithmeticError, np.linalg.LinAlgError) as exc:
-            raise ScenarioError(f"the Python reference itself failed on the scenario ({type(exc).__name__}: "
-                                f"{exc}), so there is nothing to compare the C with") from exc
+            raise ScenarioError(f"{sc.source}: run sinusoid row {row + 1} seed 0: the Python reference itself "
+                                f"failed ({type(exc).__name__}: {exc}), so there is nothing to compare the C "
+                                "with") from None
         K = rec.ref.shape[0]
         about = (f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
                  f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")

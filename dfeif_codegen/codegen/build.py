@@ -22,7 +22,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from dfeif_codegen import __version__
+from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.codegen import kernels, render
 from dfeif_codegen.constants import CI_ITERATIONS
@@ -91,65 +91,106 @@ def context(flat, opts: Options) -> dict:
     return {
         "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
         "description": _comment(m.description or p),
-        "zeta_names": [str(z) for z in flat.zeta], "n": flat.n, "m": flat.m, "np": len(flat.params),
+        "zeta_names": [_comment(z) for z in flat.zeta], "n": flat.n, "m": flat.m, "np": len(flat.params),
         "degrees": flat.degrees, "heads": flat.heads, "angles": [int(c.angle) for c in flat.chains],
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
-        "opts": opts, "options": asdict(opts), "ci_iterations": CI_ITERATIONS,
+        "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(), "ci_iterations": CI_ITERATIONS,
         "model_hash": model_hash(m), "versions": versions(),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
     }
 
 
-def generate(m: model.Model, opts: Options) -> dict[str, str]:
-    """Model and options -> {file: text}; nothing is written."""
-    flat = flatness.derive(m)
+def generate(m: model.Model, opts: Options, progress=None) -> dict[str, str]:
+    """Model and options -> {file: text}; nothing is written. `progress(text)` hears each stage."""
+    flat = flatness.derive(m, progress=progress)
+    if progress:
+        progress("CasADi kernels and C rendering")
     try:
         return render.render(context(flat, opts))
     except jinja2.TemplateError as exc:
         raise BuildError(f"template error: {type(exc).__name__}: {exc}") from None
 
 
-def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts) -> tuple[model.Model, Options]:
+def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
+                       singular_rtol) -> tuple[model.Model, Options]:
     m = spec if isinstance(spec, model.Model) else model.load(str(spec))
     return m, Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
-                      precision=precision)
-
-
-def build(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
-          max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
-          ts: float | None = None) -> GeneratedModule:
-    """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
-
-    Options are checked before the derivation starts; the folder is replaced atomically."""
-    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts)
-    files = generate(m, opts)
-    target = write_atomic(Path(out), m.name, files)
-    return GeneratedModule(target, m.name, opts, tuple(files))
+                      precision=precision, singular_rtol=singular_rtol)
 
 
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
-          ts: float | None = None) -> list[str]:
+          ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float = budget.MAX_SECONDS,
+          max_memory: float = budget.MAX_MEMORY) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
     compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
     raised before the derivation. Nothing is written."""
-    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts)
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol)
     target = Path(out) / m.name
     if not target.is_dir():
         raise BuildError(f"{target}: missing (run `codegen build {spec if isinstance(spec, (str, Path)) else m.name}"
                          f"{'' if str(out) == 'generated' else f' --out {out}'}`)")
-    files = generate(m, opts)
+    files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
     on_disk = {p.name for p in target.iterdir()}
     stale = [f for f in files if f in on_disk and (target / f).read_bytes() != files[f].encode("utf-8")]
     stale += [f"missing: {f}" for f in files if f not in on_disk]
     return stale + [f"extra: {f}" for f in sorted(on_disk - set(files))]
 
 
-def write_atomic(out_root: Path, name: str, files: dict[str, str]) -> Path:
-    """Write files into out_root/name by rendering into a sibling temp folder and renaming."""
+def build(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
+          max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
+          ts: float | None = None, singular_rtol: float = 1e-6, force: bool = False,
+          max_seconds: float = budget.MAX_SECONDS, max_memory: float = budget.MAX_MEMORY,
+          compile_check: bool = True) -> GeneratedModule:
+    """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
+
+    Options and the output folder are checked before the derivation starts; the derivation runs
+    under a time and memory budget; what was written is compiled (host compiler, when there is
+    one) before it replaces the folder, atomically. `force` allows replacing files the toolkit
+    did not write there."""
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol)
+    check_target(Path(out), m.name, force)
+    files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
+    compiles = (lambda folder: compile_check_folder(folder, m.name)) if compile_check else None
+    target = write_atomic(Path(out), m.name, files, force=force, check=compiles)
+    return GeneratedModule(target, m.name, opts, tuple(files))
+
+
+def _written_before(target: Path) -> set[str]:
+    """Files a previous build wrote into target: its manifest and what the manifest lists."""
+    try:
+        doc = json.loads((target / "manifest.json").read_text(encoding="utf-8"))
+        listed = doc.get("files", {}) if isinstance(doc, dict) else {}
+        return {"manifest.json", *(str(f) for f in listed)} if isinstance(listed, dict) else set()
+    except (OSError, ValueError):
+        return set()
+
+
+def check_target(out_root: Path, name: str, force: bool = False) -> None:
+    """Refuse (unless force) to replace anything in out_root/name the toolkit did not write."""
+    target = out_root / name
+    if out_root.exists() and not out_root.is_dir():
+        raise BuildError(f"--out {out_root}: exists and is not a folder")
+    if force or not (target.exists() or target.is_symlink()):
+        return
+    if target.is_symlink() or not target.is_dir():
+        raise BuildError(f"{target}: a file the toolkit did not write is in the way (use --force to replace it)")
+    ours = _written_before(target)
+    theirs = sorted(p.name for p in target.iterdir() if p.name not in ours or not p.is_file())
+    if theirs:
+        more = f" and {len(theirs) - 1} more" if len(theirs) > 1 else ""
+        raise BuildError(f"{target / theirs[0]}{more}: not written by codegen build (not in manifest.json); "
+                         "move it away or use --force")
+
+
+def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool = False,
+                 check=None) -> Path:
+    """Write files into out_root/name by rendering into a sibling temp folder and renaming.
+    `check(folder)` may refuse the new files (BuildError) before they replace the old ones."""
+    check_target(out_root, name, force)
     try:
         out_root.mkdir(parents=True, exist_ok=True)
         target = out_root / name
@@ -161,19 +202,45 @@ def write_atomic(out_root: Path, name: str, files: dict[str, str]) -> Path:
         for fname, text in files.items():
             (tmp / fname).write_bytes(text.encode("utf-8"))
         os.chmod(tmp, 0o755)
-        if target.exists():
+        if check is not None:
+            check(tmp)
+        if target.exists() or target.is_symlink():
             old = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".old", dir=out_root))
             os.rmdir(old)
             os.rename(target, old)
         os.rename(tmp, target)
     except OSError as exc:
-        if old is not None and old.exists() and not target.exists():
+        if old is not None and (old.exists() or old.is_symlink()) and not target.exists():
             os.rename(old, target)
         shutil.rmtree(tmp, ignore_errors=True)
         raise BuildError(f"{out_root / name}: cannot write output ({exc.strerror})") from None
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+        if old.is_dir() and not old.is_symlink():
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            old.unlink()
     return target
+
+
+def compile_check_folder(folder: Path, name: str) -> None:
+    """Compile every generated .c (syntax and declarations) with the host compiler; a failure
+    is the toolkit's or the model's fault and must not reach the user's tree."""
+    cc = host_compiler()
+    if cc is None:
+        return
+    sources = sorted(str(p) for p in folder.glob("*.c"))
+    try:
+        run = subprocess.run([cc, "-std=c99", "-fsyntax-only", "-I", str(folder), *sources],
+                             capture_output=True, text=True, timeout=300)
+    except (OSError, subprocess.SubprocessError) as exc:
+        raise BuildError(f"{name}: the host compiler {cc} could not check the generated C ({exc})") from None
+    if run.returncode != 0:
+        errors = [ln for ln in run.stderr.splitlines() if "error" in ln] or run.stderr.splitlines() or ["?"]
+        first = errors[0].replace(str(folder) + os.sep, "")
+        raise BuildError(f"{name}: the generated C does not compile ({cc}): {first.strip()}")
 
 
 def host_compiler() -> str | None:

@@ -347,8 +347,24 @@ class _Builder:
             u, det = (v - F) / G, G
         else:
             u, det = ca.solve(G, v - F), ca.det(G)
-        return ca.Function(name, [x, flags, gains, p], [u, v, det],
-                           ["x", "flags", "gains", "params"], ["u", "v", "det"], {"cse": True})
+        # declared actuator limits: clamp u, count the clamped inputs, and broadcast the v the
+        # clamped u really produces (v = F + G u), so the filters predict what the plant does
+        limits = [(i, w.min, w.max) for i, w in enumerate(flat.model.inputs) if w.bounded]
+        nsat = ca.SX(0)
+        if limits:
+            clamped = []
+            for i in range(m):
+                ui = u[i]
+                for j, lo, hi in limits:
+                    if j == i and lo is not None:
+                        nsat, ui = nsat + (u[i] < lo), ca.fmax(ui, lo)
+                    if j == i and hi is not None:
+                        nsat, ui = nsat + (u[i] > hi), ca.fmin(ui, hi)
+                clamped.append(ui)
+            u = ca.vertcat(*clamped)
+            v = F + ca.mtimes(G, u)
+        return ca.Function(name, [x, flags, gains, p], [u, v, det, nsat],
+                           ["x", "flags", "gains", "params"], ["u", "v", "det", "nsat"], {"cse": True})
 
     @staticmethod
     def wrap_one(e: ca.SX) -> ca.SX:

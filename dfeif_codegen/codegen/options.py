@@ -28,11 +28,16 @@ class Options:
     oosm: str = "replay"
     fusion: str = "difference"
     precision: str = "double"
+    singular_rtol: float = 1e-6  # control returns ERR_SINGULAR below this fraction of |det G| nominal
 
     def __post_init__(self) -> None:
         ts = self.ts
-        if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts) or ts <= 0:
-            raise BuildError(f"--ts must be a positive sampling period in seconds, got {ts}")
+        if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts) or not 1e-9 <= ts <= 1e3:
+            raise BuildError(f"--ts must be a sampling period in seconds in [1e-9, 1e3], got {ts}")
+        rtol = self.singular_rtol
+        if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < 1:
+            raise BuildError(f"--singular-rtol must be a number in [0, 1), got {rtol!r}")
+        object.__setattr__(self, "singular_rtol", float(rtol))
         object.__setattr__(self, "ts", float(ts))
         for name, limit in (("max_lag", MAX_LAG_LIMIT), ("nodes", NODES_LIMIT)):
             value = getattr(self, name)

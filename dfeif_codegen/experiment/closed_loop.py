@@ -31,6 +31,69 @@ from dfeif_codegen.reference.node import NodeFilter
 from dfeif_codegen.experiment.plant import Camera, Plant
 from dfeif_codegen.experiment.trajectory import Reference, flags
 
+# A run has diverged when the true state leaves its declared domain, or when the master's NEES
+# stays above NEES_DIVERGED * n for NEES_STEPS steps in a row. This is not the consistency test
+# (the tables do that against the chi-square band); it detects a filter that has lost the state:
+# NEES = 1e4 n means errors 100 times the standard deviations P claims. A consistent filter's NEES
+# is chi-square with n degrees of freedom (mean n), so P(NEES > 1e4 n) is below 1e-1000, and a
+# merely inconsistent baseline (as-current, NEES of a few hundred) is not called diverged.
+NEES_DIVERGED = 1e4
+NEES_STEPS = 50
+
+
+class Diverged(FloatingPointError):
+    """The closed loop went wrong: the message says when and why."""
+
+
+class DivergenceWatch:
+    """Raises Diverged when the true state leaves its declared domain or the master's NEES has
+    stayed above NEES_DIVERGED * n for NEES_STEPS steps in a row."""
+
+    def __init__(self, model):
+        self.names = [v.name for v in model.states]
+        self.lo = np.array([-np.inf if v.min is None else v.min for v in model.states])
+        self.hi = np.array([np.inf if v.max is None else v.max for v in model.states])
+        self.high = 0
+
+    def step(self, t: float, x, err, P) -> None:
+        if not np.all(np.isfinite(x)):
+            raise Diverged(f"diverged at t = {t:.2f} s: the state is not finite")
+        outside = np.nonzero((x < self.lo) | (x > self.hi))[0]
+        if outside.size:
+            i = int(outside[0])
+            raise Diverged(f"diverged at t = {t:.2f} s: state {self.names[i]} = {x[i]:.4g} left its domain "
+                           f"[{self.lo[i]:g}, {self.hi[i]:g}]")
+        n = len(err)
+        with np.errstate(all="ignore"):
+            nees = float(err @ np.linalg.solve(P, err)) if np.all(np.isfinite(P)) else np.inf
+        self.high = self.high + 1 if not nees <= NEES_DIVERGED * n else 0
+        if self.high >= NEES_STEPS:
+            raise Diverged(f"diverged at t = {t:.2f} s: master NEES above {NEES_DIVERGED:g} n = "
+                           f"{NEES_DIVERGED * n:g} for {NEES_STEPS} steps (now {nees:.3g})")
+
+
+class UndefinedReference(ArithmeticError):
+    """The reference asks for flat outputs (derivatives) where Phi^-1 is undefined or leaves the domain."""
+
+
+def check_reference(flat, ref_rows, t) -> None:
+    """Every reference state must map back to a state in the declared domain."""
+    bad = flat.undefined_at(np.array([state_of_flags(flat, r) for r in ref_rows]))
+    if bad is not None:
+        k, what = bad
+        raise UndefinedReference(f"the reference at t = {t[k]:.3f} s asks for flat outputs where Phi^-1 is "
+                                 f"undefined: {what}")
+
+
+def check_reference_of(cfg: "Config") -> None:
+    """check_reference for a configuration's reference, without running it."""
+    flat = _flat(cfg.model)
+    ts = float(cfg.ts or flat.model.ts)
+    t = np.arange(int(round(cfg.duration / ts))) * ts
+    refs = references(cfg, flat.m)
+    check_reference(flat, [flags(refs, flat.degrees, tk) for tk in t], t)
+
+
 OOSM = ("replay", "retrodict")
 BASELINES = ("discard", "as-current")
 METHODS = OOSM + BASELINES
@@ -271,7 +334,9 @@ def run(cfg: Config) -> Result:
     P0 = initial_covariance(flat, cfg.p0_std)
     x_hat0 = state_of_flags(flat, ref[0])     # everyone starts at the reference's start
     zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
+    check_reference(flat, ref, t)
     x = flat.phi_inv_num(zeta0)
+    watch = DivergenceWatch(model)
 
     q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
     R = np.array([c.R for c in cams])
@@ -299,8 +364,7 @@ def run(cfg: Config) -> Result:
         late_rows += [(k, i, lag, zl) for i, lag, zl in late]
         out.put(k, bank.step(k, z[:, k], gamma[:, k], late, net.source[:, k], ref[k]))
         x = plant.step(x, out.u[k])
-        if not np.all(np.isfinite(x)):
-            raise FloatingPointError(f"the closed loop diverged at t = {t[k]:.2f} s ({cfg.method}, {cfg.fusion})")
+        watch.step(t[k], x, _errors(flat, out.x[k], zeta[k]), out.P[k])
 
     pk, pn = np.nonzero(net.source.T >= 0)
     rec = Recording(

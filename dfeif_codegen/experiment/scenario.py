@@ -100,6 +100,10 @@ class Scenario:
         def fail(key: str, message: str):
             raise ScenarioError(f"{self.where(key)}: {message}{hint}")
 
+        ts = self.ts or flat.model.ts
+        if self.duration / ts > MAX_STEPS:
+            fail("scenario.duration", f"{self.duration:g} s at Ts = {ts:g} s is {self.duration / ts:.3g} steps; "
+                                      f"at most {MAX_STEPS:g} per run")
         for key, values in (("filter.q", self.q), ("control.poles", self.poles),
                             ("reference.amplitude", self.amplitude), ("reference.offset", self.offset)):
             if len(values) not in (1, m):
@@ -119,6 +123,21 @@ class Scenario:
                               f"channel), got {len(std)}")
 
 
+MAX_STEPS = 1e6  # steps per run: the recording keeps every step's covariances in memory
+
+
+def check_window(sc: "Scenario", max_lag: int, nodes: int) -> None:
+    """A delay longer than the late-measurement window would be dropped silently: refuse it."""
+    for i, row in enumerate(sc.grid):
+        for d in row.d:
+            if d > max_lag:
+                raise ScenarioError(f"{sc.where(f'grid#{i}.d')}: delay {d} steps is longer than the window "
+                                    f"--max-lag {max_lag}: every late frame would be dropped")
+    if sc.uplink.d > max_lag:
+        raise ScenarioError(f"{sc.where('uplink.d')}: delay {sc.uplink.d} steps is longer than the window "
+                            f"--max-lag {max_lag}: every packet would reach the master too late")
+
+
 # --- parsing ----------------------------------------------------------------------------------
 
 def load(spec: str) -> Scenario:
@@ -133,6 +152,10 @@ def load(spec: str) -> Scenario:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ScenarioError(f"{spec}: cannot read scenario file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{spec}: not a UTF-8 text file (byte {exc.start})") from None
+    if "\x00" in text:
+        raise ScenarioError(f"{spec}: not a text file (NUL byte at character {text.index(chr(0))})")
     return loads(text, spec)
 
 

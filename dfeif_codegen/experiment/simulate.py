@@ -320,6 +320,17 @@ def run(args) -> int:
     from dfeif_codegen.symbolic.model import load as load_model
     from dfeif_codegen.symbolic.flatness import derive
 
+    from dfeif_codegen.paths import writable_dir, writable_file
+
+    # everything that can be wrong with the arguments is checked before the first run starts
+    if args.json and args.json != "-":
+        writable_file(args.json, "--json")
+    if args.plot:
+        writable_dir(args.plot, "--plot")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
     sc = scenario_mod.load(args.scenario)
     flat = derive(load_model(args.model))
     sc.check_model(flat)
@@ -330,6 +341,7 @@ def run(args) -> int:
         raise ScenarioError(f"--nodes: needs at least one node, got {nodes}")
     if args.max_lag < 1:
         raise ScenarioError(f"--max-lag: needs at least 1, got {args.max_lag}")
+    scenario_mod.check_window(sc, args.max_lag, nodes)
     runs = args.runs if args.runs is not None else sc.runs
     if runs < 1:
         raise ScenarioError(f"--runs: needs at least 1, got {runs}")
@@ -347,6 +359,11 @@ def run(args) -> int:
                 for seed in seeds:
                     cfg = make_config(sc, args.model, nodes, args.max_lag, ref, row, method, fusion, seed)
                     wanted.setdefault(_canonical(cfg), []).append((ref, method, fusion, ri, seed))
+    for cfg in {c.reference: c for c in wanted}.values():
+        try:  # a reference outside the model's domain is bad input, known before any run
+            ex.check_reference_of(cfg)
+        except ex.UndefinedReference as exc:
+            raise ScenarioError(f"{sc.where('reference')}: {cfg.reference}: {exc}") from None
     figure_keys = {(ref, configs[0][0], configs[0][1], ri, args.seed) for ref in refs for ri in (0, len(rows) - 1)}
     need_series = bool(args.plot or args.json)
     show = not args.quiet and sys.stderr.isatty()
@@ -423,4 +440,8 @@ def run(args) -> int:
         written = plot(args.plot, figures, flat)
         if not to_stdout:
             print(f"\nwrote {len(written)} figures into {args.plot}", file=sys.stdout)
+    if failures:  # a run that failed or diverged is a result to act on, not a footnote
+        print(f"codegen simulate: {len(failures)} of {sum(len(k) for _, k in jobs)} run(s) failed or diverged "
+              f"(first: {failures[0]})", file=sys.stderr)
+        return 1
     return 0

@@ -17,13 +17,28 @@ def hurwitz_gains(degree: int, lam: float) -> np.ndarray:
     return np.array([comb(degree, i) * float(lam) ** i for i in range(1, degree + 1)])
 
 
+class SingularControl(ArithmeticError):
+    """G(x) is too close to singular for u = G^-1 (v - F) to mean anything (the C's ERR_SINGULAR)."""
+
+
+SINGULAR_RTOL = 1e-6  # default of the build option --singular-rtol: same threshold as the C
+
+
 class FlatController:
     """`poles`: one lam > 0 per chain (a scalar is broadcast), every pole of the chain's error
     ODE at -lam. Or explicit `gains`, length n, chain by chain `[k_1, ..., k_r]` (k_1 multiplies
-    the highest derivative's error, k_r the output's error): the order the C kernel takes."""
+    the highest derivative's error, k_r the output's error): the order the C kernel takes.
+    Like the C: refuses (SingularControl) when |det G(x)| < singular_rtol * |det G(nominal)|, and
+    clamps u to the inputs' declared limits, counting clamped inputs in `saturations`."""
 
-    def __init__(self, flat, poles=5.0, gains=None):
+    def __init__(self, flat, poles=5.0, gains=None, singular_rtol=SINGULAR_RTOL):
         self.flat = flat
+        self.singular_rtol = float(singular_rtol)
+        self.saturations = 0
+        self._det_nominal = None
+        inputs = flat.model.inputs
+        self.u_min = np.array([-np.inf if w.min is None else w.min for w in inputs])
+        self.u_max = np.array([np.inf if w.max is None else w.max for w in inputs])
         if gains is None:
             lams = np.broadcast_to(np.asarray(poles, dtype=float), (flat.m,))
             if np.any(lams <= 0):
@@ -44,5 +59,16 @@ class FlatController:
             e = x[c.offset:c.offset + c.degree] - flags[:c.degree]
             e[0] = wrap(e[0], c.angle)
             v[j] = flags[c.degree] - self.gains[c.offset:c.offset + c.degree][::-1] @ e
-        u = np.linalg.solve(self.flat.G_num(x, params), v - self.flat.F_num(x, params))
+        G, F = self.flat.G_num(x, params), self.flat.F_num(x, params)
+        if self._det_nominal is None:
+            self._det_nominal = self.flat.nominal_det()
+        det = np.linalg.det(G)
+        if not np.isfinite(det) or not abs(det) >= self.singular_rtol * self._det_nominal:
+            raise SingularControl(f"det G(x) = {det:.3g} is below {self.singular_rtol:g} of its nominal "
+                                  f"{self._det_nominal:.3g} at x = {np.array2string(x, precision=4)}")
+        u = np.linalg.solve(G, v - F)
+        if np.isfinite(self.u_min).any() or np.isfinite(self.u_max).any():
+            clamped = np.clip(u, self.u_min, self.u_max)
+            self.saturations += int(np.count_nonzero((u < self.u_min) | (u > self.u_max)))
+            u, v = clamped, F + G @ clamped
         return u, v

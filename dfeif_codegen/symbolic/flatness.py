@@ -34,10 +34,43 @@ def _lie(expr: sp.Expr, field: sp.Matrix, x: sp.Matrix) -> sp.Expr:
 
 
 def _numeric_points(model: Model, count: int = 6) -> list[dict]:
-    """Random states (moderate magnitudes) with the parameters at their defaults."""
-    rng = random.Random(1234)
+    """Random states inside the declared domain (moderate magnitudes where none is declared),
+    the parameters at their defaults."""
     values = model.param_values
-    return [{**values, **{xi: rng.uniform(-1.3, 1.3) for xi in model.x}} for _ in range(count)]
+    box = domain_samples(model, count)
+    return [{**values, **dict(zip(model.x, row))} for row in box]
+
+
+def _interval(var) -> tuple[float, float]:
+    """Where to sample a state: its declared [min, max] (a one-sided bound gets a width of 2.6,
+    or twice the distance to the nominal point), else [-1.3, 1.3]."""
+    lo, hi = var.min, var.max
+    if lo is None and hi is None:
+        return -1.3, 1.3
+    width = 2.6 if var.nominal is None else max(2.6, 2 * abs(var.nominal - (lo if lo is not None else hi)))
+    lo = hi - width if lo is None else lo
+    hi = lo + width if hi is None else hi
+    pad = 1e-6 * (hi - lo)  # stay off the boundary, where a square root's argument is 0
+    return lo + pad, hi - pad
+
+
+def nominal_state(model: Model) -> np.ndarray:
+    """The declared nominal state; a state without one sits at its domain's centre (0 if free)."""
+    out = []
+    for v in model.states:
+        lo, hi = _interval(v)
+        out.append(v.nominal if v.nominal is not None else 0.0 if not v.bounded else 0.5 * (lo + hi))
+    return np.array(out, dtype=float)
+
+
+def domain_samples(model: Model, count: int, seed: int = 1234) -> np.ndarray:
+    """`count` states drawn uniformly from the declared domain (the nominal state first)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = np.array([_interval(v) for v in model.states]).T
+    rows = lo + (hi - lo) * rng.random((max(count, 1), model.n))
+    if any(v.nominal is not None for v in model.states):
+        rows[0] = nominal_state(model)
+    return rows
 
 
 def _is_zero(expr: sp.Expr, points: list[dict]) -> bool:
@@ -62,28 +95,64 @@ def _small_simplify(expr: sp.Expr, limit: int = 30) -> sp.Expr:
     return sp.simplify(expr) if sp.count_ops(expr) <= limit else expr
 
 
+BRANCH_POINTS = 48  # round-trip test points on the domain for every candidate branch of Phi^-1
+_ROUND_TRIP = 1e-7   # |Phi^-1(Phi(x)) - x| <= 1e-7 (1 + |x|): a few hundred ulps of the composition,
+                     # far above double rounding and far below a wrong branch's O(|x|) error
+
+
+def _evaluate(args: list, expr: sp.Expr, columns: np.ndarray, dtype=float) -> np.ndarray:
+    """A sympy expression at many points at once (one row per point); nan where undefined."""
+    with np.errstate(all="ignore"):
+        try:
+            value = sp.lambdify(args, expr, modules="numpy")(*columns.T)
+            return np.broadcast_to(np.asarray(value, dtype=dtype), (len(columns),))
+        except (TypeError, ValueError, NameError, ZeroDivisionError, OverflowError):
+            return np.full(len(columns), np.nan, dtype=dtype)
+
+
+def _round_trips(cand: dict, rows: np.ndarray, zeta_rows: np.ndarray, zeta: list, params: dict,
+                 index: dict) -> np.ndarray:
+    """Per test point: does this candidate give back the state it came from?"""
+    ok = np.ones(len(rows), dtype=bool)
+    for var, expr in cand.items():
+        got = _evaluate(list(zeta), sp.sympify(expr).subs(params), zeta_rows, complex)
+        want = rows[:, index[var]]
+        ok &= np.isfinite(got) & (np.abs(got - want) <= _ROUND_TRIP * (1 + np.abs(want)))
+    return ok
+
+
 def _solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Matrix:
     """Solve `Phi(x) = zeta` for x: one unknown at a time where the map is triangular, jointly
-    otherwise; among several branches keep the one that round-trips at a test point."""
+    otherwise. Where sympy returns several branches (a square root, an arcsine), keep the one
+    that round-trips at every one of BRANCH_POINTS states of the declared domain; on an undeclared
+    domain, refuse when more than one branch is valid somewhere (the sign would be a coin toss)."""
     x = list(model.x)
     equations = [sp.expand_func(phi_i - z) for phi_i, z in zip(phi, zeta)]
     solved: dict[sp.Symbol, sp.Expr] = {}
     pending = list(equations)
-    point = _numeric_points(model, 1)[0]
-    zeta_point = {z: phi_i.subs(point) for z, phi_i in zip(zeta, phi)}
-    zeta_point.update(model.param_values)
+    rows = domain_samples(model, BRANCH_POINTS)
+    zeta_rows = np.column_stack([_evaluate(x, e.subs(model.param_values), rows) for e in phi])
+    index = {v: i for i, v in enumerate(x)}
+    declared = {v: s.bounded for v, s in zip(x, model.states)}
 
     def pick(candidates: list[dict]) -> dict:
-        for cand in candidates:
-            ok = True
-            for var, expr in cand.items():
-                value = complex(sp.sympify(expr).evalf(subs=zeta_point))
-                if not np.isfinite(value) or abs(value - complex(point[var])) > 1e-7 * (1 + abs(point[var])):
-                    ok = False
-            if ok:
-                return cand
-        raise ModelError(f"{model.where('outputs')}: Phi(x) = zeta has no solution branch through a "
-                         "test point: the flat outputs do not determine the state")
+        closed = [{v: sp.sympify(e).subs(solved) for v, e in c.items()} for c in candidates]
+        valid = [_round_trips(c, rows, zeta_rows, zeta, model.param_values, index) for c in closed]
+        everywhere = [c for c, ok in zip(candidates, valid) if ok.all()]
+        somewhere = [c for c, ok in zip(candidates, valid) if ok.any()]
+        names = ", ".join(sorted(str(v) for v in candidates[0])) if candidates else "?"
+        shown = " | ".join(", ".join(f"{v} = {e}" for v, e in c.items()) for c in candidates)
+        free = [str(v) for v in candidates[0] if not declared[v]] if candidates else []
+        if free and len(somewhere) > 1:
+            at = model.where(f"states#{index[next(iter(candidates[0]))]}")
+            raise ModelError(f"{at}: Phi^-1 has several branches for {names} ({shown}) and "
+                             f"{', '.join(free)} has no declared domain: add min/max to the state to choose one")
+        if everywhere:
+            return everywhere[0]
+        where_ = "its declared domain" if not free else "the test box [-1.3, 1.3]"
+        at = model.where(f"states#{index[next(iter(candidates[0]))]}") if candidates else model.where("outputs")
+        raise ModelError(f"{at}: no branch of Phi^-1 for {names} ({shown}) is valid on all of "
+                         f"{where_}: the flat outputs do not determine the state there")
 
     progress = True
     while pending and progress:
@@ -207,8 +276,42 @@ class FlatSystem:
     def phi_inv_num(self, zeta, p=None) -> np.ndarray:
         return self._numeric["phi_inv"](zeta, self._p(p)).reshape(self.n)
 
+    def nominal_det(self) -> float:
+        """|det G| at the model's nominal state and parameters: the scale 'near singular' is
+        measured against (the C control and the reference refuse below a fraction of it)."""
+        zeta = self.phi_num(nominal_state(self.model))
+        with np.errstate(all="ignore"):
+            det = abs(float(np.linalg.det(self.G_num(zeta)))) if np.all(np.isfinite(zeta)) else float("nan")
+        if not np.isfinite(det) or det == 0.0:
+            raise ModelError(f"{self.model.where('states')}: the decoupling matrix G is singular or undefined at the "
+                             f"nominal state {list(nominal_state(self.model))}: declare a 'nominal' where it is not")
+        return det
+
+    def undefined_at(self, zeta_rows) -> tuple[int, str] | None:
+        """First row where Phi^-1 is undefined (not finite) or leaves the declared domain, with the
+        Phi^-1 entry responsible; None when every row maps to a state in the domain."""
+        zeta_rows = np.atleast_2d(np.asarray(zeta_rows, dtype=float))
+        with np.errstate(all="ignore"):
+            x = np.array([self.phi_inv_num(z) for z in zeta_rows])
+        for i, var in enumerate(self.model.states):
+            lo = -np.inf if var.min is None else var.min
+            hi = np.inf if var.max is None else var.max
+            bad = ~np.isfinite(x[:, i]) | (x[:, i] < lo) | (x[:, i] > hi)
+            if bad.any():
+                k = int(np.argmax(bad))
+                return k, f"{var.name} = {self.phi_inv[i]} = {x[k, i]:.6g} (domain [{lo:g}, {hi:g}])"
+        return None
+
     def _p(self, p) -> np.ndarray:
-        return self.param_vector if p is None else p
+        """Parameters as a vector in model order: None or {} are the defaults, a dict overrides
+        by name (python-control's flatsys passes `params={}`), a sequence is taken as it is."""
+        if p is None or isinstance(p, dict):
+            given = dict(p or {})
+            unknown = set(given) - {q.name for q in self.model.parameters}
+            if unknown:
+                raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))} of model {self.model.name}")
+            return np.array([float(given.get(q.name, q.value)) for q in self.model.parameters])
+        return np.asarray(p, dtype=float)
 
     # python-control flatsys form --------------------------------------------------------------
     def forward(self, x, u, params=None) -> list[np.ndarray]:
@@ -226,9 +329,17 @@ class FlatSystem:
         return self.phi_inv_num(zeta, params), u
 
 
-def derive(model: Model) -> FlatSystem:
-    """Derive the canonical form, or say in one line why the model is not flat in this sense."""
+def derive(model: Model, progress=None) -> FlatSystem:
+    """Derive the canonical form, or say in one line why the model is not flat in this sense.
+    `progress(text)` is told each stage (the budget in dfeif_codegen.budget names it on a stop)."""
     x, f, g, n = model.x, model.f, model.g, model.n
+    if progress:  # a stop on the budget names the model's largest expression, the likely culprit
+        named = {f"dynamics.f.{v.name}": e for v, e in zip(model.states, f)}
+        named |= {f"outputs.{o.name}": o.expr for o in model.outputs}
+        worst = max(named, key=lambda k: sp.count_ops(named[k]))
+        say = lambda text: progress(f"{text}; largest expression {model.where(worst)}")  # noqa: E731
+    else:
+        say = lambda text: None  # noqa: E731
     points = _numeric_points(model)
     _check_denominators(model, {f"dynamics.f.{s.name}": e for s, e in zip(model.states, f)}
                         | {f"dynamics.g.{u.name}": sum(g.col(j)) for j, u in enumerate(model.inputs)})
@@ -237,6 +348,7 @@ def derive(model: Model) -> FlatSystem:
     for out in model.outputs:
         derivs = [sp.sympify(out.expr)]
         while True:
+            say(f"differentiating flat output '{out.name}' ({model.where('outputs')}) {len(derivs)} time(s)")
             row = [_lie(derivs[-1], g.col(j), x) for j in range(model.m)]
             if not all(_is_zero(e, points) for e in row):
                 break
@@ -263,7 +375,9 @@ def derive(model: Model) -> FlatSystem:
         raise ModelError(f"{model.where('dynamics.g')}: the decoupling matrix is singular (det = 0): "
                          "the inputs cannot steer the flat outputs independently (not flat)")
     phi = sp.Matrix(phi_rows)
+    say("solving Phi(x) = zeta for the state (Phi^-1)")
     phi_inv = _solve_inverse(model, phi, zeta)
+    say("substituting Phi^-1 into F-bar and G-bar")
     back = dict(zip(x, phi_inv))
     F = sp.Matrix([_small_simplify(r.subs(back)) for r in top_rows])
     G = dec_x.subs(back).applyfunc(_small_simplify)

@@ -70,9 +70,11 @@ def inspect(spec, ts: float | None = None) -> dict:
     the sampling period `ts` (default the model's), as plain data."""
     mdl = spec if isinstance(spec, model.Model) else model.load(str(spec))
     ts = mdl.ts if ts is None else ts
-    if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not (np.isfinite(ts) and ts > 0):
-        raise ModelError(f"--ts {ts}: the sampling period must be a positive number")
-    return describe(flatness.derive(mdl), float(ts))
+    if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not (np.isfinite(ts) and 1e-9 <= ts <= 1e3):
+        raise ModelError(f"--ts {ts}: the sampling period must be a number of seconds in [1e-9, 1e3]")
+    from dfeif_codegen import budget  # the same time/memory budget as `build`
+    flat = budget.bounded(flatness.derive, (mdl,), budget.MAX_SECONDS, budget.MAX_MEMORY, f"deriving {mdl.source}")
+    return describe(flat, float(ts))
 
 
 def render_json(info: dict) -> str:

@@ -25,15 +25,88 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _RESERVED = {"pi", "e", "E", "I_", "t"}
+# Names that reach C (the model name is the prefix of every file, function and macro; the others
+# end up in macros and comments): no C keyword, no standard header's stem (a model `math` would
+# write `math.h` and shadow the system's), nothing in CasADi's or the generated code's namespace.
+C_KEYWORDS = frozenset("""auto break case char const continue default do double else enum extern float for
+goto if inline int long register restrict return short signed sizeof static struct switch typedef union
+unsigned void volatile while _Bool _Complex _Imaginary bool true false NULL main real""".split())
+C_HEADERS = frozenset("""assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp
+signal stdalign stdarg stdatomic stdbool stddef stdint stdio stdlib stdnoreturn string tgmath threads
+time uchar wchar wctype arm_math cmsis example_main manifest""".split())
+NAME_LIMIT = 31  # C99 guarantees 31 significant characters in external identifiers
+# Keys a model file may use, per section (a typo must not silently switch a feature off).
+SCHEMA = {
+    "": {"model", "states", "inputs", "parameters", "dynamics", "outputs", "measurement"},
+    "model": {"name", "description", "ts"},
+    "states": {"name", "unit", "description", "min", "max", "nominal"},
+    "inputs": {"name", "unit", "description", "min", "max"},
+    "parameters": {"name", "value", "unit", "description", "source"},
+    "dynamics": {"f", "g", "definitions"},
+    "outputs": {"name", "expr", "angle"},
+    "measurement": {"observe", "noise", "recover"},
+}
+
+
+MAX_POWER = 1024       # |integer exponent| after sympy folds (x**64)**64: real models stay far below
+MAX_CALL_NESTING = 16  # functions inside functions: every level multiplies the chain rule's terms
+
+
+def growth_problem(expr: sp.Expr) -> str | None:
+    """Why differentiating this expression n times would blow up before any budget could help
+    (a 63-character `((theta+1)**64)**64...` is x**(2**60)), or None."""
+    stack = [(sp.sympify(expr), 0, False)]
+    while stack:
+        node, calls, in_var_exponent = stack.pop()
+        if isinstance(node, sp.Pow):
+            base, exp = node.args
+            if exp.is_number and exp.is_real and abs(float(exp)) > MAX_POWER and base.free_symbols:
+                return f"power ({base})**{exp} beyond +-{MAX_POWER}: its derivatives cannot be formed"
+            if not exp.is_number and base.free_symbols:
+                if in_var_exponent:
+                    return "a variable power inside a variable exponent (exponent tower): its derivatives cannot be formed"
+                stack.append((base, calls, in_var_exponent))
+                stack.append((exp, calls, True))
+                continue
+        if not node.free_symbols and isinstance(node, (sp.Function, sp.Pow)):
+            value = complex(node.evalf(30)) if node.is_number else None
+            if value is not None and (value.imag != 0 or value.real != value.real or abs(value.real) == float("inf")):
+                return f"the constant {node} is not a finite real number"
+        if isinstance(node, sp.Function):
+            calls += 1
+            if calls > MAX_CALL_NESTING:
+                return f"functions nested more than {MAX_CALL_NESTING} deep: its derivatives cannot be formed"
+        stack.extend((a, calls, in_var_exponent) for a in node.args)
+    return None
+
+
+def c_safe(name: str) -> bool:
+    """A name that may become part of C identifiers without colliding with anything."""
+    return (bool(_NAME.match(name)) and name not in C_KEYWORDS and not name.lower().startswith("casadi")
+            and len(name) <= NAME_LIMIT)
+
+
+def _finite(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and value == value \
+        and abs(value) != float("inf")
 
 
 @dataclass(frozen=True)
 class Variable:
-    """A state or an input: name, unit, one-line description."""
+    """A state or an input: name, unit, one-line description. `min`/`max` are the physical
+    domain of a state (the branch of Phi^-1 is chosen on it, a run leaving it has diverged) or an
+    input's actuator limits (the controller saturates there); `nominal` is a representative state."""
 
     name: str
     unit: str = ""
     description: str = ""
+    min: float | None = None
+    max: float | None = None
+    nominal: float | None = None
+
+    @property
+    def bounded(self) -> bool:
+        return self.min is not None or self.max is not None
 
 
 @dataclass(frozen=True)
@@ -119,8 +192,7 @@ class Model:
 
     def where(self, key: str) -> str:
         """`file:line: key` for messages, with the line when the TOML loader recorded it."""
-        line = self._lines.get(key)
-        return f"{self.source}:{line}: {key}" if line else f"{self.source}: {key}"
+        return _where(self.source, self._lines, key)
 
     # --- validation ------------------------------------------------------------------------
     def _check(self) -> None:
@@ -128,8 +200,9 @@ class Model:
         names: dict[str, str] = {}
         for kind, items in (("state", self.states), ("input", self.inputs), ("parameter", self.parameters)):
             for item in items:
-                if not _NAME.match(item.name) or keyword.iskeyword(item.name) or item.name in _RESERVED:
-                    raise ModelError(f"{self.where(kind + 's')}: '{item.name}' is not a usable {kind} name")
+                if not c_safe(item.name) or keyword.iskeyword(item.name) or item.name in _RESERVED:
+                    raise ModelError(f"{self.where(kind + 's')}: {item.name!r} is not a usable {kind} name "
+                                     "(letters, digits, _; no C or Python keyword; at most 31 characters)")
                 if item.name in names:
                     raise ModelError(
                         f"{self.where(kind + 's')}: '{item.name}' is declared twice ({names[item.name]} and {kind})")
@@ -137,6 +210,26 @@ class Model:
         for q in self.parameters:
             if not isinstance(q.value, (int, float)) or q.value != q.value or abs(q.value) == float("inf"):
                 raise ModelError(f"{self.where('parameters.' + q.name)}: value must be a finite number")
+        if not c_safe(self.name) or self.name.lower() in C_HEADERS:
+            raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module (a C identifier "
+                             "of at most 31 characters, not a C keyword, a standard header or casadi*)")
+        for kind, items in (("states", self.states), ("inputs", self.inputs)):
+            for i, item in enumerate(items):
+                at = self.where(f"{kind}#{i}")
+                for key in ("min", "max", "nominal"):
+                    value = getattr(item, key)
+                    if value is not None and not _finite(value):
+                        raise ModelError(f"{at}: {item.name}: {key} must be a finite number")
+                lo = -float("inf") if item.min is None else item.min
+                hi = float("inf") if item.max is None else item.max
+                if lo >= hi:
+                    raise ModelError(f"{at}: {item.name}: min {lo:g} must be below max {hi:g}")
+                if item.nominal is not None and not lo <= item.nominal <= hi:
+                    raise ModelError(f"{at}: {item.name}: nominal {item.nominal:g} is outside [{lo:g}, {hi:g}]")
+        for o in self.outputs:
+            if not c_safe(o.name) or o.name in _RESERVED or keyword.iskeyword(o.name):
+                raise ModelError(f"{self.where('outputs')}: {o.name!r} is not a usable flat output name "
+                                 "(letters, digits, _; no C or Python keyword; at most 31 characters)")
         if self.f.shape != (n, 1):
             raise ModelError(f"{self.where('dynamics.f')}: f needs one entry per state ({n}), got {self.f.shape[0]}")
         if self.g.shape != (n, m):
@@ -144,13 +237,17 @@ class Model:
         if len(self.outputs) != m:
             raise ModelError(
                 f"{self.where('outputs')}: a flat system needs as many flat outputs as inputs ({m}), got {len(self.outputs)}")
-        if not (isinstance(self.ts, (int, float)) and self.ts > 0):
-            raise ModelError(f"{self.where('model.ts')}: the sampling period must be a positive number")
+        if not (_finite(self.ts) and 1e-9 <= self.ts <= 1e3):
+            raise ModelError(f"{self.where('model.ts')}: the sampling period must be a number of seconds in "
+                             f"[1e-9, 1e3], got {self.ts!r}")
         allowed = {sp.Symbol(s) for s, kind in names.items() if kind != "input"}
         for key, expr in [(f"dynamics.f.{s.name}", e) for s, e in zip(self.states, self.f)] + \
                          [(f"dynamics.g.{u.name}.{s.name}", self.g[i, j]) for j, u in enumerate(self.inputs)
                           for i, s in enumerate(self.states)] + \
                          [(f"outputs.{o.name}", o.expr) for o in self.outputs]:
+            problem = growth_problem(expr)
+            if problem:
+                raise ModelError(f"{self.where(key)}: {problem}")
             extra = sp.sympify(expr).free_symbols - allowed
             if extra:
                 bad = ", ".join(sorted(str(s) for s in extra))
@@ -176,12 +273,37 @@ def _key_lines(text: str) -> dict[str, int]:
                 counters[section] = counters.get(section, -1) + 1
                 section = f"{section}#{counters[section]}"
             lines.setdefault(section.split("#")[0], number)
+            lines.setdefault(section, number)
             continue
         key = re.match(r"^([A-Za-z0-9_\"]+)\s*=", line)
         if key:
             name = key.group(1).replace('"', "")
             lines.setdefault(f"{section}.{name}" if section else name, number)
     return lines
+
+
+def _where(source: str, lines: Mapping[str, int], key: str) -> str:
+    """`file:line: key`; entry i of an array of tables is looked up as `states#i` and shown as `states[i+1]`."""
+    line = lines.get(key) or lines.get(key.rsplit(".", 1)[0]) or lines.get(key.split("#")[0].split(".")[0])
+    shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
+    return f"{source}:{line}: {shown}" if line else f"{source}: {shown}"
+
+
+def _check_keys(data: Mapping, where) -> None:
+    """Unknown sections and keys are errors naming the key and its line (see SCHEMA)."""
+    def unknown(key: str, allowed) -> None:
+        raise ModelError(f"{where(key)}: unknown key (expected one of {', '.join(sorted(allowed))})")
+
+    for section, value in data.items():
+        if section not in SCHEMA[""]:
+            unknown(section, SCHEMA[""])
+        entries = value if isinstance(value, list) else [value]
+        for i, entry in enumerate(entries):
+            if not isinstance(entry, dict):
+                continue
+            for key in entry:
+                if key not in SCHEMA[section]:
+                    unknown(f"{section}#{i}.{key}" if isinstance(value, list) else f"{section}.{key}", SCHEMA[section])
 
 
 def _table(data: Mapping, key: str, where: str, required: bool = True) -> dict:
@@ -227,6 +349,10 @@ def load_toml(path: str | Path, source: str | None = None) -> Model:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ModelError(f"{source}: cannot read model file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise ModelError(f"{source}: not a UTF-8 text file (byte {exc.start})") from None
+    if "\x00" in text:
+        raise ModelError(f"{source}: not a text file (NUL byte at character {text.index(chr(0))})")
     return loads_toml(text, source)
 
 
@@ -238,23 +364,30 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
     lines = _key_lines(text)
 
     def where(key: str) -> str:
-        line = lines.get(key)
-        return f"{source}:{line}: {key}" if line else f"{source}: {key}"
+        return _where(source, lines, key)
+
+    _check_keys(data, where)
 
     head = _table(data, "model", source)
     name = _text(head, "name", where("model"))
     if not _NAME.match(name):
         raise ModelError(f"{where('model.name')}: '{name}' must be a C identifier (letters, digits, _)")
     ts = head.get("ts", 0.01)
-    if isinstance(ts, bool) or not isinstance(ts, (int, float)):
-        raise ModelError(f"{where('model.ts')}: must be a number")
+    if not _finite(ts) or not 1e-9 <= ts <= 1e3:
+        raise ModelError(f"{where('model.ts')}: must be a sampling period in seconds in [1e-9, 1e3], got {ts!r}")
 
     def variables(key: str) -> list[Variable]:
         out = []
         for i, entry in enumerate(_items(data, key, where)):
-            at = f"{where(key)} #{i + 1}"
+            at = where(f"{key}#{i}")
+            bounds = {}
+            for field_name in ("min", "max", "nominal"):
+                value = entry.get(field_name)
+                if value is not None and not _finite(value):
+                    raise ModelError(f"{where(f'{key}#{i}.{field_name}')}: must be a finite number")
+                bounds[field_name] = None if value is None else float(value)
             out.append(Variable(_text(entry, "name", at), _text(entry, "unit", at, ""),
-                                _text(entry, "description", at, "")))
+                                _text(entry, "description", at, ""), **bounds))
         return out
 
     states, inputs = variables("states"), variables("inputs")

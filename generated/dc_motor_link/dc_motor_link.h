@@ -35,6 +35,10 @@ extern "C" {
 #define DC_MOTOR_LINK_NU 1          /**< physical inputs */
 #define DC_MOTOR_LINK_NP 8          /**< model parameters (runtime vector, see dc_motor_link_params_default) */
 #define DC_MOTOR_LINK_NFLAGS 4      /**< reference flags: per chain y_d, y_d', ..., y_d^(r) */
+#define DC_MOTOR_LINK_DET_NOMINAL 5000.000000000004  /**< |det G| at the nominal state, nominal parameters */
+#ifndef DC_MOTOR_LINK_SINGULAR_RTOL  /* settable: codegen build --singular-rtol, or -D at compile time */
+#define DC_MOTOR_LINK_SINGULAR_RTOL 1e-06  /**< control refuses below this fraction of DET_NOMINAL */
+#endif
 #define DC_MOTOR_LINK_NMAX 32        /**< late-measurement window: lags 1..NMAX steps */
 #define DC_MOTOR_LINK_NNODES 2       /**< camera nodes fused by the master */
 #define DC_MOTOR_LINK_TS 0.01       /**< sampling period [s] */
@@ -65,7 +69,7 @@ typedef double dc_motor_link_real;
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define DC_MOTOR_LINK_OK 0
-#define DC_MOTOR_LINK_ERR_ARG (-1)        /**< NULL pointer, gamma not 0/1, q < 0, R not symmetric */
+#define DC_MOTOR_LINK_ERR_ARG (-1)        /**< NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
 #define DC_MOTOR_LINK_ERR_LAG (-2)        /**< late measurement outside the window (lag < 1, > NMAX, > k) */
 #define DC_MOTOR_LINK_ERR_NONFINITE (-3)  /**< NaN or infinity in an input or a result */
 #define DC_MOTOR_LINK_ERR_SINGULAR (-4)   /**< a matrix that must be positive definite (or invertible) is not */
@@ -185,9 +189,12 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master, dc_motor_l
 /**
  * Flatness-based control: v_j = y_d^(r) - sum_i k_(r-i) e_i on each chain (heads wrapped for angles),
  * u = G(x)^-1 (v - F(x)). gains per chain [k_1 .. k_r] (see dc_motor_link_gains). v may be NULL.
+ * DC_MOTOR_LINK_ERR_SINGULAR when |det G(x)| < DC_MOTOR_LINK_SINGULAR_RTOL * DC_MOTOR_LINK_DET_NOMINAL (G at the nominal state).
+ * Declared input limits clamp u; *saturated (may be NULL) is incremented by the inputs clamped.
  */
 int dc_motor_link_control(const dc_motor_link_real x[DC_MOTOR_LINK_NX], const dc_motor_link_real flags[DC_MOTOR_LINK_NFLAGS], const dc_motor_link_real gains[DC_MOTOR_LINK_NX],
-                    const dc_motor_link_real params[DC_MOTOR_LINK_NP], dc_motor_link_real u[DC_MOTOR_LINK_NU], dc_motor_link_real v[DC_MOTOR_LINK_NY]);
+                    const dc_motor_link_real params[DC_MOTOR_LINK_NP], dc_motor_link_real u[DC_MOTOR_LINK_NU], dc_motor_link_real v[DC_MOTOR_LINK_NY],
+                    uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]: s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. */
 int dc_motor_link_gains(const dc_motor_link_real lambda[DC_MOTOR_LINK_NY], dc_motor_link_real gains[DC_MOTOR_LINK_NX]);
 

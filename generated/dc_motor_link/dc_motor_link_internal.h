@@ -34,10 +34,10 @@ int dc_motor_link_kern_fuse_finish(const dc_motor_link_real** arg, dc_motor_link
 #define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_ARG 3
 #define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_RES 3
 #define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W 18
-/* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det) */
+/* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det,nsat) */
 int dc_motor_link_kern_control(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_ARG 4
-#define DC_MOTOR_LINK_KERN_CONTROL_SZ_RES 3
+#define DC_MOTOR_LINK_KERN_CONTROL_SZ_RES 4
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 13
 
 /* Centring (see the node struct in dc_motor_link.h): flat outputs are stored relative to a centre that
@@ -95,14 +95,9 @@ static inline int dc_motor_link_positive(const dc_motor_link_real* piv, size_t n
 }
 
 /* 1 if the n x n matrix is symmetric and positive definite (LDL' pivots, no square roots). */
-static inline int dc_motor_link_spd(const dc_motor_link_real* A, int n)
+static inline int dc_motor_link_spd_in(const dc_motor_link_real* A, int n, dc_motor_link_real* L, dc_motor_link_real* d)
 {
-    dc_motor_link_real L[DC_MOTOR_LINK_NY * DC_MOTOR_LINK_NY];
-    dc_motor_link_real d[DC_MOTOR_LINK_NY];
     int i, j, k;
-    if (n > DC_MOTOR_LINK_NY) {
-        return 0;
-    }
     for (j = 0; j < n; j++) {
         for (i = 0; i < j; i++) {
             if (A[i * n + j] < A[j * n + i] || A[i * n + j] > A[j * n + i]) {
@@ -126,5 +121,15 @@ static inline int dc_motor_link_spd(const dc_motor_link_real* A, int n)
     }
     return 1;
 }
+
+static inline int dc_motor_link_spd(const dc_motor_link_real* A, int n)
+{
+    dc_motor_link_real L[DC_MOTOR_LINK_NY * DC_MOTOR_LINK_NY];
+    dc_motor_link_real d[DC_MOTOR_LINK_NY];
+    return n <= DC_MOTOR_LINK_NY && dc_motor_link_spd_in(A, n, L, d);
+}
+
+/* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */
+int dc_motor_link_cov_ok(const dc_motor_link_real* A);
 
 #endif /* DC_MOTOR_LINK_INTERNAL_H */

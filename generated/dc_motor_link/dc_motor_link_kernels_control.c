@@ -7,7 +7,7 @@
 
 static dc_motor_link_real casadi_sq(dc_motor_link_real x) { return x*x;}
 
-/* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det) */
+/* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det,nsat) */
 int dc_motor_link_kern_control(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w) {
   w[0]=arg[1][3];
   w[1]=arg[2][2];
@@ -77,6 +77,8 @@ int dc_motor_link_kern_control(const dc_motor_link_real** arg, dc_motor_link_rea
   res[0][0]=w[5];
   res[1][0]=w[0];
   res[2][0]=w[7];
+  w[7]=0.;
+  res[3][0]=w[7];
   return 0;
 }
 

@@ -102,6 +102,9 @@ int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], c
             return DC_MOTOR_LINK_ERR_ARG;
         }
     }
+    if (!dc_motor_link_cov_ok(P0)) {  /* P0 must be symmetric positive definite */
+        return DC_MOTOR_LINK_ERR_ARG;
+    }
     memset(master, 0, sizeof(*master));
     memcpy(master->x, x0, sizeof(master->x));
     memcpy(master->P, P0, sizeof(master->P));
@@ -131,6 +134,9 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master, const dc_motor_link_
     }
     for (i = 0; i < NNODES; i++) {
         const dc_motor_link_packet* pk = &packets[i];
+        if (present[i] > 1) {  /* 0 or 1 only; the master is changed only after this loop */
+            return DC_MOTOR_LINK_ERR_ARG;
+        }
         if (!present[i]) {
             continue;
         }

@@ -104,6 +104,12 @@ static int predict_step(const real* x, const real* P, const real* v, const real*
     return DC_MOTOR_LINK_OK;
 }
 
+int dc_motor_link_cov_ok(const real* A)
+{
+    real L[NXX], d[NX];
+    return dc_motor_link_spd_in(A, NX, L, d);
+}
+
 int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const real P0[NXX], const real R[NY * NY],
                       const real q[NY])
 {
@@ -127,6 +133,9 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
     }
     if (!dc_motor_link_spd(R, NY)) {
         return DC_MOTOR_LINK_ERR_SINGULAR;
+    }
+    if (!dc_motor_link_cov_ok(P0)) {  /* P0 must be symmetric positive definite */
+        return DC_MOTOR_LINK_ERR_ARG;
     }
     memset(node, 0, sizeof(*node));
     memcpy(node->x, x0, sizeof(node->x));

@@ -78,6 +78,7 @@ int main(void)
     real flags[DC_MOTOR_LINK_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY], late[LATE + 1][NY];
     real sq_err = 0, trace;
     int i, j, k, rc = 0;
+    uint32_t saturated = 0;
 
     memset(zeta, 0, sizeof(zeta));
     memset(x0, 0, sizeof(x0));
@@ -125,7 +126,7 @@ int main(void)
         rc |= dc_motor_link_master_fuse(&master, packets, present);
         rc |= dc_motor_link_master_estimate(&master, x, P);
         reference((real)k * DC_MOTOR_LINK_TS, flags);
-        rc |= dc_motor_link_control(x, flags, gains, dc_motor_link_params_default, u, v);
+        rc |= dc_motor_link_control(x, flags, gains, dc_motor_link_params_default, u, v, &saturated);
         if (rc != DC_MOTOR_LINK_OK) {
             printf("error at step %d\n", k);
             return 1;
@@ -152,6 +153,7 @@ int main(void)
                (unsigned long)h.updates, (unsigned long)h.drops, (unsigned long)h.late_applied,
                (unsigned long)h.late_rejected);
     }
+    printf("control: %lu saturated inputs\n", (unsigned long)saturated);
     printf("RMS error of y1 (fused): %.3e\n", (double)SQRT(sq_err / (real)STEPS));
     return (rc == DC_MOTOR_LINK_OK && SQRT(sq_err / (real)STEPS) < 0.01) ? 0 : 1;
 }

@@ -78,6 +78,7 @@ int main(void)
     real flags[TWO_LINK_ARM_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY], late[LATE + 1][NY];
     real sq_err = 0, trace;
     int i, j, k, rc = 0;
+    uint32_t saturated = 0;
 
     memset(zeta, 0, sizeof(zeta));
     memset(x0, 0, sizeof(x0));
@@ -125,7 +126,7 @@ int main(void)
         rc |= two_link_arm_master_fuse(&master, packets, present);
         rc |= two_link_arm_master_estimate(&master, x, P);
         reference((real)k * TWO_LINK_ARM_TS, flags);
-        rc |= two_link_arm_control(x, flags, gains, two_link_arm_params_default, u, v);
+        rc |= two_link_arm_control(x, flags, gains, two_link_arm_params_default, u, v, &saturated);
         if (rc != TWO_LINK_ARM_OK) {
             printf("error at step %d\n", k);
             return 1;
@@ -152,6 +153,7 @@ int main(void)
                (unsigned long)h.updates, (unsigned long)h.drops, (unsigned long)h.late_applied,
                (unsigned long)h.late_rejected);
     }
+    printf("control: %lu saturated inputs\n", (unsigned long)saturated);
     printf("RMS error of y1 (fused): %.3e\n", (double)SQRT(sq_err / (real)STEPS));
     return (rc == TWO_LINK_ARM_OK && SQRT(sq_err / (real)STEPS) < 0.01) ? 0 : 1;
 }

@@ -35,6 +35,10 @@ extern "C" {
 #define TWO_LINK_ARM_NU 2          /**< physical inputs */
 #define TWO_LINK_ARM_NP 11          /**< model parameters (runtime vector, see two_link_arm_params_default) */
 #define TWO_LINK_ARM_NFLAGS 8      /**< reference flags: per chain y_d, y_d', ..., y_d^(r) */
+#define TWO_LINK_ARM_DET_NOMINAL 9661835.748792259  /**< |det G| at the nominal state, nominal parameters */
+#ifndef TWO_LINK_ARM_SINGULAR_RTOL  /* settable: codegen build --singular-rtol, or -D at compile time */
+#define TWO_LINK_ARM_SINGULAR_RTOL 1e-06  /**< control refuses below this fraction of DET_NOMINAL */
+#endif
 #define TWO_LINK_ARM_NMAX 32        /**< late-measurement window: lags 1..NMAX steps */
 #define TWO_LINK_ARM_NNODES 2       /**< camera nodes fused by the master */
 #define TWO_LINK_ARM_TS 0.01       /**< sampling period [s] */
@@ -68,7 +72,7 @@ typedef double two_link_arm_real;
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define TWO_LINK_ARM_OK 0
-#define TWO_LINK_ARM_ERR_ARG (-1)        /**< NULL pointer, gamma not 0/1, q < 0, R not symmetric */
+#define TWO_LINK_ARM_ERR_ARG (-1)        /**< NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
 #define TWO_LINK_ARM_ERR_LAG (-2)        /**< late measurement outside the window (lag < 1, > NMAX, > k) */
 #define TWO_LINK_ARM_ERR_NONFINITE (-3)  /**< NaN or infinity in an input or a result */
 #define TWO_LINK_ARM_ERR_SINGULAR (-4)   /**< a matrix that must be positive definite (or invertible) is not */
@@ -188,9 +192,12 @@ int two_link_arm_master_estimate(const two_link_arm_master* master, two_link_arm
 /**
  * Flatness-based control: v_j = y_d^(r) - sum_i k_(r-i) e_i on each chain (heads wrapped for angles),
  * u = G(x)^-1 (v - F(x)). gains per chain [k_1 .. k_r] (see two_link_arm_gains). v may be NULL.
+ * TWO_LINK_ARM_ERR_SINGULAR when |det G(x)| < TWO_LINK_ARM_SINGULAR_RTOL * TWO_LINK_ARM_DET_NOMINAL (G at the nominal state).
+ * Declared input limits clamp u; *saturated (may be NULL) is incremented by the inputs clamped.
  */
 int two_link_arm_control(const two_link_arm_real x[TWO_LINK_ARM_NX], const two_link_arm_real flags[TWO_LINK_ARM_NFLAGS], const two_link_arm_real gains[TWO_LINK_ARM_NX],
-                    const two_link_arm_real params[TWO_LINK_ARM_NP], two_link_arm_real u[TWO_LINK_ARM_NU], two_link_arm_real v[TWO_LINK_ARM_NY]);
+                    const two_link_arm_real params[TWO_LINK_ARM_NP], two_link_arm_real u[TWO_LINK_ARM_NU], two_link_arm_real v[TWO_LINK_ARM_NY],
+                    uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]: s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. */
 int two_link_arm_gains(const two_link_arm_real lambda[TWO_LINK_ARM_NY], two_link_arm_real gains[TWO_LINK_ARM_NX]);
 

@@ -34,10 +34,10 @@ int two_link_arm_kern_fuse_finish(const two_link_arm_real** arg, two_link_arm_re
 #define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_ARG 3
 #define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_RES 3
 #define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W 51
-/* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det) */
+/* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
 int two_link_arm_kern_control(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_ARG 4
-#define TWO_LINK_ARM_KERN_CONTROL_SZ_RES 3
+#define TWO_LINK_ARM_KERN_CONTROL_SZ_RES 4
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_W 54
 
 /* Centring (see the node struct in two_link_arm.h): flat outputs are stored relative to a centre that
@@ -95,14 +95,9 @@ static inline int two_link_arm_positive(const two_link_arm_real* piv, size_t n)
 }
 
 /* 1 if the n x n matrix is symmetric and positive definite (LDL' pivots, no square roots). */
-static inline int two_link_arm_spd(const two_link_arm_real* A, int n)
+static inline int two_link_arm_spd_in(const two_link_arm_real* A, int n, two_link_arm_real* L, two_link_arm_real* d)
 {
-    two_link_arm_real L[TWO_LINK_ARM_NY * TWO_LINK_ARM_NY];
-    two_link_arm_real d[TWO_LINK_ARM_NY];
     int i, j, k;
-    if (n > TWO_LINK_ARM_NY) {
-        return 0;
-    }
     for (j = 0; j < n; j++) {
         for (i = 0; i < j; i++) {
             if (A[i * n + j] < A[j * n + i] || A[i * n + j] > A[j * n + i]) {
@@ -126,5 +121,15 @@ static inline int two_link_arm_spd(const two_link_arm_real* A, int n)
     }
     return 1;
 }
+
+static inline int two_link_arm_spd(const two_link_arm_real* A, int n)
+{
+    two_link_arm_real L[TWO_LINK_ARM_NY * TWO_LINK_ARM_NY];
+    two_link_arm_real d[TWO_LINK_ARM_NY];
+    return n <= TWO_LINK_ARM_NY && two_link_arm_spd_in(A, n, L, d);
+}
+
+/* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */
+int two_link_arm_cov_ok(const two_link_arm_real* A);
 
 #endif /* TWO_LINK_ARM_INTERNAL_H */

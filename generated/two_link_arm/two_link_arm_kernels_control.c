@@ -7,7 +7,7 @@
 
 static two_link_arm_real casadi_sq(two_link_arm_real x) { return x*x;}
 
-/* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det) */
+/* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
 int two_link_arm_kern_control(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w) {
   w[0]=arg[3][6];
   w[1]=arg[3][9];
@@ -329,6 +329,8 @@ int two_link_arm_kern_control(const two_link_arm_real** arg, two_link_arm_real**
   res[1][0]=w[1];
   res[1][1]=w[3];
   res[2][0]=w[22];
+  w[22]=0.;
+  res[3][0]=w[22];
   return 0;
 }
 

@@ -102,6 +102,9 @@ int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], con
             return TWO_LINK_ARM_ERR_ARG;
         }
     }
+    if (!two_link_arm_cov_ok(P0)) {  /* P0 must be symmetric positive definite */
+        return TWO_LINK_ARM_ERR_ARG;
+    }
     memset(master, 0, sizeof(*master));
     memcpy(master->x, x0, sizeof(master->x));
     memcpy(master->P, P0, sizeof(master->P));
@@ -131,6 +134,9 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
     }
     for (i = 0; i < NNODES; i++) {
         const two_link_arm_packet* pk = &packets[i];
+        if (present[i] > 1) {  /* 0 or 1 only; the master is changed only after this loop */
+            return TWO_LINK_ARM_ERR_ARG;
+        }
         if (!present[i]) {
             continue;
         }

@@ -104,6 +104,12 @@ static int predict_step(const real* x, const real* P, const real* v, const real*
     return TWO_LINK_ARM_OK;
 }
 
+int two_link_arm_cov_ok(const real* A)
+{
+    real L[NXX], d[NX];
+    return two_link_arm_spd_in(A, NX, L, d);
+}
+
 int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const real P0[NXX], const real R[NY * NY],
                       const real q[NY])
 {
@@ -127,6 +133,9 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
     }
     if (!two_link_arm_spd(R, NY)) {
         return TWO_LINK_ARM_ERR_SINGULAR;
+    }
+    if (!two_link_arm_cov_ok(P0)) {  /* P0 must be symmetric positive definite */
+        return TWO_LINK_ARM_ERR_ARG;
     }
     memset(node, 0, sizeof(*node));
     memcpy(node->x, x0, sizeof(node->x));
