@@ -20,6 +20,8 @@ COMMANDS = {
     "simulate": ("dfeif_codegen.experiment.simulate", "run the closed-loop experiment (chapter tables, plots, JSON)"),
     "inspect": ("dfeif_codegen.symbolic.inspect_model", "show the derived flatness transform and discrete model"),
     "bench": ("dfeif_codegen.check.bench", "measure build time, code size, stack and instruction counts"),
+    "network": ("dfeif_codegen.net.run", "run nodes and master as separate processes over UDP on 127.0.0.1 "
+                                         "through a seeded delay/drop relay and compare with the reference"),
 }
 
 
@@ -81,6 +83,18 @@ def parser() -> argparse.ArgumentParser:
     p = add("inspect")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+
+    p = add("network")
+    p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
+    p.add_argument("--row", type=int, default=2, help="the scenario's delay row (default 2)")
+    p.add_argument("--seed", type=int, default=0, help="seed of noise, initial error and network (default 0)")
+    p.add_argument("--precision", choices=["double", "float"], default="double")
+    p.add_argument("--duration", type=float, default=5.0, help="simulated seconds (default 5)")
+    p.add_argument("--key", default=None, metavar="HEX", help="32 hex digits: tag every frame with SipHash-2-4")
+    p.add_argument("--flip-rate", type=float, default=0.0, metavar="R",
+                   help="bit error rate the relay applies to node -> master packets (default 0)")
+    p.add_argument("--keep", metavar="DIR", help="keep programs and logs in DIR")
+    filter_options(p)
 
     p = add("bench")
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")

@@ -152,3 +152,9 @@ def corrupt(buf: bytes, rng: np.random.Generator, rate: float) -> bytes:
     bits = np.unpackbits(np.frombuffer(buf, dtype=np.uint8))
     bits ^= (rng.random(bits.size) < rate).astype(np.uint8)
     return np.packbits(bits).tobytes()
+
+
+def tick_is_end(buf: bytes) -> bool:
+    """A tick's first real is 1 for the end of the run, 0 for a step."""
+    rs = buf[7]
+    return struct.unpack_from("<f" if rs == 4 else "<d", buf, HEADER.size)[0] > 0
