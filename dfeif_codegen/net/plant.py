@@ -44,12 +44,14 @@ def main(argv: list[str]) -> int:
     frames = np.zeros((M, K, m))
     u_log, v_log = np.zeros((K, m)), np.zeros((K, m))
     got = np.zeros(K, dtype=bool)
+    zeta = np.zeros((K, s.flat.n))
     t_send, t_recv = np.zeros(K), np.zeros(K)
     x, u, seq = s.x_phys0, np.zeros(m), 0
     for k in range(K):
         if k in faults:
             print(f"pause {k}", flush=True)
             sys.stdin.readline()
+        zeta[k] = s.flat.phi_num(x)
         t_send[k] = time.perf_counter()
         for i in range(M):
             frames[i, k] = s.cams[i].measure(x, s.noise[i][k])
@@ -89,7 +91,7 @@ def main(argv: list[str]) -> int:
         sock.sendto(wire.encode(lay, wire.KIND_TICK, node, K, seq, end, key), relay)
         seq += 1
     np.savez(cfg["out"], frames=frames[:, :K], u=u_log[:K], v=v_log[:K], got=got[:K], t_send=t_send[:K],
-             t_recv=t_recv[:K])
+             t_recv=t_recv[:K], zeta=zeta[:K])
     print("done", flush=True)
     return 0
 

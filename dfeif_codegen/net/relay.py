@@ -131,7 +131,7 @@ class Relay:
     def run(self) -> int:
         deadline = time.monotonic() + float(self.cfg.get("max_seconds", 600))
         idle = float(self.cfg.get("idle_seconds", 20))
-        last = time.monotonic()
+        last = time.monotonic() + 5 * idle     # start-up grace: the plant derives the model first
         running = True
         while running and time.monotonic() < deadline:
             ready, _, _ = select.select([self.sock], [], [], 0.005 if self.master_ticks else 0.2)

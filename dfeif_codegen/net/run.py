@@ -14,10 +14,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import queue
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -117,13 +119,16 @@ class _Proc:
 
     def reap(self, timeout: float) -> int:
         deadline = time.monotonic() + timeout
-        while self.cpu is None:
-            pid, status, ru = os.wait4(self.p.pid, os.WNOHANG)
+        while self.cpu is None and self.p.returncode is None:
+            try:
+                pid, status, ru = os.wait4(self.p.pid, os.WNOHANG)
+            except ChildProcessError:      # already reaped by Popen
+                break
             if pid:
                 self.p.returncode = os.waitstatus_to_exitcode(status)
                 self.cpu = ru.ru_utime + ru.ru_stime
             elif time.monotonic() > deadline:
-                self.p.send_signal(signal.SIGKILL)
+                os.kill(self.p.pid, signal.SIGKILL)
                 deadline = time.monotonic() + 5
             else:
                 time.sleep(0.01)
@@ -179,16 +184,14 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
                   stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     restarts: dict = {}
     retired: list[_Proc] = []
-    import selectors
-    sel = selectors.DefaultSelector()
-    sel.register(plant.p.stdout, selectors.EVENT_READ)
+    lines: queue.Queue = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(x) for x in plant.p.stdout] + [lines.put("")], daemon=True).start()
     finished = False
     while not finished and time.monotonic() < deadline:
-        if not sel.select(timeout=max(0.0, min(1.0, deadline - time.monotonic()))):
-            if plant.p.poll() is not None:
-                break
+        try:
+            line = lines.get(timeout=max(0.01, min(1.0, deadline - time.monotonic())))
+        except queue.Empty:
             continue
-        line = plant.p.stdout.readline()
         if not line:
             break
         if line.startswith("done"):
@@ -198,8 +201,7 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
             for f in o.faults:
                 name = "master" if f.who == "master" else f"node{f.who}"
                 if f.at == k:
-                    procs[name].p.send_signal(signal.SIGKILL)
-                    procs[name].reap(5)
+                    procs[name].reap(0)   # SIGKILL
                     retired.append(procs.pop(name))
                 if f.back == k:
                     restarts[name] = restarts.get(name, 0) + 1
@@ -208,7 +210,6 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
                     time.sleep(0.05)
             plant.p.stdin.write("\n")
             plant.p.stdin.flush()
-    plant.p.stdout.close()
     plant.p.stdin.close()
     rcs = {"plant": plant.reap(5 if finished else 0)}
     for name, pr in procs.items():
