@@ -121,13 +121,14 @@ def decode(layout: Layout, buf: bytes, kind: int, key: bytes | None = None) -> t
     if zlib.crc32(buf[:body + 8]) != struct.unpack_from("<I", buf, body + 8)[0]:
         raise WireError("crc")
     magic, version, k, flags, rs, model, node, cnt, step, seq = HEADER.unpack_from(buf)
-    if magic != MAGIC or k != kind or rs != layout.dtype.itemsize or cnt != count:
+    tag = struct.unpack_from("<Q", buf, body)[0]
+    if magic != MAGIC or k != kind or rs != layout.dtype.itemsize or cnt != count or flags & ~1 or (not flags & 1 and tag):
         raise WireError("format")
     if version != VERSION:
         raise WireError("version")
     if model != bytes.fromhex(layout.model_hash[:16]):
         raise WireError("model")
-    if key and (not flags & 1 or struct.unpack_from("<Q", buf, body)[0] != siphash24(key, buf[:body])):
+    if key and (not flags & 1 or tag != siphash24(key, buf[:body])):
         raise WireError("tag")
     values = np.frombuffer(buf, dtype=layout.dtype, count=count, offset=HEADER.size).astype(layout.dtype.newbyteorder("="))
     if not np.all(np.isfinite(values)):
