@@ -237,3 +237,24 @@ def test_command_receive_checks(libs):
         == wire.ERRORS["length"]
     counts = lib.rejected(rx=rx)
     assert (counts["replay"], counts["node"], counts["tag"], counts["length"]) == (1, 1, 1, 1)
+
+
+# --- the programs compile cleanly under the strict flags of test_c_compile ------------------------
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_programs_strict_compile(libs, tmp_path, cc, precision):
+    import shutil
+    import subprocess
+
+    from dfeif_codegen.net import programs
+    from test_c_compile import WARN, tool
+
+    compiler = tool(cc)
+    md = libs("dc_motor_link", precision).model
+    paths = programs.render_programs(md, tmp_path / "programs")
+    for name in ("transport_udp.c", "node_main.c", "master_main.c"):
+        out = subprocess.run([compiler, *WARN, "-O2", "-I", str(md.path), "-I", str(tmp_path / "programs"), "-c",
+                              str(paths[name]), "-o", str(tmp_path / (name + ".o"))], capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+    assert shutil.which(compiler)
