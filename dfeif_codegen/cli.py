@@ -94,6 +94,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--flip-rate", type=float, default=0.0, metavar="R",
                    help="bit error rate the relay applies to node -> master packets (default 0)")
     p.add_argument("--keep", metavar="DIR", help="keep programs and logs in DIR")
+    p.add_argument("--bench", metavar="FILE", nargs="?", const="BENCHMARKS.md", default=None,
+                   help="measure wire sizes, master throughput, latency and CPU; write the network section "
+                        "of FILE (default BENCHMARKS.md) instead of one compared run")
     filter_options(p)
 
     p = add("bench")

@@ -111,7 +111,11 @@ def run(args) -> int:
             print(f"codegen bench: {name}", file=sys.stderr)
             sections.append(_bench_model(name, repeat, work / name))
     text = _markdown(command, sections, repeat)
-    Path(args.out).write_text(text)
+    out = Path(args.out)
+    network = "<!-- codegen network --bench -->"   # that command's section is kept as it was
+    if out.exists() and network in out.read_text():
+        text = text.rstrip() + "\n\n" + network + out.read_text().split(network, 1)[1]
+    out.write_text(text)
     print(text)
     print(f"codegen bench: wrote {args.out}", file=sys.stderr)
     return 0

@@ -282,6 +282,13 @@ def run(args) -> int:
     import tempfile
 
     harness.host_compiler()
+    if args.bench:
+        from dfeif_codegen.net import bench
+
+        fig = bench.run_bench(Path(args.bench))
+        print(bench.markdown(fig))
+        print(f"codegen network: wrote the network section of {args.bench}", file=sys.stderr)
+        return 0 if fig["network"]["equal"] else 1
     if args.key is not None and (len(args.key) != 32 or any(c not in "0123456789abcdefABCDEF" for c in args.key)):
         raise ScenarioError(f"--key {args.key!r}: needs 32 hex digits (a 16-byte SipHash key)")
     if not 0 <= args.flip_rate < 1:
