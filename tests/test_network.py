@@ -62,6 +62,14 @@ def test_keyed_run_other_model_equals_reference(runs):
     assert sum(v for k, v in out.master["counters"]["R"].items() if k != "accepted") == 0
 
 
+def test_float_run_equals_reference(runs):
+    """Single precision: the C's estimates within `codegen verify`'s float bounds (1e-4 of their
+    scale, u and v 1e-3) of the double reference on the same arrivals."""
+    out = runs("float", duration=1.0, precision="float")
+    errors, _ = run.compare(out)
+    assert all(e.ok for e in errors), verify.table(errors)
+
+
 def test_bit_flips_rejected_counted_and_rest_equal_reference(runs):
     out = runs("flips", duration=2.0, flip_rate=1e-4)
     corrupted = sum(1 for e in out.relay if e.get("corrupt"))
