@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from dfeif_codegen.check import harness, verify
-from dfeif_codegen.errors import MismatchError, ScenarioError, SetupError
+from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.net import programs, session, wire
 
@@ -296,6 +296,8 @@ def run(args) -> int:
     o = Options(model=args.model, scenario=args.scenario, row=args.row, seed=args.seed, precision=args.precision,
                 oosm=args.oosm or "replay", fusion=args.fusion or "difference", nodes=args.nodes, max_lag=args.max_lag,
                 duration=args.duration, key=args.key, flip_rate=args.flip_rate)
+    if args.keep and Path(args.keep).exists() and any(Path(args.keep).iterdir()):
+        raise ScenarioError(f"--keep {args.keep}: not empty (the run writes its programs and logs there)")
     make_config(o)   # bad scenario or row: one line, before any build
     with tempfile.TemporaryDirectory(prefix="codegen-network-") as tmp:
         work = Path(args.keep) if args.keep else Path(tmp)

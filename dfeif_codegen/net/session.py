@@ -118,9 +118,8 @@ def recording(s: Setup, relay_log: list[dict], frames: np.ndarray, K: int) -> ex
                 z[i, k], gamma[i, k] = frames[i, k], 1
             else:
                 late_rows.append((k, i, k - src, frames[i, src]))
-        elif e["kind"] == "packet" and src <= k and k - src <= s.cfg.max_lag and src > last[i]:
-            if src > sources[k, i]:
-                sources[k, i] = src
+        elif e["kind"] == "packet" and src <= k and k - src <= s.cfg.max_lag and src > sources[k, i]:
+            sources[k, i] = src
     for k in range(K):        # the freshest per step, and only if newer than the last one fused
         for i in range(M):
             if sources[k, i] >= 0 and sources[k, i] > last[i]:
