@@ -52,15 +52,18 @@ def main(argv: list[str]) -> int:
             print(f"pause {k}", flush=True)
             sys.stdin.readline()
         zeta[k] = s.flat.phi_num(x)
-        t_send[k] = time.perf_counter()
+        out = []
         for i in range(M):
             frames[i, k] = s.cams[i].measure(x, s.noise[i][k])
-            sock.sendto(wire.encode(lay, wire.KIND_CAMERA, i, k, seq, frames[i, k], key), relay)
+            out.append(wire.encode(lay, wire.KIND_CAMERA, i, k, seq, frames[i, k], key))
             seq += 1
         tick = np.r_[0.0, s.ref[k]]
         for node in [*range(M), wire.MASTER_ID]:
-            sock.sendto(wire.encode(lay, wire.KIND_TICK, node, k, seq, tick, key), relay)
+            out.append(wire.encode(lay, wire.KIND_TICK, node, k, seq, tick, key))
             seq += 1
+        t_send[k] = time.perf_counter()     # the frames leave the camera (measuring and encoding excluded)
+        for buf in out:
+            sock.sendto(buf, relay)
         deadline = time.monotonic() + timeout
         while not got[k]:
             left = deadline - time.monotonic()

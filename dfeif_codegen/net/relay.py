@@ -45,6 +45,7 @@ class Relay:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
         self.sock.bind((HOST, cfg["relay_port"]))
+        self.sock.setblocking(False)
         self.to_node = [(HOST, p) for p in cfg["node_ports"]]
         self.to_master, self.to_plant = (HOST, cfg["master_port"]), (HOST, cfg["plant_port"])
         self.frames: dict[tuple[int, int], list] = {}       # (node, step) -> [(order, src, bytes)]
@@ -135,11 +136,15 @@ class Relay:
         running = True
         while running and time.monotonic() < deadline:
             ready, _, _ = select.select([self.sock], [], [], 0.005 if self.master_ticks else 0.2)
-            if ready:
-                buf = self.sock.recv(65536)
+            while ready and running:          # drain what is queued before the next select
+                try:
+                    buf = self.sock.recv(65536)
+                except BlockingIOError:
+                    break
                 last = time.monotonic()
                 running = self.handle(buf)
-            elif time.monotonic() - last > idle:
+                self.poll_master()
+            if not ready and time.monotonic() - last > idle:
                 print("relay: nothing received in time, exiting", file=sys.stderr)
                 break
             self.poll_master()
