@@ -253,7 +253,7 @@ def test_programs_strict_compile(libs, tmp_path, cc, precision):
     compiler = tool(cc)
     md = libs("dc_motor_link", precision).model
     paths = programs.render_programs(md, tmp_path / "programs")
-    for name in ("transport_udp.c", "node_main.c", "master_main.c"):
+    for name in ("transport_udp.c", "node_main.c", "master_main.c", "relay.c"):
         out = subprocess.run([compiler, *WARN, "-O2", "-I", str(md.path), "-I", str(tmp_path / "programs"), "-c",
                               str(paths[name]), "-o", str(tmp_path / (name + ".o"))], capture_output=True, text=True)
         assert out.returncode == 0, out.stderr

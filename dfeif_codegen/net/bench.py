@@ -7,9 +7,9 @@
   this is a lower bound of what the master sustains; its CPU time (wait4) per datagram gives the
   rate one core could take (syscalls included);
 - tick -> command round trip at the master (window 1): the master's share of the latency;
-- a `codegen network` run (5 s simulated): frame -> command latency through the Python relay
-  (median and 99th percentile; the emulated delays are whole steps, not wall time, so none is
-  included), CPU seconds per process, the C's busy time per step.
+- a `codegen network` run (5 s simulated): latency from the step's last camera frame sent to the
+  command received, through the relay (median and 99th percentile; the emulated delays are whole
+  steps, not wall time, so none is included), CPU seconds per process, the C's busy time per step.
 """
 
 from __future__ import annotations
@@ -158,18 +158,18 @@ def markdown(fig: dict) -> str:
     cpu = ", ".join(f"{k} {v:.3f} s" for k, v in nw["cpu_s"].items())
     lines += ["", f"### `codegen network` (dc_motor_link, double, paper row 2, {nw['steps']} steps, "
               f"{nw['wall_s']:.1f} s wall; equal to the reference: {'yes' if nw['equal'] else 'NO'})", "",
-              f"- frame -> command latency (camera frame sent by the plant to the command received, through the "
-              f"Python relay: three relay traversals on the path): median {nw['latency_median_us']:.0f} us, 99th percentile "
+              f"- frame -> command latency (the step's last camera frame sent by the plant to the command "
+              f"received, through the relay: three relay traversals on the path): median {nw['latency_median_us']:.0f} us, 99th percentile "
               f"{nw['latency_p99_us']:.0f} us (targets 200 us and 2 ms)",
               f"- C busy time per step: master {nw['master_busy_us_per_step']:.1f} us, nodes "
               + ", ".join(f"{b:.1f} us" for b in nw["node_busy_us_per_step"]),
               f"- CPU per process over the run: {cpu}", f"- datagrams through the relay: {nw['datagrams']}", "",
-              "Where the targets are missed: the frame -> command median includes three traversals of the "
-              "network emulator, a Python process (about 40-70 us each: select, recv, header check, log, "
-              "sendto), and the relay's wait for the slower node's packet; the C's own share is the busy time "
-              "above plus loopback hops (the master's tick -> command round trip: table above). The 99th "
-              "percentiles (tick -> command and frame -> command) are scheduling delays of the shared 2-core "
-              "machine (other jobs running), not work of the programs.", ""]
+              "Where the targets are missed: the path has 9 loopback datagrams in series (frame and tick to each "
+              "node through the relay, packets back, the master's tick, the command through the relay); each "
+              "sendto/recv wake-up costs about 10-25 us on this shared VM, against a few us of C work per step "
+              "(busy times above; the master's own tick -> command round trip is in the table above). "
+              "99th percentiles are scheduling delays of the shared 2-core machine (other jobs running), "
+              "not work of the programs.", ""]
     fz = fig.get("fuzz")
     if fz:
         lines += ["### Fuzzing (libFuzzer, ASan + UBSan, dc_motor_link double)", "",

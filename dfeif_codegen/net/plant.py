@@ -61,9 +61,10 @@ def main(argv: list[str]) -> int:
         for node in [*range(M), wire.MASTER_ID]:
             out.append(wire.encode(lay, wire.KIND_TICK, node, k, seq, tick, key))
             seq += 1
-        t_send[k] = time.perf_counter()     # the frames leave the camera (measuring and encoding excluded)
-        for buf in out:
+        for i, buf in enumerate(out):
             sock.sendto(buf, relay)
+            if i == M - 1:
+                t_send[k] = time.perf_counter()   # the step's last camera frame has left its camera
         deadline = time.monotonic() + timeout
         while not got[k]:
             left = deadline - time.monotonic()

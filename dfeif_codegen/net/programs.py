@@ -11,7 +11,7 @@ from dfeif_codegen.check import harness
 
 FILES = [("net/common.h.j2", "common.h"), ("net/transport.h.j2", "transport.h"),
          ("net/transport_udp.c.j2", "transport_udp.c"), ("net/node_main.c.j2", "node_main.c"),
-         ("net/master_main.c.j2", "master_main.c")]
+         ("net/master_main.c.j2", "master_main.c"), ("net/relay.c.j2", "relay.c")]
 
 
 @dataclass(frozen=True)
@@ -19,6 +19,7 @@ class Programs:
     folder: Path
     node: Path
     master: Path
+    relay: Path        # the network emulator of `codegen network` (a host test tool)
 
 
 def render_programs(model: harness.ModelDir, out: Path) -> dict[str, Path]:
@@ -39,11 +40,13 @@ def render_programs(model: harness.ModelDir, out: Path) -> dict[str, Path]:
 
 
 def build_programs(model: harness.ModelDir, out: Path, extra: tuple[str, ...] = ()) -> Programs:
-    """Render and compile node_main and master_main (library + transport + main)."""
+    """Render and compile node_main and master_main (library + transport + main), and the relay."""
     paths = render_programs(model, out)
     common = [*model.sources(), paths["transport_udp.c"]]
     exes = {}
     for prog in ("node", "master"):
         exes[prog] = harness.compile_program([*common, paths[f"{prog}_main.c"]], out / prog,
                                              [model.path, out], ["-std=c99", *extra])
-    return Programs(out, exes["node"], exes["master"])
+    exes["relay"] = harness.compile_program([*model.sources(), paths["relay.c"]], out / "relay", [model.path],
+                                            ["-std=c99", *extra])
+    return Programs(out, exes["node"], exes["master"], exes["relay"])

@@ -1,7 +1,7 @@
 """`codegen network`: the estimator as separate OS processes on loopback, compared with the reference.
 
-Builds the model and the node/master programs, then starts the relay (the seeded network
-emulator), the master, one process per node and the plant-and-camera process, all bound to
+Builds the model, the node/master programs and the relay (the seeded network emulator, C), then
+starts the relay, the master, one process per node and the plant-and-camera process, all bound to
 127.0.0.1. The plant's ticks step everyone in lock-step, so the run is deterministic and bounded;
 every process has an idle timeout and the launcher a deadline. At the end the reference replays
 the arrival pattern the relay logged, and the nodes' and master's logged estimates and inputs
@@ -146,12 +146,16 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
     lay = wire.Layout.of_folder(md.path)
     K, M = s.K, s.nodes
     relay_port, master_port, plant_port, *node_ports = free_ports(3 + M)
-    relay_cfg = {"nodes": M, "lag": s.net.lag.tolist(), "late_order": [{str(a): l for a, l in d.items()} for d in s.net.late],
-                 "up_lag": s.net.up_lag.tolist(), "relay_port": relay_port, "master_port": master_port,
-                 "plant_port": plant_port, "node_ports": node_ports, "log": str(work / "relay.jsonl"),
-                 "flip_rate": o.flip_rate, "flip_seed": o.seed + 1, "step_timeout": o.step_timeout,
-                 "max_seconds": 60 + 0.2 * K}
-    session.write_json(work / "relay.json", relay_cfg)
+    rank = np.zeros((M, K), dtype=int)     # the drawn arrival order of late frames
+    for i, late in enumerate(s.net.late):
+        for a, lags in late.items():
+            for r, lag in enumerate(lags):
+                rank[i, a - lag] = r
+    idle_ms = int(1000 * max(10.0, 4 * o.command_timeout, 4 * o.step_timeout))
+    head = [M, K, int(1000 * o.step_timeout), 2 * idle_ms, repr(float(o.flip_rate)), o.seed + 1,
+            relay_port, master_port, plant_port, *node_ports]
+    (work / "relay.cfg").write_text(" ".join(map(str, head)) + "\n" + "\n".join(
+        " ".join(map(str, a.ravel())) for a in (s.net.lag[:, :K], rank, s.net.up_lag[:, :K])) + "\n")
     fields = {f.name: getattr(o, f.name) for f in dataclasses.fields(o) if f.name != "faults"}
     plant_cfg = {"options": fields, "layout": dataclasses.asdict(lay), "key": o.key, "steps": K,
                  "plant_port": plant_port, "relay_port": relay_port, "out": str(work / "plant.npz"),
@@ -160,7 +164,7 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
     session.write_json(work / "plant.json", plant_cfg)
     key = ["-k", o.key] if o.key else []
     to = f"{HOST}:{relay_port}"
-    idle = ["-t", str(int(1000 * max(10.0, 4 * o.command_timeout, 4 * o.step_timeout)))]
+    idle = ["-t", str(idle_ms)]
 
     def node_cmd(i: int, restart: int = 0) -> list:
         conf = _reals(work / f"node{i}.cfg", s.x_hat0, s.P0, s.R[i], s.q)
@@ -174,7 +178,7 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
 
     t0 = time.monotonic()
     deadline = t0 + (deadline or 60 + 0.2 * K)
-    procs = {"relay": _Proc("relay", [sys.executable, "-m", "dfeif_codegen.net.relay", work / "relay.json"], work)}
+    procs = {"relay": _Proc("relay", [progs.relay, work / "relay.cfg", work / "relay.jsonl"], work)}
     time.sleep(0.2)
     procs["master"] = _Proc("master", master_cmd(), work)
     for i in range(M):
