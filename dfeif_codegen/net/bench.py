@@ -164,9 +164,9 @@ def markdown(fig: dict) -> str:
               f"- C busy time per step: master {nw['master_busy_us_per_step']:.1f} us, nodes "
               + ", ".join(f"{b:.1f} us" for b in nw["node_busy_us_per_step"]),
               f"- CPU per process over the run: {cpu}", f"- datagrams through the relay: {nw['datagrams']}", "",
-              "Where the targets are missed: the path has 9 loopback datagrams in series (frame and tick to each "
-              "node through the relay, packets back, the master's tick, the command through the relay); each "
-              "sendto/recv wake-up costs about 10-25 us on this shared VM, against a few us of C work per step "
+              "Where the targets are missed: the path is six loopback hops in series (plant, relay, node, relay, "
+              "master, relay, plant), the relay handing on two or three datagrams one after another at each of its "
+              "hops; each sendto/recv wake-up costs about 10-25 us on this shared VM, against a few us of C work per step "
               "(busy times above; the master's own tick -> command round trip is in the table above). "
               "99th percentiles are scheduling delays of the shared 2-core machine (other jobs running), "
               "not work of the programs.", ""]
