@@ -21,6 +21,8 @@ COMMANDS = {
     "simulate": "run the closed-loop experiment (chapter tables, plots, JSON)",
     "inspect": "show the derived flatness transform and discrete model",
     "bench": "measure build time, code size, stack and instruction counts",
+    "network": "run nodes and master as separate processes over UDP on 127.0.0.1 through a seeded "
+               "delay/drop relay and compare with the reference",
 }
 
 
@@ -105,6 +107,21 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
 
+    p = add("network")
+    p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
+    p.add_argument("--row", type=int, default=2, help="the scenario's delay row (default 2)")
+    p.add_argument("--seed", type=int, default=0, help="seed of noise, initial error and network (default 0)")
+    p.add_argument("--precision", choices=["double", "float"], default="double")
+    p.add_argument("--duration", type=float, default=5.0, help="simulated seconds (default 5)")
+    p.add_argument("--key", default=None, metavar="HEX", help="32 hex digits: tag every frame with SipHash-2-4")
+    p.add_argument("--flip-rate", type=float, default=0.0, metavar="R",
+                   help="bit error rate the relay applies to node -> master packets (default 0)")
+    p.add_argument("--keep", metavar="DIR", help="keep programs and logs in DIR")
+    p.add_argument("--bench", metavar="FILE", nargs="?", const="BENCHMARKS.md", default=None,
+                   help="measure wire sizes, master throughput, latency and CPU; write the network section "
+                        "of FILE (default BENCHMARKS.md) instead of one compared run")
+    filter_options(p)
+
     p = add("bench")
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
     p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures (median reported)")
@@ -184,13 +201,22 @@ def bench(args: argparse.Namespace) -> int:
         else None
     text = bench.bench(args.model, repeat=args.repeat, command=command,
                        progress=lambda line: print(line, file=sys.stderr))
-    Path(args.out).write_text(text)
+    out = Path(args.out)
+    text = bench.keep_network_section(text, out.read_text() if out.exists() else "")
+    out.write_text(text)
     print(text)
     print(f"codegen bench: wrote {args.out}", file=sys.stderr)
     return 0
 
 
-HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench}
+def network(args: argparse.Namespace) -> int:
+    from dfeif_codegen.net import run
+
+    return run.run(args)
+
+
+HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench,
+            "network": network}
 
 
 def main(argv: list[str] | None = None) -> int:

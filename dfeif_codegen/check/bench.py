@@ -95,6 +95,16 @@ def target_sizeof(model: harness.ModelDir, work: Path) -> dict[str, int]:
     return dict(zip(kinds, words))
 
 
+NETWORK_MARK = "<!-- codegen network --bench -->"
+
+
+def keep_network_section(text: str, previous: str) -> str:
+    """The report with the section `codegen network --bench` wrote into the previous one kept."""
+    if NETWORK_MARK not in previous:
+        return text
+    return text.rstrip() + "\n\n" + NETWORK_MARK + previous.split(NETWORK_MARK, 1)[1]
+
+
 def bench(model: str | None = None, *, repeat: int = 5, command: str | None = None, progress=None) -> str:
     """BENCHMARKS.md's text for a model file, or (default, or a built-in name) both built-in
     models side by side. `command` is the line the report says regenerates it."""

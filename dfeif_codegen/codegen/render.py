@@ -20,6 +20,7 @@ LIBRARY = [
     ("node.c.j2", "{p}_node.c"),
     ("master.c.j2", "{p}_master.c"),
     ("control.c.j2", "{p}_control.c"),
+    ("wire.c.j2", "{p}_wire.c"),
 ]
 KERNELS = ("kernels.c.j2", "{p}_kernels_{group}.c")
 PROJECT = [

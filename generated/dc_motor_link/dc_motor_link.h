@@ -185,6 +185,105 @@ int dc_motor_link_master_predict(dc_motor_link_master* master, const dc_motor_li
 /** Fused estimate; either output may be NULL. */
 int dc_motor_link_master_estimate(const dc_motor_link_master* master, dc_motor_link_real x[DC_MOTOR_LINK_NX], dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX]);
 
+/* ---- wire (docs/wire.md) ------------------------------------------------------------------------ */
+/* Fixed-size little-endian frames: a 28-byte header (magic "DFEW", version, kind, flags, bytes per
+ * real, model hash prefix, node id, reals in the payload, step, sequence number), the payload, a
+ * SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes before it). */
+#define DC_MOTOR_LINK_WIRE_VERSION 1u
+#define DC_MOTOR_LINK_WIRE_HEADER 28u
+#define DC_MOTOR_LINK_FRAME_SIZE(reals) (DC_MOTOR_LINK_WIRE_HEADER + sizeof(dc_motor_link_real) * (size_t)(reals) + 12u)
+#define DC_MOTOR_LINK_KIND_PACKET 1u          /**< node -> master: a dc_motor_link_packet */
+#define DC_MOTOR_LINK_KIND_COMMAND 2u         /**< master -> nodes and actuator: (k, v, u) */
+#define DC_MOTOR_LINK_KIND_CAMERA 3u          /**< camera -> node: z of a step (the example programs) */
+#define DC_MOTOR_LINK_KIND_TICK 4u            /**< clock -> node or master: end of a step (the example programs) */
+#define DC_MOTOR_LINK_MASTER_ID 0xFFFFu       /**< node id field of the master's frames */
+#define DC_MOTOR_LINK_PACKET_REALS (DC_MOTOR_LINK_NY + 2 * DC_MOTOR_LINK_NX + 2 * DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
+#define DC_MOTOR_LINK_COMMAND_REALS (DC_MOTOR_LINK_NY + DC_MOTOR_LINK_NU)
+#define DC_MOTOR_LINK_PACKET_WIRE_SIZE DC_MOTOR_LINK_FRAME_SIZE(DC_MOTOR_LINK_PACKET_REALS)
+#define DC_MOTOR_LINK_COMMAND_WIRE_SIZE DC_MOTOR_LINK_FRAME_SIZE(DC_MOTOR_LINK_COMMAND_REALS)
+#define DC_MOTOR_LINK_ERR_WIRE_LENGTH (-10)     /**< frame of the wrong size */
+#define DC_MOTOR_LINK_ERR_WIRE_CRC (-11)        /**< CRC-32 mismatch: corrupted on the way */
+#define DC_MOTOR_LINK_ERR_WIRE_FORMAT (-12)     /**< not a frame of this kind: magic, kind, real size or count */
+#define DC_MOTOR_LINK_ERR_WIRE_VERSION (-13)    /**< another wire format version */
+#define DC_MOTOR_LINK_ERR_WIRE_MODEL (-14)      /**< another model (hash prefix) */
+#define DC_MOTOR_LINK_ERR_WIRE_TAG (-15)        /**< keyed tag missing or wrong */
+#define DC_MOTOR_LINK_ERR_WIRE_NODE (-16)       /**< unknown node id */
+#define DC_MOTOR_LINK_ERR_WIRE_DUPLICATE (-17)  /**< that (node, step) was already received */
+#define DC_MOTOR_LINK_ERR_WIRE_OLD (-18)        /**< older than the window (or than the master's start) */
+#define DC_MOTOR_LINK_ERR_WIRE_FUTURE (-19)     /**< from a step the master has not reached */
+#define DC_MOTOR_LINK_ERR_WIRE_REPLAY (-20)     /**< keyed: sequence number not above the last one */
+#define DC_MOTOR_LINK_ERR_WIRE_OUTDATED (-21)   /**< older than a packet already received from that node */
+
+typedef struct {
+    uint8_t kind;
+    uint16_t node;
+    uint32_t step;
+    uint32_t seq;
+} dc_motor_link_frame_header;
+
+/** Rejected frames per cause. */
+typedef struct {
+    uint32_t length, crc, format, version, model, tag, node, duplicate, old, future, replay, outdated, nonfinite, other;
+} dc_motor_link_wire_counters;
+
+/** The master's receive side: checked packets staged for the next fuse, per-node last step and
+ * sequence number, the deployment key, and what was rejected. `base` is the global step of the
+ * master's step 0 (a restarted master starts at the step it rejoins). */
+typedef struct {
+    dc_motor_link_packet staged[DC_MOTOR_LINK_NNODES];
+    uint8_t present[DC_MOTOR_LINK_NNODES];
+    uint8_t seen[DC_MOTOR_LINK_NNODES];
+    uint32_t last_step[DC_MOTOR_LINK_NNODES];
+    uint32_t last_seq[DC_MOTOR_LINK_NNODES];
+    uint32_t base;
+    uint32_t accepted;
+    uint8_t key[16];
+    uint8_t keyed;
+    dc_motor_link_wire_counters rejected;
+} dc_motor_link_inbox;
+
+/** A node's receive side for the master's commands. */
+typedef struct {
+    uint32_t last_seq;
+    uint32_t accepted;
+    uint8_t seen;
+    uint8_t key[16];
+    uint8_t keyed;
+    dc_motor_link_wire_counters rejected;
+} dc_motor_link_command_rx;
+
+uint32_t dc_motor_link_crc32(const uint8_t* data, size_t len);
+uint64_t dc_motor_link_siphash24(const uint8_t key[16], const uint8_t* data, size_t len);
+/** Any frame: header fields, `count` reals; key NULL = CRC only. buf holds FRAME_SIZE(count) bytes. */
+int dc_motor_link_frame_encode(const dc_motor_link_frame_header* header, const dc_motor_link_real* values, uint16_t count,
+                         const uint8_t* key, uint8_t* buf, size_t cap);
+/** Checks size, CRC, magic/kind/count, version, model, tag (if key), finiteness; then fills values. */
+int dc_motor_link_frame_decode(const uint8_t* buf, size_t len, const uint8_t* key, uint8_t kind, dc_motor_link_real* values,
+                         uint16_t count, dc_motor_link_frame_header* header);
+int dc_motor_link_packet_encode(const dc_motor_link_packet* packet, uint16_t node, uint32_t seq, const uint8_t* key,
+                          uint8_t buf[DC_MOTOR_LINK_PACKET_WIRE_SIZE]);
+int dc_motor_link_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key, dc_motor_link_packet* packet,
+                          dc_motor_link_frame_header* header);
+int dc_motor_link_command_encode(uint32_t step, const dc_motor_link_real v[DC_MOTOR_LINK_NY], const dc_motor_link_real u[DC_MOTOR_LINK_NU],
+                           uint32_t seq, const uint8_t* key, uint8_t buf[DC_MOTOR_LINK_COMMAND_WIRE_SIZE]);
+int dc_motor_link_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, dc_motor_link_real v[DC_MOTOR_LINK_NY],
+                           dc_motor_link_real u[DC_MOTOR_LINK_NU], dc_motor_link_frame_header* header);
+/** key NULL: CRC only; base: global step of the master's step 0. */
+int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], uint32_t base);
+/** Check a received frame (integrity, identity, window, duplicates, replay) and stage it for the
+ * next fuse; a rejected frame is counted per cause and changes nothing else. */
+int dc_motor_link_master_receive(const dc_motor_link_master* master, dc_motor_link_inbox* inbox, const uint8_t* buf, size_t len);
+/** Fuse the staged packets (master_fuse), then clear them. */
+int dc_motor_link_master_fuse_inbox(dc_motor_link_master* master, dc_motor_link_inbox* inbox);
+size_t dc_motor_link_inbox_size(void);
+size_t dc_motor_link_command_rx_size(void);
+/** The rejection counters of an inbox (or, with inbox NULL, of a command receiver). */
+int dc_motor_link_wire_rejected(const dc_motor_link_inbox* inbox, const dc_motor_link_command_rx* rx, dc_motor_link_wire_counters* out);
+int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t key[16]);
+/** Check a command frame (as master_receive, plus: from the master, keyed: fresh sequence number). */
+int dc_motor_link_command_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len, uint32_t* step,
+                            dc_motor_link_real v[DC_MOTOR_LINK_NY], dc_motor_link_real u[DC_MOTOR_LINK_NU]);
+
 /* ---- control ----------------------------------------------------------------------------------- */
 /**
  * Flatness-based control: v_j = y_d^(r) - sum_i k_(r-i) e_i on each chain (heads wrapped for angles),

@@ -11,6 +11,7 @@ DC_MOTOR_LINK_SRCS := \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_node.c \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_master.c \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_control.c \
+	$(DC_MOTOR_LINK_DIR)/dc_motor_link_wire.c \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_kernels_filter.c \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_kernels_fusion.c \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_kernels_control.c

@@ -188,6 +188,105 @@ int two_link_arm_master_predict(two_link_arm_master* master, const two_link_arm_
 /** Fused estimate; either output may be NULL. */
 int two_link_arm_master_estimate(const two_link_arm_master* master, two_link_arm_real x[TWO_LINK_ARM_NX], two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX]);
 
+/* ---- wire (docs/wire.md) ------------------------------------------------------------------------ */
+/* Fixed-size little-endian frames: a 28-byte header (magic "DFEW", version, kind, flags, bytes per
+ * real, model hash prefix, node id, reals in the payload, step, sequence number), the payload, a
+ * SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes before it). */
+#define TWO_LINK_ARM_WIRE_VERSION 1u
+#define TWO_LINK_ARM_WIRE_HEADER 28u
+#define TWO_LINK_ARM_FRAME_SIZE(reals) (TWO_LINK_ARM_WIRE_HEADER + sizeof(two_link_arm_real) * (size_t)(reals) + 12u)
+#define TWO_LINK_ARM_KIND_PACKET 1u          /**< node -> master: a two_link_arm_packet */
+#define TWO_LINK_ARM_KIND_COMMAND 2u         /**< master -> nodes and actuator: (k, v, u) */
+#define TWO_LINK_ARM_KIND_CAMERA 3u          /**< camera -> node: z of a step (the example programs) */
+#define TWO_LINK_ARM_KIND_TICK 4u            /**< clock -> node or master: end of a step (the example programs) */
+#define TWO_LINK_ARM_MASTER_ID 0xFFFFu       /**< node id field of the master's frames */
+#define TWO_LINK_ARM_PACKET_REALS (TWO_LINK_ARM_NY + 2 * TWO_LINK_ARM_NX + 2 * TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
+#define TWO_LINK_ARM_COMMAND_REALS (TWO_LINK_ARM_NY + TWO_LINK_ARM_NU)
+#define TWO_LINK_ARM_PACKET_WIRE_SIZE TWO_LINK_ARM_FRAME_SIZE(TWO_LINK_ARM_PACKET_REALS)
+#define TWO_LINK_ARM_COMMAND_WIRE_SIZE TWO_LINK_ARM_FRAME_SIZE(TWO_LINK_ARM_COMMAND_REALS)
+#define TWO_LINK_ARM_ERR_WIRE_LENGTH (-10)     /**< frame of the wrong size */
+#define TWO_LINK_ARM_ERR_WIRE_CRC (-11)        /**< CRC-32 mismatch: corrupted on the way */
+#define TWO_LINK_ARM_ERR_WIRE_FORMAT (-12)     /**< not a frame of this kind: magic, kind, real size or count */
+#define TWO_LINK_ARM_ERR_WIRE_VERSION (-13)    /**< another wire format version */
+#define TWO_LINK_ARM_ERR_WIRE_MODEL (-14)      /**< another model (hash prefix) */
+#define TWO_LINK_ARM_ERR_WIRE_TAG (-15)        /**< keyed tag missing or wrong */
+#define TWO_LINK_ARM_ERR_WIRE_NODE (-16)       /**< unknown node id */
+#define TWO_LINK_ARM_ERR_WIRE_DUPLICATE (-17)  /**< that (node, step) was already received */
+#define TWO_LINK_ARM_ERR_WIRE_OLD (-18)        /**< older than the window (or than the master's start) */
+#define TWO_LINK_ARM_ERR_WIRE_FUTURE (-19)     /**< from a step the master has not reached */
+#define TWO_LINK_ARM_ERR_WIRE_REPLAY (-20)     /**< keyed: sequence number not above the last one */
+#define TWO_LINK_ARM_ERR_WIRE_OUTDATED (-21)   /**< older than a packet already received from that node */
+
+typedef struct {
+    uint8_t kind;
+    uint16_t node;
+    uint32_t step;
+    uint32_t seq;
+} two_link_arm_frame_header;
+
+/** Rejected frames per cause. */
+typedef struct {
+    uint32_t length, crc, format, version, model, tag, node, duplicate, old, future, replay, outdated, nonfinite, other;
+} two_link_arm_wire_counters;
+
+/** The master's receive side: checked packets staged for the next fuse, per-node last step and
+ * sequence number, the deployment key, and what was rejected. `base` is the global step of the
+ * master's step 0 (a restarted master starts at the step it rejoins). */
+typedef struct {
+    two_link_arm_packet staged[TWO_LINK_ARM_NNODES];
+    uint8_t present[TWO_LINK_ARM_NNODES];
+    uint8_t seen[TWO_LINK_ARM_NNODES];
+    uint32_t last_step[TWO_LINK_ARM_NNODES];
+    uint32_t last_seq[TWO_LINK_ARM_NNODES];
+    uint32_t base;
+    uint32_t accepted;
+    uint8_t key[16];
+    uint8_t keyed;
+    two_link_arm_wire_counters rejected;
+} two_link_arm_inbox;
+
+/** A node's receive side for the master's commands. */
+typedef struct {
+    uint32_t last_seq;
+    uint32_t accepted;
+    uint8_t seen;
+    uint8_t key[16];
+    uint8_t keyed;
+    two_link_arm_wire_counters rejected;
+} two_link_arm_command_rx;
+
+uint32_t two_link_arm_crc32(const uint8_t* data, size_t len);
+uint64_t two_link_arm_siphash24(const uint8_t key[16], const uint8_t* data, size_t len);
+/** Any frame: header fields, `count` reals; key NULL = CRC only. buf holds FRAME_SIZE(count) bytes. */
+int two_link_arm_frame_encode(const two_link_arm_frame_header* header, const two_link_arm_real* values, uint16_t count,
+                         const uint8_t* key, uint8_t* buf, size_t cap);
+/** Checks size, CRC, magic/kind/count, version, model, tag (if key), finiteness; then fills values. */
+int two_link_arm_frame_decode(const uint8_t* buf, size_t len, const uint8_t* key, uint8_t kind, two_link_arm_real* values,
+                         uint16_t count, two_link_arm_frame_header* header);
+int two_link_arm_packet_encode(const two_link_arm_packet* packet, uint16_t node, uint32_t seq, const uint8_t* key,
+                          uint8_t buf[TWO_LINK_ARM_PACKET_WIRE_SIZE]);
+int two_link_arm_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key, two_link_arm_packet* packet,
+                          two_link_arm_frame_header* header);
+int two_link_arm_command_encode(uint32_t step, const two_link_arm_real v[TWO_LINK_ARM_NY], const two_link_arm_real u[TWO_LINK_ARM_NU],
+                           uint32_t seq, const uint8_t* key, uint8_t buf[TWO_LINK_ARM_COMMAND_WIRE_SIZE]);
+int two_link_arm_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, two_link_arm_real v[TWO_LINK_ARM_NY],
+                           two_link_arm_real u[TWO_LINK_ARM_NU], two_link_arm_frame_header* header);
+/** key NULL: CRC only; base: global step of the master's step 0. */
+int two_link_arm_inbox_init(two_link_arm_inbox* inbox, const uint8_t key[16], uint32_t base);
+/** Check a received frame (integrity, identity, window, duplicates, replay) and stage it for the
+ * next fuse; a rejected frame is counted per cause and changes nothing else. */
+int two_link_arm_master_receive(const two_link_arm_master* master, two_link_arm_inbox* inbox, const uint8_t* buf, size_t len);
+/** Fuse the staged packets (master_fuse), then clear them. */
+int two_link_arm_master_fuse_inbox(two_link_arm_master* master, two_link_arm_inbox* inbox);
+size_t two_link_arm_inbox_size(void);
+size_t two_link_arm_command_rx_size(void);
+/** The rejection counters of an inbox (or, with inbox NULL, of a command receiver). */
+int two_link_arm_wire_rejected(const two_link_arm_inbox* inbox, const two_link_arm_command_rx* rx, two_link_arm_wire_counters* out);
+int two_link_arm_command_rx_init(two_link_arm_command_rx* rx, const uint8_t key[16]);
+/** Check a command frame (as master_receive, plus: from the master, keyed: fresh sequence number). */
+int two_link_arm_command_receive(two_link_arm_command_rx* rx, const uint8_t* buf, size_t len, uint32_t* step,
+                            two_link_arm_real v[TWO_LINK_ARM_NY], two_link_arm_real u[TWO_LINK_ARM_NU]);
+
 /* ---- control ----------------------------------------------------------------------------------- */
 /**
  * Flatness-based control: v_j = y_d^(r) - sum_i k_(r-i) e_i on each chain (heads wrapped for angles),

@@ -11,6 +11,7 @@ TWO_LINK_ARM_SRCS := \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_node.c \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_master.c \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_control.c \
+	$(TWO_LINK_ARM_DIR)/two_link_arm_wire.c \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_kernels_filter.c \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_kernels_fusion.c \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_kernels_control.c

@@ -1,0 +1,323 @@
+"""`codegen network`: the estimator as separate OS processes on loopback, compared with the reference.
+
+Builds the model, the node/master programs and the relay (the seeded network emulator, C), then
+starts the relay, the master, one process per node and the plant-and-camera process, all bound to
+127.0.0.1. The plant's ticks step everyone in lock-step, so the run is deterministic and bounded;
+every process has an idle timeout and the launcher a deadline. At the end the reference replays
+the arrival pattern the relay logged, and the nodes' and master's logged estimates and inputs
+must equal it (<= 1e-10 relative in double). Faults (a node or the master killed and restarted
+at given steps, bit errors on the uplink) are options of `launch`, used by the tests.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dfeif_codegen.check import harness, verify
+from dfeif_codegen.errors import ScenarioError, SetupError
+from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.net import programs, session, wire
+
+HOST = "127.0.0.1"
+
+
+@dataclass(frozen=True)
+class Fault:
+    """Kill `who` ("master" or a node index) before step `at`, start it again before step `back`."""
+
+    who: object
+    at: int
+    back: int
+
+
+@dataclass
+class Options:
+    model: str = "dc_motor_link"
+    scenario: str = "paper"
+    row: int = 2
+    seed: int = 0
+    precision: str = "double"
+    oosm: str = "replay"
+    fusion: str = "difference"
+    nodes: int = 2
+    max_lag: int = 32
+    reference: str = "sinusoid"
+    duration: float | None = 5.0
+    key: str | None = None            # 32 hex digits: keyed tags on every frame
+    flip_rate: float = 0.0            # bit error rate on node -> master packets
+    faults: tuple = ()
+    step_timeout: float = 1.0         # relay: how long a master tick waits for missing packets
+    command_timeout: float = 2.0      # plant: how long it waits for the master's command
+
+
+@dataclass
+class Outcome:
+    opts: Options
+    setup: session.Setup
+    layout: wire.Layout
+    steps: int
+    nodes: list[dict]
+    master: dict
+    relay: list[dict]
+    plant: dict
+    cpu: dict = field(default_factory=dict)        # process -> CPU seconds (user + system)
+    returncodes: dict = field(default_factory=dict)
+    stderr: dict = field(default_factory=dict)
+    wall: float = 0.0
+
+
+def make_config(o: Options) -> ex.Config:
+    from dfeif_codegen.experiment import scenario, simulate
+
+    sc = scenario.load(o.scenario)
+    sc.check_model(ex._flat(o.model))
+    if not 0 <= o.row < len(sc.grid):
+        raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
+    cfg = simulate.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed)
+    if o.duration is not None:
+        cfg = dataclasses.replace(cfg, duration=o.duration, metrics_from=min(cfg.metrics_from, o.duration / 2))
+    return cfg
+
+
+def free_ports(count: int) -> list[int]:
+    """Ports the kernel hands out on 127.0.0.1 (held open together so they differ)."""
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(count)]
+    for s in socks:
+        s.bind((HOST, 0))
+    ports = [s.getsockname()[1] for s in socks]
+    for s in socks:
+        s.close()
+    return ports
+
+
+def _reals(path: Path, *arrays) -> Path:
+    path.write_text(" ".join(repr(float(v)) for a in arrays for v in np.ravel(a)) + "\n")
+    return path
+
+
+class _Proc:
+    """A child process whose CPU time is collected with wait4 (resource usage of that child only)."""
+
+    def __init__(self, name: str, cmd: list, work: Path, **kw):
+        self.name = name
+        self.err = open(work / f"{name}.err", "w")
+        self.p = subprocess.Popen([str(c) for c in cmd], stderr=self.err, **kw)
+        self.cpu = None
+
+    def reap(self, timeout: float) -> int:
+        deadline = time.monotonic() + timeout
+        while self.cpu is None and self.p.returncode is None:
+            try:
+                pid, status, ru = os.wait4(self.p.pid, os.WNOHANG)
+            except ChildProcessError:      # already reaped by Popen
+                break
+            if pid:
+                self.p.returncode = os.waitstatus_to_exitcode(status)
+                self.cpu = ru.ru_utime + ru.ru_stime
+            elif time.monotonic() > deadline:
+                os.kill(self.p.pid, signal.SIGKILL)
+                deadline = time.monotonic() + 5
+            else:
+                time.sleep(0.01)
+        self.err.close()
+        return self.p.returncode
+
+
+def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
+    """Build, start every process, run the scenario's first `duration` seconds, collect the logs."""
+    work.mkdir(parents=True, exist_ok=True)
+    cfg = make_config(o)
+    s = session.setup(cfg)
+    md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts)
+    progs = programs.build_programs(md, work / "programs")
+    lay = wire.Layout.of_folder(md.path)
+    K, M = s.K, s.nodes
+    relay_port, master_port, plant_port, *node_ports = free_ports(3 + M)
+    rank = np.zeros((M, K), dtype=int)     # the drawn arrival order of late frames
+    for i, late in enumerate(s.net.late):
+        for a, lags in late.items():
+            for r, lag in enumerate(lags):
+                rank[i, a - lag] = r
+    idle_ms = int(1000 * max(10.0, 4 * o.command_timeout, 4 * o.step_timeout))
+    head = [M, K, int(1000 * o.step_timeout), 2 * idle_ms, repr(float(o.flip_rate)), o.seed + 1,
+            relay_port, master_port, plant_port, *node_ports]
+    (work / "relay.cfg").write_text(" ".join(map(str, head)) + "\n" + "\n".join(
+        " ".join(map(str, a.ravel())) for a in (s.net.lag[:, :K], rank, s.net.up_lag[:, :K])) + "\n")
+    fields = {f.name: getattr(o, f.name) for f in dataclasses.fields(o) if f.name != "faults"}
+    plant_cfg = {"options": fields, "layout": dataclasses.asdict(lay), "key": o.key, "steps": K,
+                 "plant_port": plant_port, "relay_port": relay_port, "out": str(work / "plant.npz"),
+                 "command_timeout": o.command_timeout,
+                 "pause_at": sorted({f.at for f in o.faults} | {f.back for f in o.faults})}
+    session.write_json(work / "plant.json", plant_cfg)
+    key = ["-k", o.key] if o.key else []
+    to = f"{HOST}:{relay_port}"
+    idle = ["-t", str(idle_ms)]
+
+    def node_cmd(i: int, restart: int = 0) -> list:
+        conf = _reals(work / f"node{i}.cfg", s.x_hat0, s.P0, s.R[i], s.q)
+        return [progs.node, "-i", i, "-l", f"{HOST}:{node_ports[i]}", "-p", to, "-c", conf,
+                "-o", work / f"node{i}.{restart}.log", "-s", restart << 24, *key, *idle]
+
+    def master_cmd(restart: int = 0) -> list:
+        conf = _reals(work / "master.cfg", s.x_hat0, s.P0, s.q, s.gains)
+        return [progs.master, "-l", f"{HOST}:{master_port}", "-p", to, "-c", conf, "-o", work / f"master.{restart}.log",
+                "-s", restart << 24, *key, *idle, *(["-r"] if restart else [])]
+
+    t0 = time.monotonic()
+    deadline = t0 + (deadline or 60 + 0.2 * K)
+    procs = {"relay": _Proc("relay", [progs.relay, work / "relay.cfg", work / "relay.jsonl"], work)}
+    time.sleep(0.2)
+    procs["master"] = _Proc("master", master_cmd(), work)
+    for i in range(M):
+        procs[f"node{i}"] = _Proc(f"node{i}", node_cmd(i), work)
+    time.sleep(0.1)
+    plant = _Proc("plant", [sys.executable, "-m", "dfeif_codegen.net.plant", work / "plant.json"], work,
+                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    restarts: dict = {}
+    retired: list[_Proc] = []
+    lines: queue.Queue = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(x) for x in plant.p.stdout] + [lines.put("")], daemon=True).start()
+    finished = False
+    while not finished and time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=max(0.01, min(1.0, deadline - time.monotonic())))
+        except queue.Empty:
+            continue
+        if not line:
+            break
+        if line.startswith("done"):
+            finished = True
+        elif line.startswith("pause"):
+            k = int(line.split()[1])
+            for f in o.faults:
+                name = "master" if f.who == "master" else f"node{f.who}"
+                if f.at == k:
+                    procs[name].reap(0)   # SIGKILL
+                    retired.append(procs.pop(name))
+                if f.back == k:
+                    restarts[name] = restarts.get(name, 0) + 1
+                    cmd = master_cmd(restarts[name]) if f.who == "master" else node_cmd(f.who, restarts[name])
+                    procs[name] = _Proc(f"{name}.{restarts[name]}", cmd, work)
+                    time.sleep(0.05)
+            plant.p.stdin.write("\n")
+            plant.p.stdin.flush()
+    plant.p.stdin.close()
+    rcs = {"plant": plant.reap(5 if finished else 0)}
+    for name, pr in procs.items():
+        rcs[name] = pr.reap(10 if finished else 0)
+    wall = time.monotonic() - t0
+    if not finished:
+        raise SetupError(f"codegen network: the run did not finish in time (see {work}/*.err)")
+    n, m = s.flat.n, s.flat.m
+    nodes = [session.parse_node_log(work / f"node{i}.{restarts.get(f'node{i}', 0)}.log", n) for i in range(M)]
+    for i in range(M):
+        nodes[i]["first"] = session.parse_node_log(work / f"node{i}.0.log", n)
+    master = session.parse_master_log(work / f"master.{restarts.get('master', 0)}.log", n, m, M)
+    master["first"] = session.parse_master_log(work / "master.0.log", n, m, M)
+    relay = [json.loads(line) for line in (work / "relay.jsonl").read_text().splitlines() if line]
+    with np.load(work / "plant.npz") as data:
+        plant_data = {k: data[k] for k in data.files}
+    cpu = {name: pr.cpu for name, pr in procs.items()}
+    errs = {pr.name: Path(pr.err.name).read_text() for pr in [*procs.values(), *retired, plant]}
+    return Outcome(o, s, lay, len(plant_data["u"]), nodes, master, relay, plant_data, cpu, rcs, errs, wall)
+
+
+def compare(out: Outcome) -> tuple[list, ex.Recording]:
+    """The reference replayed on the logged arrivals against the programs' logs (every node from
+    its first log, the master's from its log); the errors per signal as `codegen verify` prints them."""
+    s, K, M = out.setup, out.steps, out.setup.nodes
+    rec = session.recording(s, out.relay, out.plant["frames"], K)
+    ref = ex.replay_recording(rec)
+    for name, value in ref.items():
+        setattr(rec, name, value)
+    n = s.flat.n
+    got = {"node_x": np.full((M, K, n), np.nan), "node_P": np.full((M, K, n, n), np.nan),
+           "x": np.full((K, n), np.nan), "P": np.full((K, n, n), np.nan),
+           "u": np.full((K, s.flat.m), np.nan), "v": np.full((K, s.flat.m), np.nan)}
+    applied = {}
+    for i, log in enumerate(out.nodes):
+        for k, (late, x, P) in log["first"]["steps"].items():
+            if k < K:
+                got["node_x"][i, k], got["node_P"][i, k] = x, P
+                applied.update({(k, i, src): a for src, a in late})
+    for k, row in out.master["first"]["steps"].items():
+        if k < K:
+            for name in ("x", "P", "u", "v"):
+                got[name][k] = row[name]
+    got["late_applied"] = np.array([applied.get((int(k), int(i), int(k - lag)), -1)
+                                    for k, i, lag in zip(rec.late_step, rec.late_node, rec.late_lag)]) == 1
+    return verify.compare_run(got, rec, out.opts.precision), rec
+
+
+def figures(out: Outcome) -> dict:
+    """Latency frame -> command (wall clock, no emulated delay: the relay delays in steps, not
+    seconds), CPU per process, datagrams and rejections."""
+    p = out.plant
+    lat = (p["t_recv"] - p["t_send"])[p["got"]] * 1e6
+    sends = sum(1 for e in out.relay if e["ev"] == "send")
+    r = out.master["counters"].get("R", {})
+    return {
+        "steps": out.steps, "wall_s": out.wall, "datagrams": sends,
+        "latency_median_us": float(np.median(lat)) if lat.size else float("nan"),
+        "latency_p99_us": float(np.percentile(lat, 99)) if lat.size else float("nan"),
+        "cpu_s": {k: round(v, 3) for k, v in out.cpu.items() if v is not None},
+        "master_busy_us_per_step": out.master["counters"].get("H", {}).get("busy_us", 0) / max(out.steps, 1),
+        "node_busy_us_per_step": [nd["counters"].get("H", {}).get("busy_us", 0) / max(out.steps, 1) for nd in out.nodes],
+        "rejected": {k: int(v) for k, v in r.items() if v and k != "accepted"},
+        "accepted": int(r.get("accepted", 0)),
+    }
+
+
+def run(args) -> int:
+    """`codegen network`: one run, the comparison table, the figures; exit 1 on a mismatch."""
+    import tempfile
+
+    harness.host_compiler()
+    if args.bench:
+        from dfeif_codegen.net import bench
+
+        fig = bench.run_bench(Path(args.bench))
+        print(bench.markdown(fig))
+        print(f"codegen network: wrote the network section of {args.bench}", file=sys.stderr)
+        return 0 if fig["network"]["equal"] else 1
+    if args.key is not None and (len(args.key) != 32 or any(c not in "0123456789abcdefABCDEF" for c in args.key)):
+        raise ScenarioError(f"--key {args.key!r}: needs 32 hex digits (a 16-byte SipHash key)")
+    if not 0 <= args.flip_rate < 1:
+        raise ScenarioError(f"--flip-rate {args.flip_rate}: not in [0, 1)")
+    o = Options(model=args.model, scenario=args.scenario, row=args.row, seed=args.seed, precision=args.precision,
+                oosm=args.oosm or "replay", fusion=args.fusion or "difference", nodes=args.nodes, max_lag=args.max_lag,
+                duration=args.duration, key=args.key, flip_rate=args.flip_rate)
+    if args.keep and Path(args.keep).exists() and any(Path(args.keep).iterdir()):
+        raise ScenarioError(f"--keep {args.keep}: not empty (the run writes its programs and logs there)")
+    make_config(o)   # bad scenario or row: one line, before any build
+    with tempfile.TemporaryDirectory(prefix="codegen-network-") as tmp:
+        work = Path(args.keep) if args.keep else Path(tmp)
+        out = launch(o, work)
+        errors, rec = compare(out)
+        f = figures(out)
+        print(f"codegen network: {o.model}, {o.precision}, {o.nodes} nodes as separate processes on {HOST}, "
+              f"scenario {o.scenario} row {o.row} seed {o.seed}, {out.steps} steps in {f['wall_s']:.1f} s")
+        print(f"wire: packet {out.layout.size(out.layout.packet_reals)} B, command "
+              f"{out.layout.size(out.layout.command_reals)} B{' + SipHash-2-4 tag' if o.key else ''}; "
+              f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {f['rejected'] or 'none'}")
+        print(f"logged arrivals: {int(rec.gamma.sum())} on-time frames, {len(rec.late_step)} late, "
+              f"{len(rec.pkt_step)} packets fused")
+        print(f"frame -> command latency: median {f['latency_median_us']:.0f} us, p99 {f['latency_p99_us']:.0f} us "
+              f"(master busy {f['master_busy_us_per_step']:.1f} us/step); CPU s: {f['cpu_s']}")
+        print(verify.table(errors))
+        verify.check(errors)
+        print("PASS")
+    return 0
