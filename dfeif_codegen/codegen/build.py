@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -68,6 +69,12 @@ def versions() -> dict[str, str]:
     return out
 
 
+def cmake_version(version: str) -> str:
+    """The numeric part CMake accepts for project(VERSION) (`0.2.0.dev1` -> `0.2.0`)."""
+    mt = re.match(r"\d+(?:\.\d+){0,3}", version)
+    return mt.group(0) if mt else "0"
+
+
 def _comment(text: str) -> str:
     """Safe inside a C block comment and on one line."""
     return " ".join(str(text).replace("*/", "* /").replace("/*", "/ *").split())
@@ -84,8 +91,10 @@ def context(flat, opts: Options) -> dict:
         code, infos = kernels.c_source(functions, f"{p}_real", opts.precision)
         kernel_code[group] = (code, f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
-        kernel_list += [{"name": k.name, "macro": k.name.upper(), "signature": _comment(k.signature),
-                         "n_in": k.n_in, "n_out": k.n_out, "sz_w": k.sz_w} for k in infos]
+        kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w,
+                         "signature": kernels._wrap_comment(_comment(k.signature)),
+                         "prototype": kernels.declaration(f"int {k.name}", k.parameters(f"{p}_real"), ";")}
+                        for k in infos]
     names = render.file_names(p, list(ks.groups))
     return {
         "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
@@ -95,7 +104,7 @@ def context(flat, opts: Options) -> dict:
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "ci_iterations": CI_ITERATIONS,
-        "model_hash": model_hash(m), "versions": versions(),
+        "model_hash": model_hash(m), "versions": versions(), "cmake_version": cmake_version(__version__),
         "dependencies": {k: v for k, v in versions().items() if k != "dfeif-codegen"},
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],

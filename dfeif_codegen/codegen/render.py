@@ -13,12 +13,15 @@ from typing import Any
 
 import jinja2
 
-# (template, output file name; {p} is the model name, {group} a kernel group)
+# (template, output file name; {p} is the model name, {group} a kernel group). The node and the
+# master have one template per late-measurement method and per fusion rule ({oosm}, {fusion}),
+# each extending the shared node.c.j2 or master.c.j2 with its own blocks.
 LIBRARY = [
     ("model.h.j2", "{p}.h"),
+    ("kernels.h.j2", "{p}_kernels.h"),
     ("internal.h.j2", "{p}_internal.h"),
-    ("node.c.j2", "{p}_node.c"),
-    ("master.c.j2", "{p}_master.c"),
+    ("node_{oosm}.c.j2", "{p}_node.c"),
+    ("master_{fusion}.c.j2", "{p}_master.c"),
     ("control.c.j2", "{p}_control.c"),
 ]
 KERNELS = ("kernels.c.j2", "{p}_kernels_{group}.c")
@@ -70,7 +73,8 @@ def render(context: dict[str, Any]) -> dict[str, str]:
     the manifest is rendered last, with the size and hash of every other file."""
     env = environment(context["opts"].precision)
     p, version = context["p"], context["versions"]["dfeif-codegen"]
-    jobs = [(t, out.format(p=p), {}) for t, out in LIBRARY]
+    opts = context["opts"]
+    jobs = [(t.format(oosm=opts.oosm, fusion=opts.fusion), out.format(p=p), {}) for t, out in LIBRARY]
     for group, (code, doc) in context["kernel_code"].items():
         extra = f" (kernels by CasADi {context['versions']['casadi']})"
         jobs.append((KERNELS[0], KERNELS[1].format(p=p, group=group),

@@ -26,8 +26,6 @@ int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAG
 {
     real ul[NY], vl[NY], det[1];
     real w[DC_MOTOR_LINK_KERN_CONTROL_SZ_W];
-    const real* arg[DC_MOTOR_LINK_KERN_CONTROL_SZ_ARG];
-    real* res[DC_MOTOR_LINK_KERN_CONTROL_SZ_RES];
     if (!x || !flags || !gains || !params || !u) {
         return DC_MOTOR_LINK_ERR_ARG;
     }
@@ -35,14 +33,7 @@ int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAG
         !dc_motor_link_finite(params, DC_MOTOR_LINK_NP)) {
         return DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    arg[0] = x;
-    arg[1] = flags;
-    arg[2] = gains;
-    arg[3] = params;
-    res[0] = ul;
-    res[1] = vl;
-    res[2] = det;
-    (void)dc_motor_link_kern_control(arg, res, w);
+    (void)dc_motor_link_kern_control(x, flags, gains, params, ul, vl, det, w);
     if (!(det[0] > 0 || det[0] < 0) || !dc_motor_link_finite(det, 1)) {
         return DC_MOTOR_LINK_ERR_SINGULAR;
     }

@@ -5,78 +5,87 @@
 #include <math.h>
 #include "dc_motor_link_internal.h"
 
-static dc_motor_link_real casadi_sq(dc_motor_link_real x) { return x*x;}
+static dc_motor_link_real casadi_sq(dc_motor_link_real x)
+{
+    return x * x;
+}
 
 /* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det) */
-int dc_motor_link_kern_control(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w) {
-  w[0]=arg[1][3];
-  w[1]=arg[2][2];
-  w[2]=arg[0][0];
-  w[3]=arg[1][0];
-  w[3]=(w[2]-w[3]);
-  w[4]=6.2831853071795862e+00;
-  w[5]=3.1415926535897931e+00;
-  w[5]=(w[3]-w[5]);
-  w[5]=(w[5]/w[4]);
-  w[5]=ceil(w[5]);
-  w[4]=(w[4]*w[5]);
-  w[3]=(w[3]-w[4]);
-  w[1]=(w[1]*w[3]);
-  w[0]=(w[0]-w[1]);
-  w[1]=arg[2][1];
-  w[3]=arg[0][1];
-  w[4]=arg[1][1];
-  w[4]=(w[3]-w[4]);
-  w[1]=(w[1]*w[4]);
-  w[0]=(w[0]-w[1]);
-  w[1]=arg[2][0];
-  w[4]=arg[0][2];
-  w[5]=arg[1][2];
-  w[5]=(w[4]-w[5]);
-  w[1]=(w[1]*w[5]);
-  w[0]=(w[0]-w[1]);
-  w[1]=arg[3][4];
-  w[5]=(1./w[1]);
-  w[6]=arg[3][0];
-  w[5]=(w[5]/w[6]);
-  w[7]=arg[3][2];
-  w[8]=casadi_sq(w[7]);
-  w[8]=(w[3]*w[8]);
-  w[9]=arg[3][1];
-  w[10]=(w[1]*w[9]);
-  w[10]=(w[10]*w[4]);
-  w[8]=(w[8]+w[10]);
-  w[10]=arg[3][3];
-  w[11]=(w[6]*w[10]);
-  w[11]=(w[11]*w[4]);
-  w[8]=(w[8]+w[11]);
-  w[10]=(w[9]*w[10]);
-  w[10]=(w[10]*w[3]);
-  w[8]=(w[8]+w[10]);
-  w[10]=arg[3][6];
-  w[9]=(w[9]*w[10]);
-  w[11]=arg[3][7];
-  w[9]=(w[9]*w[11]);
-  w[4]=arg[3][5];
-  w[9]=(w[9]*w[4]);
-  w[12]=sin(w[2]);
-  w[9]=(w[9]*w[12]);
-  w[8]=(w[8]+w[9]);
-  w[10]=(w[6]*w[10]);
-  w[10]=(w[10]*w[11]);
-  w[10]=(w[10]*w[4]);
-  w[10]=(w[10]*w[3]);
-  w[2]=cos(w[2]);
-  w[10]=(w[10]*w[2]);
-  w[8]=(w[8]+w[10]);
-  w[5]=(w[5]*w[8]);
-  w[5]=(w[0]+w[5]);
-  w[7]=(w[7]/w[1]);
-  w[7]=(w[7]/w[6]);
-  w[5]=(w[5]/w[7]);
-  res[0][0]=w[5];
-  res[1][0]=w[0];
-  res[2][0]=w[7];
-  return 0;
+int dc_motor_link_kern_control(const dc_motor_link_real x[3], const dc_motor_link_real flags[4],
+                               const dc_motor_link_real gains[3],
+                               const dc_motor_link_real params[8], dc_motor_link_real u[1],
+                               dc_motor_link_real v[1], dc_motor_link_real det[1],
+                               dc_motor_link_real w[DC_MOTOR_LINK_KERN_CONTROL_SZ_W])
+{
+    w[0] = flags[3];
+    w[1] = gains[2];
+    w[2] = x[0];
+    w[3] = flags[0];
+    w[3] = (w[2] - w[3]);
+    w[4] = 6.2831853071795862e+00;
+    w[5] = 3.1415926535897931e+00;
+    w[5] = (w[3] - w[5]);
+    w[5] = (w[5] / w[4]);
+    w[5] = ceil(w[5]);
+    w[4] = (w[4] * w[5]);
+    w[3] = (w[3] - w[4]);
+    w[1] = (w[1] * w[3]);
+    w[0] = (w[0] - w[1]);
+    w[1] = gains[1];
+    w[3] = x[1];
+    w[4] = flags[1];
+    w[4] = (w[3] - w[4]);
+    w[1] = (w[1] * w[4]);
+    w[0] = (w[0] - w[1]);
+    w[1] = gains[0];
+    w[4] = x[2];
+    w[5] = flags[2];
+    w[5] = (w[4] - w[5]);
+    w[1] = (w[1] * w[5]);
+    w[0] = (w[0] - w[1]);
+    w[1] = params[4];
+    w[5] = (1. / w[1]);
+    w[6] = params[0];
+    w[5] = (w[5] / w[6]);
+    w[7] = params[2];
+    w[8] = casadi_sq(w[7]);
+    w[8] = (w[3] * w[8]);
+    w[9] = params[1];
+    w[10] = (w[1] * w[9]);
+    w[10] = (w[10] * w[4]);
+    w[8] = (w[8] + w[10]);
+    w[10] = params[3];
+    w[11] = (w[6] * w[10]);
+    w[11] = (w[11] * w[4]);
+    w[8] = (w[8] + w[11]);
+    w[10] = (w[9] * w[10]);
+    w[10] = (w[10] * w[3]);
+    w[8] = (w[8] + w[10]);
+    w[10] = params[6];
+    w[9] = (w[9] * w[10]);
+    w[11] = params[7];
+    w[9] = (w[9] * w[11]);
+    w[4] = params[5];
+    w[9] = (w[9] * w[4]);
+    w[12] = sin(w[2]);
+    w[9] = (w[9] * w[12]);
+    w[8] = (w[8] + w[9]);
+    w[10] = (w[6] * w[10]);
+    w[10] = (w[10] * w[11]);
+    w[10] = (w[10] * w[4]);
+    w[10] = (w[10] * w[3]);
+    w[2] = cos(w[2]);
+    w[10] = (w[10] * w[2]);
+    w[8] = (w[8] + w[10]);
+    w[5] = (w[5] * w[8]);
+    w[5] = (w[0] + w[5]);
+    w[7] = (w[7] / w[1]);
+    w[7] = (w[7] / w[6]);
+    w[5] = (w[5] / w[7]);
+    u[0] = w[5];
+    v[0] = w[0];
+    det[0] = w[7];
+    return 0;
+    return 0;
 }
 

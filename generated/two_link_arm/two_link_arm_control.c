@@ -29,8 +29,6 @@ int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS]
 {
     real ul[NY], vl[NY], det[1];
     real w[TWO_LINK_ARM_KERN_CONTROL_SZ_W];
-    const real* arg[TWO_LINK_ARM_KERN_CONTROL_SZ_ARG];
-    real* res[TWO_LINK_ARM_KERN_CONTROL_SZ_RES];
     if (!x || !flags || !gains || !params || !u) {
         return TWO_LINK_ARM_ERR_ARG;
     }
@@ -38,14 +36,7 @@ int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS]
         !two_link_arm_finite(params, TWO_LINK_ARM_NP)) {
         return TWO_LINK_ARM_ERR_NONFINITE;
     }
-    arg[0] = x;
-    arg[1] = flags;
-    arg[2] = gains;
-    arg[3] = params;
-    res[0] = ul;
-    res[1] = vl;
-    res[2] = det;
-    (void)two_link_arm_kern_control(arg, res, w);
+    (void)two_link_arm_kern_control(x, flags, gains, params, ul, vl, det, w);
     if (!(det[0] > 0 || det[0] < 0) || !two_link_arm_finite(det, 1)) {
         return TWO_LINK_ARM_ERR_SINGULAR;
     }
