@@ -25,7 +25,7 @@ import sympy as sp
 
 from dfeif_codegen import __version__
 from dfeif_codegen.symbolic import flatness, model
-from dfeif_codegen.codegen import kernels, render
+from dfeif_codegen.codegen import kernels, layout, render
 from dfeif_codegen.constants import CI_ITERATIONS
 from dfeif_codegen.codegen.options import BuildError, Options
 
@@ -88,12 +88,12 @@ def context(flat, opts: Options) -> dict:
     real_c = "float" if opts.precision == "float" else "double"
     kernel_code, kernel_list = {}, []
     for group, functions in ks.groups.items():
-        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision)
-        kernel_code[group] = (code, f"{GROUP_DOCS[group]}: "
+        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}")
+        kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w,
                          "signature": kernels._wrap_comment(_comment(k.signature)),
-                         "prototype": kernels.declaration(f"int {k.name}", k.parameters(f"{p}_real"), ";")}
+                         "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real"), ");")}
                         for k in infos]
     names = render.file_names(p, list(ks.groups))
     return {
@@ -107,6 +107,7 @@ def context(flat, opts: Options) -> dict:
         "model_hash": model_hash(m), "versions": versions(), "cmake_version": cmake_version(__version__),
         "dependencies": {k: v for k, v in versions().items() if k != "dfeif-codegen"},
         "kernel_code": kernel_code, "kernel_list": kernel_list,
+        "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
     }
 

@@ -25,6 +25,7 @@ import sympy as sp
 
 from dfeif_codegen.symbolic import discretize
 from dfeif_codegen.errors import ModelError
+from dfeif_codegen.codegen import layout
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.constants import CI_ITERATIONS, CI_REGULARISER
 
@@ -516,33 +517,16 @@ def spaced(statement: str) -> str:
     return out.strip()
 
 
-def _function(head: str, params: list[str], body: list[str], limit: int = 100) -> str:
-    """A C function definition: the parameters on the head's line if they fit in `limit` columns,
-    else packed greedily onto lines aligned after the open parenthesis (as clang-format packs)."""
-    return "\n".join(declaration(head, params, limit=limit).splitlines()) + "\n{\n" \
-        + "".join(INDENT + line + "\n" for line in body) + "}\n"
+def _function(head: str, params: list[str], body: list[str]) -> str:
+    """A C function definition laid out as the style file asks (see codegen/layout.py)."""
+    return layout.pack(head + "(", params, ")") + "\n{\n" + "".join(INDENT + line + "\n" for line in body) + "}\n"
 
 
-def declaration(head: str, params: list[str], end: str = "", limit: int = 100) -> str:
-    """`head(p1, p2, ...)end`, wrapped to `limit` columns with continuation lines aligned after `(`."""
-    one = f"{head}({', '.join(params)}){end}"
-    if len(one) <= limit:
-        return one
-    pad = " " * (len(head) + 1)
-    lines, line = [], f"{head}("
-    for i, par in enumerate(params):
-        piece = par + (", " if i < len(params) - 1 else f"){end}")
-        if line.strip() and not line.endswith("(") and len(line + piece.rstrip()) > limit:
-            lines.append(line.rstrip())
-            line = pad
-        line += piece
-    lines.append(line)
-    return "\n".join(lines)
-
-
-def c_source(functions: list[ca.Function], real: str, precision: str) -> tuple[str, list[KernelC]]:
+def c_source(functions: list[ca.Function], real: str, precision: str,
+             helpers: str = "casadi") -> tuple[str, list[KernelC]]:
     """C for a group of kernels: helpers `static`, one typed entry point per kernel
-    `int name(const real in1[k1], ..., real out1[j1], ..., real w[SZ_W])`, spaced like clang-format.
+    `int name(const real in1[k1], ..., real out1[j1], ..., real w[SZ_W])`, spaced like clang-format;
+    CasADi's helpers (`casadi_sq`, ...) renamed `<helpers>_sq`.
 
     Why typed: callers name each argument and the compiler checks its type, instead of filling
     `arg[]`/`res[]` by position; and no array of pointers is left to get wrong."""
@@ -598,6 +582,8 @@ def c_source(functions: list[ca.Function], real: str, precision: str) -> tuple[s
                    + _function(f"int {name}", info.parameters(real), lines))
         infos.append(info)
     code = "\n".join(out)
+    for mt in _HELPER.finditer(text):   # static helpers named per file (unique across the library)
+        code = re.sub(rf"\b{mt.group(1)}\b", helpers + mt.group(1)[len("casadi"):], code)
     code = re.sub(r"\bcasadi_real\b", real, code)
     code = re.sub(r"\bcasadi_int\b", "int", code)
     if precision == "float":
