@@ -485,9 +485,10 @@ class KernelC:
     outputs: list[tuple[str, int]]
 
     def parameters(self, real: str) -> list[str]:
-        """The C parameter list: inputs const, outputs writable, every array sized, then the work."""
+        """The C parameter list: inputs const, outputs writable, every array sized, then the work
+        (its size is also <NAME>_SZ_W in the kernels header, for the callers)."""
         return ([f"const {real} {n}[{k}]" for n, k in self.inputs] + [f"{real} {n}[{k}]" for n, k in self.outputs]
-                + [f"{real} w[{self.name.upper()}_SZ_W]"])
+                + [f"{real} w[{self.sz_w}]"])
 
 
 def _float_text(text: str) -> str:

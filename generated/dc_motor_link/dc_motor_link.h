@@ -31,18 +31,33 @@ extern "C" {
 #endif
 
 /* ---- dimensions and build options ---------------------------------------------------------- */
-#define DC_MOTOR_LINK_NX 3 /**< canonical state dimension n */
-#define DC_MOTOR_LINK_NY 1 /**< measured flat outputs (= inputs) m */
-#define DC_MOTOR_LINK_NU 1 /**< physical inputs */
+/** canonical state dimension n */
+#define DC_MOTOR_LINK_NX 3
+/** entries of an NX x NX matrix */
+#define DC_MOTOR_LINK_NXX (DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
+/** measured flat outputs (= inputs) m */
+#define DC_MOTOR_LINK_NY 1
+/** entries of an NY x NY matrix */
+#define DC_MOTOR_LINK_NYY (DC_MOTOR_LINK_NY * DC_MOTOR_LINK_NY)
+/** physical inputs */
+#define DC_MOTOR_LINK_NU 1
 /** model parameters (a runtime vector; nominal values in dc_motor_link_params_default) */
 #define DC_MOTOR_LINK_NP 8
-#define DC_MOTOR_LINK_NFLAGS 4 /**< reference flags: per chain y_d, y_d', ..., y_d^(r) */
-#define DC_MOTOR_LINK_NMAX 32 /**< late-measurement window: lags 1..NMAX steps */
-#define DC_MOTOR_LINK_NNODES 2 /**< camera nodes fused by the master */
-#define DC_MOTOR_LINK_TS 0.01 /**< sampling period [s] */
-#define DC_MOTOR_LINK_CI_ITERATIONS 12 /**< Newton steps of covariance intersection */
+/** reference flags: per chain y_d, y_d', ..., y_d^(r) */
+#define DC_MOTOR_LINK_NFLAGS 4
+/** late-measurement window: lags 1..NMAX steps */
+#define DC_MOTOR_LINK_NMAX 32
+/** slots of a node's ring: steps k-NMAX..k */
+#define DC_MOTOR_LINK_NRING (DC_MOTOR_LINK_NMAX + 1)
+/** camera nodes fused by the master */
+#define DC_MOTOR_LINK_NNODES 2
+/** sampling period [s] */
+#define DC_MOTOR_LINK_TS 0.01
+/** Newton steps of covariance intersection */
+#define DC_MOTOR_LINK_CI_ITERATIONS 12
 #define DC_MOTOR_LINK_PRECISION_FLOAT 0
-#define DC_MOTOR_LINK_OOSM_RETRODICT 0 /**< 0: replay (exact), 1: retrodiction */
+/** 0: replay (exact), 1: retrodiction */
+#define DC_MOTOR_LINK_OOSM_RETRODICT 0
 #define DC_MOTOR_LINK_FUSION_PAPER 0
 #define DC_MOTOR_LINK_FUSION_DIFFERENCE 1
 #define DC_MOTOR_LINK_FUSION_CI 0
@@ -79,22 +94,29 @@ typedef double dc_motor_link_real;
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define DC_MOTOR_LINK_OK 0
-#define DC_MOTOR_LINK_ERR_ARG (-1) /**< NULL pointer, gamma not 0/1, q < 0, R not symmetric */
+/** NULL pointer, gamma not 0/1, q < 0, R not symmetric */
+#define DC_MOTOR_LINK_ERR_ARG (-1)
 /** late measurement outside the window (lag < 1, > NMAX, > k) */
 #define DC_MOTOR_LINK_ERR_LAG (-2)
-#define DC_MOTOR_LINK_ERR_NONFINITE (-3) /**< NaN or infinity in an input or a result */
+/** NaN or infinity in an input or a result */
+#define DC_MOTOR_LINK_ERR_NONFINITE (-3)
 /** a matrix that must be positive definite (or invertible) is not */
 #define DC_MOTOR_LINK_ERR_SINGULAR (-4)
-#define DC_MOTOR_LINK_ERR_DUPLICATE (-5) /**< that step already has a measurement */
+/** that step already has a measurement */
+#define DC_MOTOR_LINK_ERR_DUPLICATE (-5)
 /** protocol order: update twice in a step, predict or late before update */
 #define DC_MOTOR_LINK_ERR_SEQUENCE (-6)
 
 /** Node health counters. */
 typedef struct {
-    uint32_t updates; /**< steps with an on-time measurement (gamma = 1) */
-    uint32_t drops; /**< steps without one (gamma = 0) */
-    uint32_t late_applied; /**< late measurements folded in */
-    uint32_t late_rejected; /**< late measurements refused: lag out of window or duplicate */
+    /** steps with an on-time measurement (gamma = 1) */
+    uint32_t updates;
+    /** steps without one (gamma = 0) */
+    uint32_t drops;
+    /** late measurements folded in */
+    uint32_t late_applied;
+    /** late measurements refused: lag out of window or duplicate */
+    uint32_t late_rejected;
 } dc_motor_link_health;
 
 /**
@@ -106,22 +128,29 @@ typedef struct {
  * that of the distance travelled; the functions below add it back.
  */
 typedef struct {
-    dc_motor_link_real centre[DC_MOTOR_LINK_NY]; /**< flat outputs' origin for the fields below */
-    dc_motor_link_real x[DC_MOTOR_LINK_NX]; /**< estimate at step k (posterior once updated) */
-    dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
-    dc_motor_link_real x_pred[DC_MOTOR_LINK_NX]; /**< prediction into step k, before any update */
-    dc_motor_link_real P_pred[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
-    dc_motor_link_real R[DC_MOTOR_LINK_NY * DC_MOTOR_LINK_NY]; /**< measurement covariance */
-    dc_motor_link_real q[DC_MOTOR_LINK_NY]; /**< process-noise density per chain */
-    dc_motor_link_real ring_x[(DC_MOTOR_LINK_NMAX + 1) * DC_MOTOR_LINK_NX];
-    dc_motor_link_real ring_P[(DC_MOTOR_LINK_NMAX + 1) * DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
-    dc_motor_link_real ring_z[(DC_MOTOR_LINK_NMAX + 1) * DC_MOTOR_LINK_NY];
-    dc_motor_link_real ring_v[(DC_MOTOR_LINK_NMAX + 1) * DC_MOTOR_LINK_NY];
-    uint32_t k; /**< current step */
+    /** flat outputs' origin for the fields below */
+    dc_motor_link_real centre[DC_MOTOR_LINK_NY];
+    /** estimate at step k (posterior once updated) */
+    dc_motor_link_real x[DC_MOTOR_LINK_NX];
+    dc_motor_link_real P[DC_MOTOR_LINK_NXX];
+    /** prediction into step k, before any update */
+    dc_motor_link_real x_pred[DC_MOTOR_LINK_NX];
+    dc_motor_link_real P_pred[DC_MOTOR_LINK_NXX];
+    /** measurement covariance */
+    dc_motor_link_real R[DC_MOTOR_LINK_NYY];
+    /** process-noise density per chain */
+    dc_motor_link_real q[DC_MOTOR_LINK_NY];
+    dc_motor_link_real ring_x[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NX];
+    dc_motor_link_real ring_P[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NXX];
+    dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NY];
+    dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NY];
+    /** current step */
+    uint32_t k;
     dc_motor_link_health health;
-    uint8_t updated; /**< update() done for step k */
+    /** update() done for step k */
+    uint8_t updated;
     /** bit 0: has a measurement, bit 1: used by the filter */
-    uint8_t ring_flags[DC_MOTOR_LINK_NMAX + 1];
+    uint8_t ring_flags[DC_MOTOR_LINK_NRING];
 } dc_motor_link_node;
 
 /** What a node sends to the master after the updates of its step: its estimate and its
@@ -130,27 +159,34 @@ typedef struct {
     uint32_t step;
     dc_motor_link_real centre[DC_MOTOR_LINK_NY];
     dc_motor_link_real x[DC_MOTOR_LINK_NX];
-    dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
+    dc_motor_link_real P[DC_MOTOR_LINK_NXX];
     dc_motor_link_real x_pred[DC_MOTOR_LINK_NX];
-    dc_motor_link_real P_pred[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
+    dc_motor_link_real P_pred[DC_MOTOR_LINK_NXX];
 } dc_motor_link_packet;
 
 /** Master health counters. */
 typedef struct {
-    uint32_t fusions; /**< successful fuse() calls */
-    uint32_t packets_used; /**< packets fused */
-    uint32_t packets_stale; /**< of those, packets predicted forward from an older step */
-    uint32_t packets_ignored; /**< present packets older than NMAX steps or from the future */
+    /** successful fuse() calls */
+    uint32_t fusions;
+    /** packets fused */
+    uint32_t packets_used;
+    /** of those, packets predicted forward from an older step */
+    uint32_t packets_stale;
+    /** present packets older than NMAX steps or from the future */
+    uint32_t packets_ignored;
 } dc_motor_link_master_health;
 
 /** The master: fuses the nodes' estimates (difference rule) and predicts. Its estimate and
  * prediction are stored relative to `centre`, as in the node. */
 typedef struct {
-    dc_motor_link_real centre[DC_MOTOR_LINK_NY]; /**< flat outputs' origin for x and x_prior */
-    dc_motor_link_real x[DC_MOTOR_LINK_NX]; /**< fused estimate at step k */
-    dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
-    dc_motor_link_real x_prior[DC_MOTOR_LINK_NX]; /**< the master's own prediction into step k */
-    dc_motor_link_real P_prior[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX];
+    /** flat outputs' origin for x and x_prior */
+    dc_motor_link_real centre[DC_MOTOR_LINK_NY];
+    /** fused estimate at step k */
+    dc_motor_link_real x[DC_MOTOR_LINK_NX];
+    dc_motor_link_real P[DC_MOTOR_LINK_NXX];
+    /** the master's own prediction into step k */
+    dc_motor_link_real x_prior[DC_MOTOR_LINK_NX];
+    dc_motor_link_real P_prior[DC_MOTOR_LINK_NXX];
     dc_motor_link_real q[DC_MOTOR_LINK_NY];
     /** inputs of steps k-NMAX..k-1, step j in slot j % NMAX */
     dc_motor_link_real v[DC_MOTOR_LINK_NMAX * DC_MOTOR_LINK_NY];
@@ -169,8 +205,8 @@ size_t dc_motor_link_packet_size(void);
 /* ---- node ------------------------------------------------------------------------------- */
 /** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
 int dc_motor_link_node_init(dc_motor_link_node* node, const dc_motor_link_real x0[DC_MOTOR_LINK_NX],
-                            const dc_motor_link_real P0[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX],
-                            const dc_motor_link_real R[DC_MOTOR_LINK_NY * DC_MOTOR_LINK_NY],
+                            const dc_motor_link_real P0[DC_MOTOR_LINK_NXX],
+                            const dc_motor_link_real R[DC_MOTOR_LINK_NYY],
                             const dc_motor_link_real q[DC_MOTOR_LINK_NY]);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int dc_motor_link_node_update(dc_motor_link_node* node,
@@ -184,10 +220,10 @@ int dc_motor_link_node_predict(dc_motor_link_node* node,
 /** Current estimate; either output may be NULL. */
 int dc_motor_link_node_estimate(const dc_motor_link_node* node,
                                 dc_motor_link_real x[DC_MOTOR_LINK_NX],
-                                dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX]);
+                                dc_motor_link_real P[DC_MOTOR_LINK_NXX]);
 /** Information form Y = P^-1, y = Y x (Cholesky); either output may be NULL. */
 int dc_motor_link_node_information(const dc_motor_link_node* node,
-                                   dc_motor_link_real Y[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX],
+                                   dc_motor_link_real Y[DC_MOTOR_LINK_NXX],
                                    dc_motor_link_real y[DC_MOTOR_LINK_NX]);
 /** The packet for the master: step, x, P, x_pred, P_pred. */
 int dc_motor_link_node_packet(const dc_motor_link_node* node, dc_motor_link_packet* packet);
@@ -197,7 +233,7 @@ int dc_motor_link_node_health(const dc_motor_link_node* node, dc_motor_link_heal
 /** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
 int dc_motor_link_master_init(dc_motor_link_master* master,
                               const dc_motor_link_real x0[DC_MOTOR_LINK_NX],
-                              const dc_motor_link_real P0[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX],
+                              const dc_motor_link_real P0[DC_MOTOR_LINK_NXX],
                               const dc_motor_link_real q[DC_MOTOR_LINK_NY]);
 /**
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
@@ -213,7 +249,7 @@ int dc_motor_link_master_predict(dc_motor_link_master* master,
 /** Fused estimate; either output may be NULL. */
 int dc_motor_link_master_estimate(const dc_motor_link_master* master,
                                   dc_motor_link_real x[DC_MOTOR_LINK_NX],
-                                  dc_motor_link_real P[DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX]);
+                                  dc_motor_link_real P[DC_MOTOR_LINK_NXX]);
 
 /* ---- control ---------------------------------------------------------------------------- */
 /**

@@ -1,9 +1,11 @@
 # DO NOT EDIT: dc_motor_link module, generated from template model.mk.j2 by dfeif-codegen 0.1.0;
 # regenerate with `codegen build dc_motor_link`.
 #
-# Makefile fragment for the dc_motor_link library: `include path/to/dc_motor_link.mk`, then add
-# $(DC_MOTOR_LINK_SRCS) to your sources and $(DC_MOTOR_LINK_CFLAGS) to CFLAGS. Set DC_MOTOR_LINK_DIR (sources) or
-# DC_MOTOR_LINK_INC (header folder) before including to override where they are found.
+# Makefile fragment for the dc_motor_link library:
+#     include path/to/dc_motor_link.mk
+# then add $(DC_MOTOR_LINK_SRCS) to your sources and $(DC_MOTOR_LINK_CFLAGS) to CFLAGS.
+# Set DC_MOTOR_LINK_DIR (sources) or DC_MOTOR_LINK_INC (header folder) before including
+# to override where they are found.
 ifndef DC_MOTOR_LINK_DIR
 DC_MOTOR_LINK_DIR := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
 endif

@@ -1,7 +1,8 @@
 /* DO NOT EDIT: dc_motor_link module, generated from template internal.h.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* Internal to the dc_motor_link library, not part of its API: the kernels
- * (dc_motor_link_kernels.h) and small checks shared by the node, the master and the controller. */
+ * (dc_motor_link_kernels.h) and small checks shared by the node, the master and the
+ * controller. */
 #ifndef DC_MOTOR_LINK_INTERNAL_H
 #define DC_MOTOR_LINK_INTERNAL_H
 
@@ -21,29 +22,28 @@ typedef char dc_motor_link_check_real[(sizeof(dc_motor_link_real) == 8) ? 1 : -1
 /* Centring (see the node struct in dc_motor_link.h): flat outputs are stored relative to a
  * centre that moves in exact steps of 1/8, so that single precision resolves them to their own
  * size. */
-#define DC_MOTOR_LINK_CENTRE_STEP ((dc_motor_link_real)0.125)
+#define DC_MOTOR_LINK_CENTRE_STEP ((real)0.125)
 /* zeta index of each flat output */
 static const uint8_t dc_motor_link_heads[DC_MOTOR_LINK_NY] = {0};
 
 /* The whole steps of 1/8 nearest to a stored flat output (0 when it is within 1/16, or so large
  * that centring no longer matters and (long) could overflow). Subtracting it is exact. */
-static inline dc_motor_link_real dc_motor_link_centre_shift(dc_motor_link_real value)
+static inline real dc_motor_link_centre_shift(real value)
 {
-    dc_motor_link_real d = value / DC_MOTOR_LINK_CENTRE_STEP;
-    dc_motor_link_real half;
-    dc_motor_link_real whole;
-    if (!(d < (dc_motor_link_real)1048576 && d > (dc_motor_link_real)-1048576)) {
+    real d = value / DC_MOTOR_LINK_CENTRE_STEP;
+    real half;
+    real whole;
+    if (!(d < (real)1048576 && d > (real)-1048576)) {
         return 0;
     }
-    half = (d < (dc_motor_link_real)0) ? (dc_motor_link_real)-0.5 : (dc_motor_link_real)0.5;
+    half = (d < (real)0) ? (real)-0.5 : (real)0.5;
     whole = d + half;
-    return DC_MOTOR_LINK_CENTRE_STEP * (dc_motor_link_real)(long)whole;
+    return DC_MOTOR_LINK_CENTRE_STEP * (real)(long)whole;
 }
 
 /* x stored relative to centre `from`, rewritten relative to centre `to` (NULL: absolute). */
-static inline void dc_motor_link_move_origin(const dc_motor_link_real* x,
-                                             const dc_motor_link_real* from,
-                                             const dc_motor_link_real* to, dc_motor_link_real* out)
+static inline void dc_motor_link_move_origin(const real* x, const real* from, const real* to,
+                                             real* out)
 {
     int i;
     for (i = 0; i < DC_MOTOR_LINK_NX; i++) {
@@ -55,11 +55,11 @@ static inline void dc_motor_link_move_origin(const dc_motor_link_real* x,
 }
 
 /* 1 if all n values are finite (x - x is 0 for finite x, NaN otherwise; no math.h macros). */
-static inline int dc_motor_link_finite(const dc_motor_link_real* a, size_t n)
+static inline int dc_motor_link_finite(const real* a, size_t n)
 {
     size_t i;
     for (i = 0; i < n; i++) {
-        dc_motor_link_real d = a[i] - a[i];
+        real d = a[i] - a[i];
         if (!(d == d)) {
             return 0;
         }
@@ -68,11 +68,11 @@ static inline int dc_motor_link_finite(const dc_motor_link_real* a, size_t n)
 }
 
 /* 1 if all n pivots are strictly positive (and not NaN). */
-static inline int dc_motor_link_positive(const dc_motor_link_real* piv, size_t n)
+static inline int dc_motor_link_positive(const real* piv, size_t n)
 {
     size_t i;
     for (i = 0; i < n; i++) {
-        if (!(piv[i] > (dc_motor_link_real)0)) {
+        if (!(piv[i] > (real)0)) {
             return 0;
         }
     }
@@ -80,10 +80,10 @@ static inline int dc_motor_link_positive(const dc_motor_link_real* piv, size_t n
 }
 
 /* 1 if the n x n matrix is symmetric and positive definite (LDL' pivots, no square roots). */
-static inline int dc_motor_link_spd(const dc_motor_link_real* A, int n)
+static inline int dc_motor_link_spd(const real* A, int n)
 {
-    dc_motor_link_real L[DC_MOTOR_LINK_NY * DC_MOTOR_LINK_NY];
-    dc_motor_link_real d[DC_MOTOR_LINK_NY];
+    real L[DC_MOTOR_LINK_NY * DC_MOTOR_LINK_NY];
+    real d[DC_MOTOR_LINK_NY];
     int i, j, k;
     if (n > DC_MOTOR_LINK_NY) {
         return 0;
@@ -98,11 +98,11 @@ static inline int dc_motor_link_spd(const dc_motor_link_real* A, int n)
         for (k = 0; k < j; k++) {
             d[j] -= L[j * n + k] * L[j * n + k] * d[k];
         }
-        if (!(d[j] > (dc_motor_link_real)0)) {
+        if (!(d[j] > (real)0)) {
             return 0;
         }
         for (i = j + 1; i < n; i++) {
-            dc_motor_link_real s = A[i * n + j];
+            real s = A[i * n + j];
             for (k = 0; k < j; k++) {
                 s -= L[i * n + k] * L[j * n + k] * d[k];
             }

@@ -17,7 +17,7 @@ int dc_motor_link_kern_control(const dc_motor_link_real x[3], const dc_motor_lin
                                const dc_motor_link_real gains[3],
                                const dc_motor_link_real params[8], dc_motor_link_real u[1],
                                dc_motor_link_real v[1], dc_motor_link_real det[1],
-                               dc_motor_link_real w[DC_MOTOR_LINK_KERN_CONTROL_SZ_W])
+                               dc_motor_link_real w[13])
 {
     w[0] = flags[3];
     w[1] = gains[2];

@@ -15,7 +15,7 @@ static dc_motor_link_real dc_motor_link_filter_sq(dc_motor_link_real x)
 int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
                                const dc_motor_link_real v[1], const dc_motor_link_real q[1],
                                dc_motor_link_real x1[3], dc_motor_link_real P1[9],
-                               dc_motor_link_real w[DC_MOTOR_LINK_KERN_PREDICT_SZ_W])
+                               dc_motor_link_real w[14])
 {
     w[0] = x[0];
     w[1] = 1.0000000000000000e-02;
@@ -124,7 +124,7 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
                               const dc_motor_link_real z[1], const dc_motor_link_real gamma[1],
                               const dc_motor_link_real R[1], dc_motor_link_real x[3],
                               dc_motor_link_real P[9], dc_motor_link_real piv[1],
-                              dc_motor_link_real w[DC_MOTOR_LINK_KERN_UPDATE_SZ_W])
+                              dc_motor_link_real w[14])
 {
     w[0] = xm[0];
     w[1] = gamma[0];
@@ -236,7 +236,7 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
 int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
                             const dc_motor_link_real c[3], dc_motor_link_real Y[9],
                             dc_motor_link_real y[3], dc_motor_link_real piv[3],
-                            dc_motor_link_real w[DC_MOTOR_LINK_KERN_INFO_SZ_W])
+                            dc_motor_link_real w[15])
 {
     w[0] = P[0];
     w[1] = sqrt(w[0]);

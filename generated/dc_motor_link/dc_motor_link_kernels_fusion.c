@@ -15,7 +15,7 @@ static dc_motor_link_real dc_motor_link_fusion_sq(dc_motor_link_real x)
 int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Y[9], const dc_motor_link_real y[3],
                                    const dc_motor_link_real c[3], dc_motor_link_real x[3],
                                    dc_motor_link_real P[9], dc_motor_link_real piv[3],
-                                   dc_motor_link_real w[DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W])
+                                   dc_motor_link_real w[18])
 {
     w[0] = c[0];
     w[1] = Y[0];

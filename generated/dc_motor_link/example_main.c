@@ -77,7 +77,9 @@ int main(void)
     static dc_motor_link_master master;
     uint8_t present[DC_MOTOR_LINK_NNODES];
     real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[NY], lambda[NY], gains[NX];
-    real flags[DC_MOTOR_LINK_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY], late[LATE + 1][NY];
+    real flags[DC_MOTOR_LINK_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
+    real late[LATE + 1][NY];
+    const real* params = dc_motor_link_params_default;
     real sq_err = 0, trace;
     int i, j, k, rc = 0;
 
@@ -128,7 +130,7 @@ int main(void)
         rc |= dc_motor_link_master_fuse(&master, packets, present);
         rc |= dc_motor_link_master_estimate(&master, x, P);
         reference((real)k * DC_MOTOR_LINK_TS, flags);
-        rc |= dc_motor_link_control(x, flags, gains, dc_motor_link_params_default, u, v);
+        rc |= dc_motor_link_control(x, flags, gains, params, u, v);
         if (rc != DC_MOTOR_LINK_OK) {
             printf("error at step %d\n", k);
             return 1;

@@ -77,7 +77,9 @@ int main(void)
     static two_link_arm_master master;
     uint8_t present[TWO_LINK_ARM_NNODES];
     real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[NY], lambda[NY], gains[NX];
-    real flags[TWO_LINK_ARM_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY], late[LATE + 1][NY];
+    real flags[TWO_LINK_ARM_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
+    real late[LATE + 1][NY];
+    const real* params = two_link_arm_params_default;
     real sq_err = 0, trace;
     int i, j, k, rc = 0;
 
@@ -128,7 +130,7 @@ int main(void)
         rc |= two_link_arm_master_fuse(&master, packets, present);
         rc |= two_link_arm_master_estimate(&master, x, P);
         reference((real)k * TWO_LINK_ARM_TS, flags);
-        rc |= two_link_arm_control(x, flags, gains, two_link_arm_params_default, u, v);
+        rc |= two_link_arm_control(x, flags, gains, params, u, v);
         if (rc != TWO_LINK_ARM_OK) {
             printf("error at step %d\n", k);
             return 1;

@@ -31,18 +31,33 @@ extern "C" {
 #endif
 
 /* ---- dimensions and build options ---------------------------------------------------------- */
-#define TWO_LINK_ARM_NX 6 /**< canonical state dimension n */
-#define TWO_LINK_ARM_NY 2 /**< measured flat outputs (= inputs) m */
-#define TWO_LINK_ARM_NU 2 /**< physical inputs */
+/** canonical state dimension n */
+#define TWO_LINK_ARM_NX 6
+/** entries of an NX x NX matrix */
+#define TWO_LINK_ARM_NXX (TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
+/** measured flat outputs (= inputs) m */
+#define TWO_LINK_ARM_NY 2
+/** entries of an NY x NY matrix */
+#define TWO_LINK_ARM_NYY (TWO_LINK_ARM_NY * TWO_LINK_ARM_NY)
+/** physical inputs */
+#define TWO_LINK_ARM_NU 2
 /** model parameters (a runtime vector; nominal values in two_link_arm_params_default) */
 #define TWO_LINK_ARM_NP 11
-#define TWO_LINK_ARM_NFLAGS 8 /**< reference flags: per chain y_d, y_d', ..., y_d^(r) */
-#define TWO_LINK_ARM_NMAX 32 /**< late-measurement window: lags 1..NMAX steps */
-#define TWO_LINK_ARM_NNODES 2 /**< camera nodes fused by the master */
-#define TWO_LINK_ARM_TS 0.01 /**< sampling period [s] */
-#define TWO_LINK_ARM_CI_ITERATIONS 12 /**< Newton steps of covariance intersection */
+/** reference flags: per chain y_d, y_d', ..., y_d^(r) */
+#define TWO_LINK_ARM_NFLAGS 8
+/** late-measurement window: lags 1..NMAX steps */
+#define TWO_LINK_ARM_NMAX 32
+/** slots of a node's ring: steps k-NMAX..k */
+#define TWO_LINK_ARM_NRING (TWO_LINK_ARM_NMAX + 1)
+/** camera nodes fused by the master */
+#define TWO_LINK_ARM_NNODES 2
+/** sampling period [s] */
+#define TWO_LINK_ARM_TS 0.01
+/** Newton steps of covariance intersection */
+#define TWO_LINK_ARM_CI_ITERATIONS 12
 #define TWO_LINK_ARM_PRECISION_FLOAT 0
-#define TWO_LINK_ARM_OOSM_RETRODICT 0 /**< 0: replay (exact), 1: retrodiction */
+/** 0: replay (exact), 1: retrodiction */
+#define TWO_LINK_ARM_OOSM_RETRODICT 0
 #define TWO_LINK_ARM_FUSION_PAPER 0
 #define TWO_LINK_ARM_FUSION_DIFFERENCE 1
 #define TWO_LINK_ARM_FUSION_CI 0
@@ -85,22 +100,29 @@ typedef double two_link_arm_real;
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define TWO_LINK_ARM_OK 0
-#define TWO_LINK_ARM_ERR_ARG (-1) /**< NULL pointer, gamma not 0/1, q < 0, R not symmetric */
+/** NULL pointer, gamma not 0/1, q < 0, R not symmetric */
+#define TWO_LINK_ARM_ERR_ARG (-1)
 /** late measurement outside the window (lag < 1, > NMAX, > k) */
 #define TWO_LINK_ARM_ERR_LAG (-2)
-#define TWO_LINK_ARM_ERR_NONFINITE (-3) /**< NaN or infinity in an input or a result */
+/** NaN or infinity in an input or a result */
+#define TWO_LINK_ARM_ERR_NONFINITE (-3)
 /** a matrix that must be positive definite (or invertible) is not */
 #define TWO_LINK_ARM_ERR_SINGULAR (-4)
-#define TWO_LINK_ARM_ERR_DUPLICATE (-5) /**< that step already has a measurement */
+/** that step already has a measurement */
+#define TWO_LINK_ARM_ERR_DUPLICATE (-5)
 /** protocol order: update twice in a step, predict or late before update */
 #define TWO_LINK_ARM_ERR_SEQUENCE (-6)
 
 /** Node health counters. */
 typedef struct {
-    uint32_t updates; /**< steps with an on-time measurement (gamma = 1) */
-    uint32_t drops; /**< steps without one (gamma = 0) */
-    uint32_t late_applied; /**< late measurements folded in */
-    uint32_t late_rejected; /**< late measurements refused: lag out of window or duplicate */
+    /** steps with an on-time measurement (gamma = 1) */
+    uint32_t updates;
+    /** steps without one (gamma = 0) */
+    uint32_t drops;
+    /** late measurements folded in */
+    uint32_t late_applied;
+    /** late measurements refused: lag out of window or duplicate */
+    uint32_t late_rejected;
 } two_link_arm_health;
 
 /**
@@ -112,22 +134,29 @@ typedef struct {
  * that of the distance travelled; the functions below add it back.
  */
 typedef struct {
-    two_link_arm_real centre[TWO_LINK_ARM_NY]; /**< flat outputs' origin for the fields below */
-    two_link_arm_real x[TWO_LINK_ARM_NX]; /**< estimate at step k (posterior once updated) */
-    two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
-    two_link_arm_real x_pred[TWO_LINK_ARM_NX]; /**< prediction into step k, before any update */
-    two_link_arm_real P_pred[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
-    two_link_arm_real R[TWO_LINK_ARM_NY * TWO_LINK_ARM_NY]; /**< measurement covariance */
-    two_link_arm_real q[TWO_LINK_ARM_NY]; /**< process-noise density per chain */
-    two_link_arm_real ring_x[(TWO_LINK_ARM_NMAX + 1) * TWO_LINK_ARM_NX];
-    two_link_arm_real ring_P[(TWO_LINK_ARM_NMAX + 1) * TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
-    two_link_arm_real ring_z[(TWO_LINK_ARM_NMAX + 1) * TWO_LINK_ARM_NY];
-    two_link_arm_real ring_v[(TWO_LINK_ARM_NMAX + 1) * TWO_LINK_ARM_NY];
-    uint32_t k; /**< current step */
+    /** flat outputs' origin for the fields below */
+    two_link_arm_real centre[TWO_LINK_ARM_NY];
+    /** estimate at step k (posterior once updated) */
+    two_link_arm_real x[TWO_LINK_ARM_NX];
+    two_link_arm_real P[TWO_LINK_ARM_NXX];
+    /** prediction into step k, before any update */
+    two_link_arm_real x_pred[TWO_LINK_ARM_NX];
+    two_link_arm_real P_pred[TWO_LINK_ARM_NXX];
+    /** measurement covariance */
+    two_link_arm_real R[TWO_LINK_ARM_NYY];
+    /** process-noise density per chain */
+    two_link_arm_real q[TWO_LINK_ARM_NY];
+    two_link_arm_real ring_x[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NX];
+    two_link_arm_real ring_P[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NXX];
+    two_link_arm_real ring_z[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NY];
+    two_link_arm_real ring_v[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NY];
+    /** current step */
+    uint32_t k;
     two_link_arm_health health;
-    uint8_t updated; /**< update() done for step k */
+    /** update() done for step k */
+    uint8_t updated;
     /** bit 0: has a measurement, bit 1: used by the filter */
-    uint8_t ring_flags[TWO_LINK_ARM_NMAX + 1];
+    uint8_t ring_flags[TWO_LINK_ARM_NRING];
 } two_link_arm_node;
 
 /** What a node sends to the master after the updates of its step: its estimate and its
@@ -136,27 +165,34 @@ typedef struct {
     uint32_t step;
     two_link_arm_real centre[TWO_LINK_ARM_NY];
     two_link_arm_real x[TWO_LINK_ARM_NX];
-    two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
+    two_link_arm_real P[TWO_LINK_ARM_NXX];
     two_link_arm_real x_pred[TWO_LINK_ARM_NX];
-    two_link_arm_real P_pred[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
+    two_link_arm_real P_pred[TWO_LINK_ARM_NXX];
 } two_link_arm_packet;
 
 /** Master health counters. */
 typedef struct {
-    uint32_t fusions; /**< successful fuse() calls */
-    uint32_t packets_used; /**< packets fused */
-    uint32_t packets_stale; /**< of those, packets predicted forward from an older step */
-    uint32_t packets_ignored; /**< present packets older than NMAX steps or from the future */
+    /** successful fuse() calls */
+    uint32_t fusions;
+    /** packets fused */
+    uint32_t packets_used;
+    /** of those, packets predicted forward from an older step */
+    uint32_t packets_stale;
+    /** present packets older than NMAX steps or from the future */
+    uint32_t packets_ignored;
 } two_link_arm_master_health;
 
 /** The master: fuses the nodes' estimates (difference rule) and predicts. Its estimate and
  * prediction are stored relative to `centre`, as in the node. */
 typedef struct {
-    two_link_arm_real centre[TWO_LINK_ARM_NY]; /**< flat outputs' origin for x and x_prior */
-    two_link_arm_real x[TWO_LINK_ARM_NX]; /**< fused estimate at step k */
-    two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
-    two_link_arm_real x_prior[TWO_LINK_ARM_NX]; /**< the master's own prediction into step k */
-    two_link_arm_real P_prior[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX];
+    /** flat outputs' origin for x and x_prior */
+    two_link_arm_real centre[TWO_LINK_ARM_NY];
+    /** fused estimate at step k */
+    two_link_arm_real x[TWO_LINK_ARM_NX];
+    two_link_arm_real P[TWO_LINK_ARM_NXX];
+    /** the master's own prediction into step k */
+    two_link_arm_real x_prior[TWO_LINK_ARM_NX];
+    two_link_arm_real P_prior[TWO_LINK_ARM_NXX];
     two_link_arm_real q[TWO_LINK_ARM_NY];
     /** inputs of steps k-NMAX..k-1, step j in slot j % NMAX */
     two_link_arm_real v[TWO_LINK_ARM_NMAX * TWO_LINK_ARM_NY];
@@ -175,8 +211,8 @@ size_t two_link_arm_packet_size(void);
 /* ---- node ------------------------------------------------------------------------------- */
 /** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
 int two_link_arm_node_init(two_link_arm_node* node, const two_link_arm_real x0[TWO_LINK_ARM_NX],
-                           const two_link_arm_real P0[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX],
-                           const two_link_arm_real R[TWO_LINK_ARM_NY * TWO_LINK_ARM_NY],
+                           const two_link_arm_real P0[TWO_LINK_ARM_NXX],
+                           const two_link_arm_real R[TWO_LINK_ARM_NYY],
                            const two_link_arm_real q[TWO_LINK_ARM_NY]);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int two_link_arm_node_update(two_link_arm_node* node, const two_link_arm_real z[TWO_LINK_ARM_NY],
@@ -188,10 +224,10 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node,
 int two_link_arm_node_predict(two_link_arm_node* node, const two_link_arm_real v[TWO_LINK_ARM_NY]);
 /** Current estimate; either output may be NULL. */
 int two_link_arm_node_estimate(const two_link_arm_node* node, two_link_arm_real x[TWO_LINK_ARM_NX],
-                               two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX]);
+                               two_link_arm_real P[TWO_LINK_ARM_NXX]);
 /** Information form Y = P^-1, y = Y x (Cholesky); either output may be NULL. */
 int two_link_arm_node_information(const two_link_arm_node* node,
-                                  two_link_arm_real Y[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX],
+                                  two_link_arm_real Y[TWO_LINK_ARM_NXX],
                                   two_link_arm_real y[TWO_LINK_ARM_NX]);
 /** The packet for the master: step, x, P, x_pred, P_pred. */
 int two_link_arm_node_packet(const two_link_arm_node* node, two_link_arm_packet* packet);
@@ -201,7 +237,7 @@ int two_link_arm_node_health(const two_link_arm_node* node, two_link_arm_health*
 /** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
 int two_link_arm_master_init(two_link_arm_master* master,
                              const two_link_arm_real x0[TWO_LINK_ARM_NX],
-                             const two_link_arm_real P0[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX],
+                             const two_link_arm_real P0[TWO_LINK_ARM_NXX],
                              const two_link_arm_real q[TWO_LINK_ARM_NY]);
 /**
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
@@ -217,7 +253,7 @@ int two_link_arm_master_predict(two_link_arm_master* master,
 /** Fused estimate; either output may be NULL. */
 int two_link_arm_master_estimate(const two_link_arm_master* master,
                                  two_link_arm_real x[TWO_LINK_ARM_NX],
-                                 two_link_arm_real P[TWO_LINK_ARM_NX * TWO_LINK_ARM_NX]);
+                                 two_link_arm_real P[TWO_LINK_ARM_NXX]);
 
 /* ---- control ---------------------------------------------------------------------------- */
 /**

@@ -1,9 +1,11 @@
 # DO NOT EDIT: two_link_arm module, generated from template model.mk.j2 by dfeif-codegen 0.1.0;
 # regenerate with `codegen build two_link_arm`.
 #
-# Makefile fragment for the two_link_arm library: `include path/to/two_link_arm.mk`, then add
-# $(TWO_LINK_ARM_SRCS) to your sources and $(TWO_LINK_ARM_CFLAGS) to CFLAGS. Set TWO_LINK_ARM_DIR (sources) or
-# TWO_LINK_ARM_INC (header folder) before including to override where they are found.
+# Makefile fragment for the two_link_arm library:
+#     include path/to/two_link_arm.mk
+# then add $(TWO_LINK_ARM_SRCS) to your sources and $(TWO_LINK_ARM_CFLAGS) to CFLAGS.
+# Set TWO_LINK_ARM_DIR (sources) or TWO_LINK_ARM_INC (header folder) before including
+# to override where they are found.
 ifndef TWO_LINK_ARM_DIR
 TWO_LINK_ARM_DIR := $(patsubst %/,%,$(dir $(lastword $(MAKEFILE_LIST))))
 endif

@@ -1,7 +1,8 @@
 /* DO NOT EDIT: two_link_arm module, generated from template internal.h.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build two_link_arm`. */
 /* Internal to the two_link_arm library, not part of its API: the kernels
- * (two_link_arm_kernels.h) and small checks shared by the node, the master and the controller. */
+ * (two_link_arm_kernels.h) and small checks shared by the node, the master and the
+ * controller. */
 #ifndef TWO_LINK_ARM_INTERNAL_H
 #define TWO_LINK_ARM_INTERNAL_H
 
@@ -21,29 +22,28 @@ typedef char two_link_arm_check_real[(sizeof(two_link_arm_real) == 8) ? 1 : -1];
 /* Centring (see the node struct in two_link_arm.h): flat outputs are stored relative to a
  * centre that moves in exact steps of 1/8, so that single precision resolves them to their own
  * size. */
-#define TWO_LINK_ARM_CENTRE_STEP ((two_link_arm_real)0.125)
+#define TWO_LINK_ARM_CENTRE_STEP ((real)0.125)
 /* zeta index of each flat output */
 static const uint8_t two_link_arm_heads[TWO_LINK_ARM_NY] = {0, 3};
 
 /* The whole steps of 1/8 nearest to a stored flat output (0 when it is within 1/16, or so large
  * that centring no longer matters and (long) could overflow). Subtracting it is exact. */
-static inline two_link_arm_real two_link_arm_centre_shift(two_link_arm_real value)
+static inline real two_link_arm_centre_shift(real value)
 {
-    two_link_arm_real d = value / TWO_LINK_ARM_CENTRE_STEP;
-    two_link_arm_real half;
-    two_link_arm_real whole;
-    if (!(d < (two_link_arm_real)1048576 && d > (two_link_arm_real)-1048576)) {
+    real d = value / TWO_LINK_ARM_CENTRE_STEP;
+    real half;
+    real whole;
+    if (!(d < (real)1048576 && d > (real)-1048576)) {
         return 0;
     }
-    half = (d < (two_link_arm_real)0) ? (two_link_arm_real)-0.5 : (two_link_arm_real)0.5;
+    half = (d < (real)0) ? (real)-0.5 : (real)0.5;
     whole = d + half;
-    return TWO_LINK_ARM_CENTRE_STEP * (two_link_arm_real)(long)whole;
+    return TWO_LINK_ARM_CENTRE_STEP * (real)(long)whole;
 }
 
 /* x stored relative to centre `from`, rewritten relative to centre `to` (NULL: absolute). */
-static inline void two_link_arm_move_origin(const two_link_arm_real* x,
-                                            const two_link_arm_real* from,
-                                            const two_link_arm_real* to, two_link_arm_real* out)
+static inline void two_link_arm_move_origin(const real* x, const real* from, const real* to,
+                                            real* out)
 {
     int i;
     for (i = 0; i < TWO_LINK_ARM_NX; i++) {
@@ -55,11 +55,11 @@ static inline void two_link_arm_move_origin(const two_link_arm_real* x,
 }
 
 /* 1 if all n values are finite (x - x is 0 for finite x, NaN otherwise; no math.h macros). */
-static inline int two_link_arm_finite(const two_link_arm_real* a, size_t n)
+static inline int two_link_arm_finite(const real* a, size_t n)
 {
     size_t i;
     for (i = 0; i < n; i++) {
-        two_link_arm_real d = a[i] - a[i];
+        real d = a[i] - a[i];
         if (!(d == d)) {
             return 0;
         }
@@ -68,11 +68,11 @@ static inline int two_link_arm_finite(const two_link_arm_real* a, size_t n)
 }
 
 /* 1 if all n pivots are strictly positive (and not NaN). */
-static inline int two_link_arm_positive(const two_link_arm_real* piv, size_t n)
+static inline int two_link_arm_positive(const real* piv, size_t n)
 {
     size_t i;
     for (i = 0; i < n; i++) {
-        if (!(piv[i] > (two_link_arm_real)0)) {
+        if (!(piv[i] > (real)0)) {
             return 0;
         }
     }
@@ -80,10 +80,10 @@ static inline int two_link_arm_positive(const two_link_arm_real* piv, size_t n)
 }
 
 /* 1 if the n x n matrix is symmetric and positive definite (LDL' pivots, no square roots). */
-static inline int two_link_arm_spd(const two_link_arm_real* A, int n)
+static inline int two_link_arm_spd(const real* A, int n)
 {
-    two_link_arm_real L[TWO_LINK_ARM_NY * TWO_LINK_ARM_NY];
-    two_link_arm_real d[TWO_LINK_ARM_NY];
+    real L[TWO_LINK_ARM_NY * TWO_LINK_ARM_NY];
+    real d[TWO_LINK_ARM_NY];
     int i, j, k;
     if (n > TWO_LINK_ARM_NY) {
         return 0;
@@ -98,11 +98,11 @@ static inline int two_link_arm_spd(const two_link_arm_real* A, int n)
         for (k = 0; k < j; k++) {
             d[j] -= L[j * n + k] * L[j * n + k] * d[k];
         }
-        if (!(d[j] > (two_link_arm_real)0)) {
+        if (!(d[j] > (real)0)) {
             return 0;
         }
         for (i = j + 1; i < n; i++) {
-            two_link_arm_real s = A[i * n + j];
+            real s = A[i * n + j];
             for (k = 0; k < j; k++) {
                 s -= L[i * n + k] * L[j * n + k] * d[k];
             }

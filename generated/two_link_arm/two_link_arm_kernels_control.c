@@ -16,8 +16,7 @@ static two_link_arm_real two_link_arm_control_sq(two_link_arm_real x)
 int two_link_arm_kern_control(const two_link_arm_real x[6], const two_link_arm_real flags[8],
                               const two_link_arm_real gains[6], const two_link_arm_real params[11],
                               two_link_arm_real u[2], two_link_arm_real v[2],
-                              two_link_arm_real det[1],
-                              two_link_arm_real w[TWO_LINK_ARM_KERN_CONTROL_SZ_W])
+                              two_link_arm_real det[1], two_link_arm_real w[54])
 {
     w[0] = params[6];
     w[1] = params[9];

@@ -15,7 +15,7 @@ static two_link_arm_real two_link_arm_filter_sq(two_link_arm_real x)
 int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
                               const two_link_arm_real v[2], const two_link_arm_real q[2],
                               two_link_arm_real x1[6], two_link_arm_real P1[36],
-                              two_link_arm_real w[TWO_LINK_ARM_KERN_PREDICT_SZ_W])
+                              two_link_arm_real w[22])
 {
     w[0] = x[0];
     w[1] = 1.0000000000000000e-02;
@@ -324,7 +324,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
                              const two_link_arm_real z[2], const two_link_arm_real gamma[1],
                              const two_link_arm_real R[4], two_link_arm_real x[6],
                              two_link_arm_real P[36], two_link_arm_real piv[2],
-                             two_link_arm_real w[TWO_LINK_ARM_KERN_UPDATE_SZ_W])
+                             two_link_arm_real w[49])
 {
     w[0] = xm[0];
     w[1] = gamma[0];
@@ -978,7 +978,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
 int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real P[36],
                            const two_link_arm_real c[6], two_link_arm_real Y[36],
                            two_link_arm_real y[6], two_link_arm_real piv[6],
-                           two_link_arm_real w[TWO_LINK_ARM_KERN_INFO_SZ_W])
+                           two_link_arm_real w[45])
 {
     w[0] = P[0];
     w[1] = sqrt(w[0]);

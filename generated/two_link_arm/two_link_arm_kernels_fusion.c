@@ -15,7 +15,7 @@ static two_link_arm_real two_link_arm_fusion_sq(two_link_arm_real x)
 int two_link_arm_kern_fuse_finish(const two_link_arm_real Y[36], const two_link_arm_real y[6],
                                   const two_link_arm_real c[6], two_link_arm_real x[6],
                                   two_link_arm_real P[36], two_link_arm_real piv[6],
-                                  two_link_arm_real w[TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W])
+                                  two_link_arm_real w[51])
 {
     w[0] = c[0];
     w[1] = Y[0];
