@@ -7,9 +7,10 @@ the late-measurement window, over nodes and over the CI iterations are plain C i
 
 The sympy model is converted by walking its tree (`to_casadi`), never by printing and evaluating.
 The C that CasADi prints is post-processed (`c_source`) into one file per group: internal helpers
-made `static`, the entry points renamed `<model>_kern_<name>` with only the arguments they use,
-the real type named, and, for single precision, `f` math calls and `f` literals so that no
-double arithmetic hides in a float build.
+made `static` and named per file, each entry point a typed function `<model>_kern_<name>` whose
+named, sized parameters come from the kernel's signature (so callers never fill `arg[]`/`res[]`
+by position), statements spaced as the style file asks, the real type named, and, for single
+precision, `f` math calls and `f` literals so that no double arithmetic hides in a float build.
 """
 
 from __future__ import annotations
@@ -579,7 +580,7 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
         info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs)
         lines = [spaced(line.strip()) for line in body.splitlines() if line.strip()]
         lines.append("return 0;")
-        out.append(f"/* {_wrap_comment(info.signature)} */\n"
+        out.append(f"/* {wrap_comment(info.signature)} */\n"
                    + _function(f"int {name}", info.parameters(real), lines))
         infos.append(info)
     code = "\n".join(out)
@@ -592,7 +593,7 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
     return code, infos
 
 
-def _wrap_comment(text: str, width: int = 94) -> str:
+def wrap_comment(text: str, width: int = 94) -> str:
     """A one-line description cut into comment lines (` * ` continuations) of at most `width`."""
     lines, line = [], ""
     for piece in re.split(r"(?<=,)", text):
