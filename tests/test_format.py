@@ -96,3 +96,15 @@ def test_lay_out_joins_what_fits_and_repacks_conditions():
     # comments, preprocessor lines and string contents are left alone
     keep = '/* a (comment\n * over lines */\n#define X (1 +\\\n  2)\n    printf("(%d", k);\n'
     assert layout.lay_out(keep) == keep
+
+
+def test_header_macros_carry_the_prefix(modules):
+    """Every macro a header defines is <P>_...: headers of several models can be included together
+    (the .c files' own short macros such as NX stay inside their file)."""
+    import re
+
+    for folder in modules:
+        upper = folder.name.upper()
+        for path in sorted(folder.glob("*.h")):
+            names = re.findall(r"(?m)^#define (\w+)", path.read_text())
+            assert names and all(n.startswith(upper + "_") for n in names), (path.name, names)
