@@ -5,8 +5,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 apt_packages=(gcc clang valgrind gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm qemu-user
-              gcc-arm-linux-gnueabihf binutils-arm-none-eabi libclang-rt-14-dev)
-tools=(gcc clang valgrind arm-none-eabi-gcc qemu-system-arm qemu-arm arm-linux-gnueabihf-gcc)
+              gcc-arm-linux-gnueabihf binutils-arm-none-eabi libclang-rt-14-dev cmake cppcheck
+              clang-format)
+tools=(gcc clang valgrind arm-none-eabi-gcc qemu-system-arm qemu-arm arm-linux-gnueabihf-gcc cmake
+       cppcheck clang-format)
 missing=0
 for tool in "${tools[@]}"; do command -v "$tool" >/dev/null 2>&1 || missing=1; done
 # newlib ships no binary: look for the semihosting specs file it installs

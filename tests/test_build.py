@@ -130,7 +130,7 @@ def test_header_defines_and_options(tmp_path):
                    "DC_MOTOR_LINK_NNODES 3", "DC_MOTOR_LINK_TS 0.005f", "DC_MOTOR_LINK_OOSM_RETRODICT 1",
                    "DC_MOTOR_LINK_FUSION_CI 1", "typedef float dc_motor_link_real"):
         assert re.search(r"(#define |)" + re.escape(define), header), define
-    assert "dc_motor_link_kern_retro_step" in (tmp_path / "dc_motor_link" / "dc_motor_link_internal.h").read_text()
+    assert "dc_motor_link_kern_retro_step" in (tmp_path / "dc_motor_link" / "dc_motor_link_kernels.h").read_text()
 
 
 def test_cli_prints_files_sizes_and_sizeof(tmp_path):

@@ -104,6 +104,11 @@ def test_harness_files_ship_in_the_wheel(tmp_path):
     shipped = tmp_path / "out" / "dfeif_codegen" / "templates" / "harness"
     for name in ("startup_cm4.c", "mps2_an386.ld", "driver.c.j2"):
         assert (shipped / name).is_file(), f"{name} is not package data (pyproject.toml globs)"
+    from dfeif_codegen.codegen.options import FUSION_RULES, OOSM_METHODS
+    templates = [".clang-format", "node.c.j2", "master.c.j2", "kernels.h.j2"]
+    templates += [f"node_{m}.c.j2" for m in OOSM_METHODS] + [f"master_{f}.c.j2" for f in FUSION_RULES]
+    for name in templates:
+        assert (shipped.parent / name).is_file(), f"{name} is not package data (pyproject.toml globs)"
 
 
 # --- the generated filters on the emulated Cortex-M4F ----------------------------------------------

@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -24,7 +25,7 @@ import sympy as sp
 
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
-from dfeif_codegen.codegen import kernels, render
+from dfeif_codegen.codegen import kernels, layout, render
 from dfeif_codegen.constants import CI_ITERATIONS
 from dfeif_codegen.codegen.options import BuildError, Options
 
@@ -69,6 +70,12 @@ def versions() -> dict[str, str]:
     return {"dfeif-codegen": __version__, "casadi": casadi}
 
 
+def cmake_version(version: str) -> str:
+    """The numeric part CMake accepts for project(VERSION) (`0.2.0.dev1` -> `0.2.0`)."""
+    mt = re.match(r"\d+(?:\.\d+){0,3}", version)
+    return mt.group(0) if mt else "0"
+
+
 def _comment(text: str) -> str:
     """Safe inside a C block comment and on one line."""
     return " ".join(str(text).replace("*/", "* /").replace("/*", "/ *").split())
@@ -82,11 +89,13 @@ def context(flat, opts: Options) -> dict:
     real_c = "float" if opts.precision == "float" else "double"
     kernel_code, kernel_list = {}, []
     for group, functions in ks.groups.items():
-        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision)
-        kernel_code[group] = (code, f"{GROUP_DOCS[group]}: "
+        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}")
+        kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
-        kernel_list += [{"name": k.name, "macro": k.name.upper(), "signature": _comment(k.signature),
-                         "n_in": k.n_in, "n_out": k.n_out, "sz_w": k.sz_w} for k in infos]
+        kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w,
+                         "signature": kernels.wrap_comment(_comment(k.signature)),
+                         "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real"), ");")}
+                        for k in infos]
     names = render.file_names(p, list(ks.groups))
     return {
         "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
@@ -95,9 +104,11 @@ def context(flat, opts: Options) -> dict:
         "degrees": flat.degrees, "heads": flat.heads, "angles": [int(c.angle) for c in flat.chains],
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
-        "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(), "ci_iterations": CI_ITERATIONS,
-        "model_hash": model_hash(m), "versions": versions(),
+        "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
+        "ci_iterations": CI_ITERATIONS, "model_hash": model_hash(m), "versions": versions(),
+        "cmake_version": cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
+        "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
     }
 

@@ -7,9 +7,10 @@ the late-measurement window, over nodes and over the CI iterations are plain C i
 
 The sympy model is converted by `symbolic.numeric.to_casadi`, the one sympy -> CasADi bridge.
 The C that CasADi prints is post-processed (`c_source`) into one file per group: internal helpers
-made `static`, the entry points renamed `<model>_kern_<name>` with only the arguments they use,
-the real type named, and, for single precision, `f` math calls and `f` literals so that no
-double arithmetic hides in a float build.
+made `static` and named per file, each entry point a typed function `<model>_kern_<name>` whose
+named, sized parameters come from the kernel's signature (so callers never fill `arg[]`/`res[]`
+by position), statements spaced as the style file asks, the real type named, and, for single
+precision, `f` math calls and `f` literals so that no double arithmetic hides in a float build.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import numpy as np
 
 from dfeif_codegen.symbolic import discretize
 from dfeif_codegen.symbolic.numeric import to_casadi
+from dfeif_codegen.codegen import layout
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.constants import CI_ITERATIONS, CI_REGULARISER
 
@@ -282,7 +284,8 @@ class _Builder:
         gradient and Hessian of tr((sum w_i Y_i)^-1). Absent nodes have w_i = 0 and Y_i = 0."""
         n, M = self.n, self.opts.nodes
         w = _sym("w", M)
-        Ys = [_sym(f"Y{i}", n, n) for i in range(M)]
+        Y = _sym("Y", M * n * n)     # node i's Y_i at entries i n^2 .. (i + 1) n^2 - 1
+        Ys = [ca.reshape(Y[i * n * n:(i + 1) * n * n], n, n) for i in range(M)]
         Ysum = w[0] * Ys[0]
         for i in range(1, M):
             Ysum = Ysum + w[i] * Ys[i]
@@ -301,7 +304,7 @@ class _Builder:
         rho = CI_REGULARISER * rho
         g = g + rho * w
         H = H + rho * ca.SX.eye(M)
-        return ca.Function(name, [w] + Ys, [g, H, piv], ["w"] + [f"Y{i}" for i in range(M)], ["g", "H", "piv"])
+        return ca.Function(name, [w, Y], [g, H, piv], ["wt", "Y"], ["g", "H", "piv"])
 
     def ci_dir(self, name: str) -> ca.Function:
         """Second half: the step d_F of `[H_FF, 1; 1', 0] [d; mu] = [-g_F; 0]`
@@ -317,7 +320,7 @@ class _Builder:
         Hi, piv = spd_inverse(Hf)
         u1, u2 = ca.mtimes(Hi, f * g), ca.mtimes(Hi, f)
         mu = -ca.dot(f, u1) / ca.dot(f, u2)
-        return ca.Function(name, [g, H, f], [-(u1 + mu * u2), piv], ["g", "H", "free"], ["d", "piv"])
+        return ca.Function(name, [g, H, f], [-(u1 + mu * u2), piv], ["g", "H", "fmask"], ["d", "piv"])
 
     def control(self, name: str) -> ca.Function:
         """u and v = F + G u from the estimate, reference flags and gains (algorithms.md)."""
@@ -395,21 +398,34 @@ _ENTRY = re.compile(r"^int (\w+)\(const casadi_real\*\* arg, casadi_real\*\* res
                     r"casadi_real\* w, int mem\)\{\n  return (casadi_f\d+)\(arg, res, iw, w, mem\);\n\}$", re.M)
 _BODY = re.compile(r"^(/\* [^\n]*\*/\n)static int (casadi_f\d+)\(const casadi_real\*\* arg, casadi_real\*\* res, "
                    r"casadi_int\* iw, casadi_real\* w, int mem\) \{\n(.*?)^\}\n", re.M | re.S)
-_HELPER = re.compile(r"^casadi_real casadi_\w+\([^)\n]*\) \{(?:[^\n]*\}\n|\n.*?^\}\n)", re.M | re.S)
+_HELPER = re.compile(r"^casadi_real (casadi_\w+)\(([^)\n]*)\) \{(?: ([^\n]*)\}\n|\n/\* Pre-c99 compatibility \*/\n"
+                     r"#if __STDC_VERSION__ < 199901L\n[^\n]*\n#else\n([^\n]*)\n#endif\n\}\n)", re.M)
+_ANY_HELPER = re.compile(r"^casadi_real casadi_\w+\(", re.M)
 _CONST = re.compile(r"^static const casadi_(?:real|int) (casadi_[cs]\d+)\[\d+\] = \{[^}]*\};\n", re.M)
+_TOKEN = re.compile(r"\s*(\d+\.\d*(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+|\d+|\w+|==|!=|<=|>=|&&|\|\||\S)")
+_BINARY = {"+", "-", "*", "/", "=", "<", ">", "==", "!=", "<=", ">=", "&&", "||", "?", ":"}
+_C_KEYWORDS = {"auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else",
+               "enum", "extern", "float", "for", "goto", "if", "inline", "int", "long", "register",
+               "restrict", "return", "short", "signed", "sizeof", "static", "struct", "switch", "typedef",
+               "union", "unsigned", "void", "volatile", "while", "free", "w"}
+INDENT = "    "
 
 
 @dataclass
 class KernelC:
-    """One kernel's C entry point and the work sizes its caller must provide."""
+    """One kernel's typed C entry point: its named, sized inputs and outputs and its work size."""
 
     name: str
     signature: str      # CasADi's one-line description, e.g. "predict:(x[3],P[3x3],...)->(...)"
-    n_in: int
-    n_out: int
     sz_w: int
-    inputs: list[str]
-    outputs: list[str]
+    inputs: list[tuple[str, int]]
+    outputs: list[tuple[str, int]]
+
+    def parameters(self, real: str) -> list[str]:
+        """The C parameter list: inputs const, outputs writable, every array sized, then the work
+        (its size is also <NAME>_SZ_W in the kernels header, for the callers)."""
+        return ([f"const {real} {n}[{k}]" for n, k in self.inputs] + [f"{real} {n}[{k}]" for n, k in self.outputs]
+                + [f"{real} w[{self.sz_w}]"])
 
 
 def _float_text(text: str) -> str:
@@ -417,8 +433,41 @@ def _float_text(text: str) -> str:
     return _FLOAT_LIT.sub(lambda mt: mt.group(1) + "f", text)
 
 
-def c_source(functions: list[ca.Function], real: str, precision: str) -> tuple[str, list[KernelC]]:
-    """C for a group of kernels: helpers and constants `static`, entry points `int name(arg, res, w)`."""
+def spaced(statement: str) -> str:
+    """One C expression statement spaced as clang-format does: binary operators and `=` between
+    spaces, unary signs and calls tight, `, ` after commas. CasADi prints no spaces at all."""
+    tokens = _TOKEN.findall(statement)
+    out, prev = "", None
+    for tok in tokens:
+        unary = tok in ("-", "+") and (prev is None or prev in _BINARY | {"(", "[", ",", "return"}
+                                       or prev in ("!",))
+        if tok == ",":
+            out += ", "
+        elif tok in _BINARY and not unary:
+            out = out.rstrip(" ") + f" {tok} "
+        elif tok in (")", "]", ";"):
+            out = out.rstrip(" ") + tok
+        elif tok == "return":
+            out += "return "
+        else:
+            out += tok
+        prev = tok
+    return out.strip()
+
+
+def _function(head: str, params: list[str], body: list[str]) -> str:
+    """A C function definition laid out as the style file asks (see codegen/layout.py)."""
+    return layout.pack(head + "(", params, ")") + "\n{\n" + "".join(INDENT + line + "\n" for line in body) + "}\n"
+
+
+def c_source(functions: list[ca.Function], real: str, precision: str,
+             helpers: str = "casadi") -> tuple[str, list[KernelC]]:
+    """C for a group of kernels: helpers `static`, one typed entry point per kernel
+    `int name(const real in1[k1], ..., real out1[j1], ..., real w[SZ_W])`, spaced like clang-format;
+    CasADi's helpers (`casadi_sq`, ...) renamed `<helpers>_sq`.
+
+    Why typed: callers name each argument and the compiler checks its type, instead of filling
+    `arg[]`/`res[]` by position; and no array of pointers is left to get wrong."""
     cg = ca.CodeGenerator("kernels", {"casadi_int": "int", "casadi_real": "double", "avoid_stack": True,
                                       "main": False, "mex": False, "with_header": False,
                                       "with_export": False, "verbose": False, "include_math": True})
@@ -429,36 +478,64 @@ def c_source(functions: list[ca.Function], real: str, precision: str) -> tuple[s
     bodies = _BODY.findall(text)
     if len(bodies) != len(functions) or len(entries) != len(functions):
         raise RuntimeError("unexpected CasADi output layout (kernel bodies not found)")
+    if len(_HELPER.findall(text)) != len(_ANY_HELPER.findall(text)):
+        raise RuntimeError("unexpected CasADi output layout (a helper of an unknown form)")
     out, infos = [], []
     used = "".join(body for _, _, body in bodies)
     for mt in _HELPER.finditer(text):
-        helper = mt.group(0)
-        out.append("static " + helper)
-        used += helper
+        helper, args, one_line, c99 = mt.groups()   # a one-line body, or the C99 branch of an #if
+        stmt = one_line if one_line is not None else c99
+        args = re.sub(r"\bcasadi_real\b", real, args)
+        out.append(_function(f"static {real} {helper}", [a.strip() for a in args.split(",")],
+                             [spaced(s) + ";" for s in stmt.split(";") if s.strip()]))
+        used += mt.group(0)
     for mt in _CONST.finditer(text):
         if re.search(rf"\b{mt.group(1)}\b", used):
-            out.append(mt.group(0))
+            raise RuntimeError(f"unexpected CasADi constant table {mt.group(1)} in an SX kernel")
     by_name = {f.name(): f for f in functions}
     for comment, fn, body in bodies:
         name = entries[fn]
         f = by_name[name]
         if re.search(r"\b(iw|mem)\b|\bcasadi_f\d+\(", body) or f.sz_iw() != 0:
             raise RuntimeError(f"kernel {name}: integer work or a nested call, unexpected for SX")
+        ins = [(f.name_in(i), f.numel_in(i)) for i in range(f.n_in())]
+        outs = [(f.name_out(i), f.numel_out(i)) for i in range(f.n_out())]
+        names = [n for n, _ in ins + outs]
+        if len(set(names)) != len(names) or set(names) & _C_KEYWORDS:
+            raise RuntimeError(f"kernel {name}: argument names must be distinct C identifiers, not w")
         # `!x` and `x ? :` on a real are float-to-bool conversions (clang -Wfloat-conversion)
         body = re.sub(r"\(!(w\[\d+\])\)", r"(\1==0)", body)
         body = re.sub(r"\((w\[\d+\])\?", r"(\1!=0?", body)
-        # the wrappers always pass every input and output: drop CasADi's NULL checks (code size)
+        # every input and output is passed: drop CasADi's NULL checks, then name the arguments
         body = re.sub(r"arg\[(\d+)\]\? (arg\[\1\]\[\d+\]) : 0", r"\2", body)
         body = re.sub(r"if \(res\[(\d+)\]!=0\) (res\[\1\]\[\d+\]=)", r"\2", body)
-        if re.search(r"arg\[\d+\]\?|res\[\d+\]!=0", body):
-            raise RuntimeError(f"kernel {name}: unexpected CasADi NULL-check pattern")
-        out.append(f"{comment}int {name}(const casadi_real** arg, casadi_real** res, casadi_real* w) {{\n{body}}}\n")
-        infos.append(KernelC(name, comment[3:-4], f.n_in(), f.n_out(), max(1, f.sz_w()),
-                             [f.name_in(i) for i in range(f.n_in())],
-                             [f.name_out(i) for i in range(f.n_out())]))
+        body = re.sub(r"\barg\[(\d+)\]\[", lambda mt: ins[int(mt.group(1))][0] + "[", body)
+        body = re.sub(r"\bres\[(\d+)\]\[", lambda mt: outs[int(mt.group(1))][0] + "[", body)
+        if re.search(r"\b(arg|res)\b", body):
+            raise RuntimeError(f"kernel {name}: unexpected CasADi argument pattern")
+        info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs)
+        lines = [spaced(line.strip()) for line in body.splitlines() if line.strip()]
+        lines.append("return 0;")
+        out.append(f"/* {wrap_comment(info.signature)} */\n"
+                   + _function(f"int {name}", info.parameters(real), lines))
+        infos.append(info)
     code = "\n".join(out)
+    for mt in _HELPER.finditer(text):   # static helpers named per file (unique across the library)
+        code = re.sub(rf"\b{mt.group(1)}\b", helpers + mt.group(1)[len("casadi"):], code)
     code = re.sub(r"\bcasadi_real\b", real, code)
     code = re.sub(r"\bcasadi_int\b", "int", code)
     if precision == "float":
         code = _float_text(code)
     return code, infos
+
+
+def wrap_comment(text: str, width: int = 94) -> str:
+    """A one-line description cut into comment lines (` * ` continuations) of at most `width`."""
+    lines, line = [], ""
+    for piece in re.split(r"(?<=,)", text):
+        if line and len(line + piece) > width:
+            lines.append(line)
+            line = ""
+        line += piece
+    lines.append(line)
+    return "\n * ".join(lines)
