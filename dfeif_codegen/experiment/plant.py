@@ -93,6 +93,7 @@ class Camera:
                 std = [meas.noise[c] for c in self.channels]
         self.std = scale * np.broadcast_to(np.asarray(std, dtype=float), (len(self.channels),)).copy()
         observe, recover = _fixed(model, observe), [sp.sympify(e).subs(values) for e in recover]
+        self.expressions = (observe, recover_syms, recover)  # for the compiled closed loop
         self._observe = sp.lambdify([list(model.x)], observe, modules="math")
         self._recover = sp.lambdify([recover_syms], recover, modules="math")
         jac = sp.Matrix(recover).jacobian(recover_syms)

@@ -96,8 +96,7 @@ def _canonical(cfg: ex.Config) -> ex.Config:
 
 def _series(res: ex.Result) -> dict:
     rec = res.recording
-    return {"t": res.t, "zeta": res.zeta, "ref": np.array([ex.state_of_flags(ex._flat(res.config.model), r)
-                                                           for r in rec.ref]),
+    return {"t": res.t, "zeta": res.zeta, "ref": ex.state_of_flags(ex._flat(res.config.model), rec.ref),
             "node_x": rec.node_x, "x": rec.x, "u": rec.u, "v": rec.v, "delays": res.delays}
 
 
