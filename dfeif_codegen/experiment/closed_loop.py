@@ -320,13 +320,13 @@ def prepare(cfg: Config) -> Setup:
     # which frame each update takes, and the late frames applied: fixed by the network alone
     upd = np.where(net.lag == 0, 0, -1)
     late = []
-    for k in range(K):
-        for i in range(M):
-            arriving = net.late[i].get(k, [])
-            if upd[i, k] < 0 and cfg.method == "as-current" and arriving:
+    for i, events in enumerate(net.late):
+        for k, arriving in events.items():
+            if upd[i, k] < 0 and cfg.method == "as-current":
                 upd[i, k] = min(arriving)
             if cfg.method in OOSM:
                 late += [(k, i, lag) for lag in arriving]
+    late.sort(key=lambda e: (e[0], e[1]))   # by step, then node; stable: arrival order kept
     return Setup(cfg, flat, ts, K, t, ref, net, cams, noise, flat.phi_inv_num(zeta0), q, gains, R, oosm,
                  np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1)), x_hat0, P0, upd,
                  np.array(late, dtype=int).reshape(-1, 3))
