@@ -20,4 +20,4 @@ if [ "$missing" = 1 ]; then
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${apt_packages[@]}" >/dev/null
   fi
 fi
-python -m pip install -q -e '.[test,plot]'
+python -m pip install -q -e '.[test,plot,cluster,bench]'

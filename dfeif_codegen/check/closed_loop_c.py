@@ -27,7 +27,8 @@ from dfeif_codegen.check import harness
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment.plant import Camera, Plant, _casadi_fn, _fixed
 
-FAILED_PLANT = 7
+FAILED_PLANT = 7        # failed_call of the closed-loop driver: the plant's state is not finite
+ERR_NONFINITE = -3      # <P>_ERR_NONFINITE of every generated library (templates/model.h.j2)
 
 
 class CEngineError(ArithmeticError):
@@ -193,7 +194,7 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     err = getattr(lib, f"{p}_loop_run")(state, ctypes.byref(scen), ctypes.byref(res))
     if err != 0:
         step, call = res.out.failed_step, res.out.failed_call
-        if call == FAILED_PLANT:
+        if call == FAILED_PLANT or err == ERR_NONFINITE:   # where numpy's loop sees the plant diverge
             raise FloatingPointError(f"the closed loop diverged at t = {s.t[step]:.2f} s ({cfg.method}, {cfg.fusion})")
         raise CEngineError(harness.failure({"failed_step": step, "failed_call": call, "status": err}))
     counters = []

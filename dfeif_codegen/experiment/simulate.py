@@ -365,7 +365,7 @@ def run(args) -> int:
     def collect(rid, value, fresh=True):
         metrics, data = value if fresh else (value, None)
         cfg, keys = ids[rid]
-        if fresh:
+        if fresh and rid not in previous:
             records.write(rid, keys, engine, metrics)
         for key in keys:
             per_run.append((*key[:4], key[4], metrics))

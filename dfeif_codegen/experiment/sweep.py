@@ -20,7 +20,7 @@ import hashlib
 import json
 import math
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +67,9 @@ def compile_all(configs, engine: str) -> dict:
         return {}
     from dfeif_codegen.check import closed_loop_c, harness
     harness.host_compiler()
-    return {key: closed_loop_c.compiled(key) for key in dict.fromkeys(closed_loop_c.build_key(c) for c in configs)}
+    keys = list(dict.fromkeys(closed_loop_c.build_key(c) for c in configs))
+    with ThreadPoolExecutor(max_workers=max(1, min(len(keys), os.cpu_count() or 1))) as pool:  # the compiler runs outside the GIL
+        return dict(zip(keys, pool.map(closed_loop_c.compiled, keys)))
 
 
 def _chunks(items: list, workers: int) -> list[list]:
