@@ -94,6 +94,7 @@ def parser() -> argparse.ArgumentParser:
     p = add("bench")
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
     p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures (median reported)")
+    p.add_argument("--quick", action="store_true", help="skip the scaling sweeps and the Monte Carlo figures")
     return top
 
 

@@ -186,3 +186,70 @@ def test_resume_of_a_missing_file_is_one_line_exit_2(tmp_path, capsys):
     path.write_text(TINY)
     assert cli.main(["simulate", "--scenario", str(path), "--quiet", "--resume", str(tmp_path / "none.jsonl")]) == 2
     assert "none.jsonl" in capsys.readouterr().err
+
+
+# --- the one-pass replay keeps the node unchanged when it fails ----------------------------------
+
+CART = """
+[model]
+name = "cart"
+ts = 0.01
+[[states]]
+name = "p"
+[[states]]
+name = "pd"
+[[inputs]]
+name = "F"
+[dynamics.f]
+p = "pd"
+pd = "0"
+[dynamics.g.F]
+pd = "1"
+[[outputs]]
+name = "pos"
+expr = "p"
+[measurement.noise]
+pos = 0.01
+"""
+
+
+def test_failed_replay_leaves_the_node_unchanged(host_cc, tmp_path):
+    """A late frame that makes the replayed window overflow at a later step (step 9's huge frame
+    then sees twice its innovation), after the replay rewrote the slots in between: the node is
+    rolled back byte for byte, and later calls match a twin node that never saw the frame. A
+    position output (an angle's innovation is wrapped, so bounded). Both halves of the rollback
+    (the priors' x copy, the priors' P recomputed) are needed to pass: checked by removing each."""
+    import ctypes
+
+    from dfeif_codegen.check import harness
+
+    (tmp_path / "cart.toml").write_text(CART)
+    md = harness.build_model(str(tmp_path / "cart.toml"), tmp_path / "b", "double", "replay", "difference", 2, 8)
+    lib = ctypes.CDLL(str(harness.compile_shared(md.sources(), tmp_path / "libnode.so", [md.path])))
+    call = lambda name, *args: getattr(lib, f"cart_{name}")(*args)  # noqa: E731
+    lib.cart_node_size.restype = ctypes.c_size_t
+    size = lib.cart_node_size()
+    ptr = lambda a: np.ascontiguousarray(a, dtype=float).ctypes.data_as(ctypes.c_void_p)  # noqa: E731
+    failed = 0
+    for e in np.arange(304.0, 308.25, 0.02):
+        big = 10.0 ** e
+        a = ctypes.create_string_buffer(size)
+        assert call("node_init", a, ptr([0.0, 0.0]), ptr(np.diag([0.05, 0.1]) ** 2), ptr([[1e-4]]), ptr([20.0])) == 0
+        ok = True
+        for k in range(12):   # every third step on time, the others dropped; step 9's frame is huge
+            ok = ok and call("node_update", a, ptr([big if k == 9 else 0.01 * k]), int(k % 3 == 0)) == 0
+            ok = ok and call("node_predict", a, ptr([0.3])) == 0
+        if not (ok and call("node_update", a, ptr([0.12]), 0) == 0):
+            continue          # too big for the history itself
+        twin = a.raw
+        # step 5's late frame, far on the other side: the replayed step 9 sees twice the innovation
+        rc = call("node_update_delayed", a, ptr([-big]), 7)
+        if rc != 0:
+            assert rc == -3 and a.raw == twin, e       # ERR_NONFINITE, nothing changed
+            failed += 1
+            b = ctypes.create_string_buffer(twin, size)
+            for node in (a, b):
+                assert call("node_update_delayed", node, ptr([0.08]), 7) == 0
+                assert call("node_predict", node, ptr([0.3])) == 0
+            assert a.raw == b.raw
+    assert failed >= 3

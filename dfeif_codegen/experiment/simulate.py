@@ -399,8 +399,8 @@ def run(args) -> int:
                 "max_lag": args.max_lag, "ts": ts, "duration": sc.duration, "runs": runs,
                 "seeds": [args.seed, args.seed + runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
                 "noise_scale": [_pick(sc.noise_scale, i) for i in range(nodes)], "metrics_from": sc.metrics_from,
-                "elapsed_s": round(elapsed, 1), "workers": workers, "engine": engine, "ran_on": where,
-                "runs_resumed": len(reused)}
+                "elapsed_s": round(elapsed, 3), "workers": workers, "engine": engine, "ran_on": where,
+                "runs_resumed": len(reused), "distinct_runs": len(todo)}
     to_stdout = args.json == "-"
     if not to_stdout:
         out = sys.stdout
