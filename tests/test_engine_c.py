@@ -253,3 +253,29 @@ def test_failed_replay_leaves_the_node_unchanged(host_cc, tmp_path):
                 assert call("node_predict", node, ptr([0.3])) == 0
             assert a.raw == b.raw
     assert failed >= 3
+
+
+def test_a_worker_needs_none_of_the_callers_files(host_cc, tmp_path):
+    """What a worker gets (compiled loops as bytes, model files as text) is enough: a fresh
+    process runs a user model's run after the model file and every build folder are gone, and
+    gets the caller's numbers exactly (the same compiled code on the same inputs)."""
+    import multiprocessing
+    import shutil
+    from concurrent.futures import ProcessPoolExecutor
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    (folder / "cart.toml").write_text(CART)
+    cfg = ex.Config(model=str(folder / "cart.toml"), duration=1.0, q=(20.0,), poles=(10.0,), metrics_from=0.2,
+                    sensor=(Link(0.5, 3), Link(0.5, 4)), seed=3)
+    shipped = sweep.prepare([cfg], "c")
+    assert shipped["models"] == {str(folder / "cart.toml"): CART}
+    here = sweep.batch([("r", cfg, None)], "c", shipped)
+    shutil.rmtree(folder)
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        there = pool.submit(sweep.batch, [("r", cfg, None)], "c", shipped).result()
+    (_, (mine, _)), = here
+    (_, (theirs, _)), = there
+    assert isinstance(theirs, dict) and mine.keys() == theirs.keys()
+    for key in mine:
+        np.testing.assert_array_equal(theirs[key], mine[key], err_msg=key)

@@ -212,9 +212,14 @@ def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndar
 
 # --- the closed loop ------------------------------------------------------------------------------
 
+# model files' text by spec, set on workers that may not see the caller's files (sweep.py)
+MODEL_TEXT: dict[str, str] = {}
+
+
 @lru_cache(maxsize=None)
 def _flat(spec: str):
-    return flatness.derive(model_mod.load(spec))
+    text = MODEL_TEXT.get(spec)
+    return flatness.derive(model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec))
 
 
 @lru_cache(maxsize=None)

@@ -357,7 +357,7 @@ def run(args) -> int:
         else:
             todo.append((rid, cfg, _series if wants_series else None))
     workers = sweep.default_workers(getattr(args, "workers", None), len(todo))
-    codes = sweep.compile_all([cfg for _, cfg, _ in todo], engine)
+    shipped = sweep.prepare([cfg for _, cfg, _ in todo], engine)
     records = sweep.Records(args.resume or args.results, keep_existing=bool(args.resume))
     progress = Progress(len(todo), show)
     started = time.monotonic()
@@ -381,7 +381,7 @@ def run(args) -> int:
     for rid, metrics in reused:
         collect(rid, metrics, fresh=False)
     try:
-        where = sweep.execute(todo, engine, codes, workers, getattr(args, "scheduler", None), collect)
+        where = sweep.execute(todo, engine, shipped, workers, getattr(args, "scheduler", None), collect)
     finally:
         records.close()
         progress.close()

@@ -51,25 +51,30 @@ def one(cfg: ex.Config, engine: str, codes: dict, series):
     return res.metrics, (series(res) if series else None)
 
 
-def batch(items: list, engine: str, codes: dict | None = None) -> list:
+def batch(items: list, engine: str, shipped: dict | None = None) -> list:
     """items: (run id, cfg, series function or None) -> [(run id, value)]."""
-    codes = _CODES if codes is None else codes
-    return [(rid, one(cfg, engine, codes, series)) for rid, cfg, series in items]
+    if shipped is not None:
+        _init_worker(shipped)
+    return [(rid, one(cfg, engine, _CODES, series)) for rid, cfg, series in items]
 
 
-def _init_worker(codes: dict) -> None:
-    _CODES.update(codes)
+def _init_worker(shipped: dict) -> None:
+    ex.MODEL_TEXT.update(shipped["models"])
+    _CODES.update(shipped["codes"])
 
 
-def compile_all(configs, engine: str) -> dict:
-    """The compiled loop of every distinct build the runs need (built here, once)."""
+def prepare(configs, engine: str) -> dict:
+    """What every worker needs: the compiled loop of each distinct build (built here, once) and the
+    text of any model file (a worker on another machine cannot read the caller's files)."""
+    configs = list(configs)
+    models = {c.model: Path(c.model).read_text(encoding="utf-8") for c in configs if Path(c.model).is_file()}
     if engine != "c":
-        return {}
+        return {"codes": {}, "models": models}
     from dfeif_codegen.check import closed_loop_c, harness
     harness.host_compiler()
     keys = list(dict.fromkeys(closed_loop_c.build_key(c) for c in configs))
     with ThreadPoolExecutor(max_workers=max(1, min(len(keys), os.cpu_count() or 1))) as pool:  # the compiler runs outside the GIL
-        return dict(zip(keys, pool.map(closed_loop_c.compiled, keys)))
+        return {"codes": dict(zip(keys, pool.map(closed_loop_c.compiled, keys))), "models": models}
 
 
 def _chunks(items: list, workers: int) -> list[list]:
@@ -77,7 +82,7 @@ def _chunks(items: list, workers: int) -> list[list]:
     return [items[i:i + size] for i in range(0, len(items), size)]
 
 
-def execute(items: list, engine: str, codes: dict, workers: int, scheduler: str | None, done) -> str:
+def execute(items: list, engine: str, shipped: dict, workers: int, scheduler: str | None, done) -> str:
     """Run every item, calling `done(run id, value)` as results arrive; returns where they ran."""
     if not items:
         return "nothing to run"
@@ -92,17 +97,17 @@ def execute(items: list, engine: str, codes: dict, workers: int, scheduler: str 
             raise SetupError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
         with client:
             cores = sum(client.ncores().values()) or 1
-            [shared] = client.scatter([codes], broadcast=True, hash=False)
+            [shared] = client.scatter([shipped], broadcast=True, hash=False)
             futures = [client.submit(batch, chunk, engine, shared, pure=False) for chunk in _chunks(items, cores)]
             for fut in dask_completed(futures):
                 for rid, value in fut.result():
                     done(rid, value)
         return f"Dask cluster {scheduler} ({cores} threads)"
     if workers == 1:
-        for rid, value in batch(items, engine, codes):
+        for rid, value in batch(items, engine, shipped):
             done(rid, value)
         return "1 process"
-    with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(codes,)) as pool:
+    with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(shipped,)) as pool:
         futures = [pool.submit(batch, chunk, engine) for chunk in _chunks(items, workers)]
         for fut in as_completed(futures):
             for rid, value in fut.result():

@@ -18,12 +18,12 @@ typedef char two_link_arm_check_real[(sizeof(two_link_arm_real) == 8) ? 1 : -1];
 int two_link_arm_kern_predict(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_PREDICT_SZ_ARG 4
 #define TWO_LINK_ARM_KERN_PREDICT_SZ_RES 2
-#define TWO_LINK_ARM_KERN_PREDICT_SZ_W 22
+#define TWO_LINK_ARM_KERN_PREDICT_SZ_W 21
 /* two_link_arm_kern_update:(xm[6],Pm[6x6],z[2],gamma,R[2x2])->(x[6],P[6x6],piv[2]) */
 int two_link_arm_kern_update(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_ARG 5
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_RES 3
-#define TWO_LINK_ARM_KERN_UPDATE_SZ_W 49
+#define TWO_LINK_ARM_KERN_UPDATE_SZ_W 40
 /* two_link_arm_kern_info:(x[6],P[6x6],c[6])->(Y[6x6],y[6],piv[6]) */
 int two_link_arm_kern_info(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_INFO_SZ_ARG 3
