@@ -292,10 +292,9 @@ class _Builder:
         n, m = self.n, self.m
         xm, Pm, z, gamma, R = _sym("xm", n), _sym("Pm", n, n), _sym("z", m), _sym("gamma"), _sym("R", m, m)
         e = self.wrap(z - self.head_rows(xm))
-        Ps = self.symmetric(Pm)
-        _, K, piv = self.gain(Ps, R, gamma)
+        _, K, piv = self.gain(Pm, R, gamma)
         x = xm + ca.mtimes(K, e)
-        P = self.symmetric(self.joseph(Ps, K, R))
+        P = self.joseph(Pm, K, R)
         return ca.Function(name, [xm, Pm, z, gamma, R], [x, P, piv],
                            ["xm", "Pm", "z", "gamma", "R"], ["x", "P", "piv"])
 

@@ -23,7 +23,7 @@ int dc_motor_link_kern_predict(const dc_motor_link_real** arg, dc_motor_link_rea
 int dc_motor_link_kern_update(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_ARG 5
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_RES 3
-#define DC_MOTOR_LINK_KERN_UPDATE_SZ_W 12
+#define DC_MOTOR_LINK_KERN_UPDATE_SZ_W 14
 /* dc_motor_link_kern_info:(x[3],P[3x3],c[3])->(Y[3x3],y[3],piv[3]) */
 int dc_motor_link_kern_info(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
 #define DC_MOTOR_LINK_KERN_INFO_SZ_ARG 3

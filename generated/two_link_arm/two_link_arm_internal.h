@@ -23,7 +23,7 @@ int two_link_arm_kern_predict(const two_link_arm_real** arg, two_link_arm_real**
 int two_link_arm_kern_update(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_ARG 5
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_RES 3
-#define TWO_LINK_ARM_KERN_UPDATE_SZ_W 40
+#define TWO_LINK_ARM_KERN_UPDATE_SZ_W 49
 /* two_link_arm_kern_info:(x[6],P[6x6],c[6])->(Y[6x6],y[6],piv[6]) */
 int two_link_arm_kern_info(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_INFO_SZ_ARG 3
