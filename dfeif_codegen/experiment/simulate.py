@@ -357,7 +357,13 @@ def run(args) -> int:
         else:
             todo.append((rid, cfg, _series if wants_series else None))
     workers = sweep.default_workers(getattr(args, "workers", None), len(todo))
-    shipped = sweep.prepare([cfg for _, cfg, _ in todo], engine)
+    client = sweep.connect(getattr(args, "scheduler", None))
+    try:
+        shipped = sweep.prepare([cfg for _, cfg, _ in todo], engine)
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
     records = sweep.Records(args.resume or args.results, keep_existing=bool(args.resume))
     progress = Progress(len(todo), show)
     started = time.monotonic()
@@ -381,7 +387,7 @@ def run(args) -> int:
     for rid, metrics in reused:
         collect(rid, metrics, fresh=False)
     try:
-        where = sweep.execute(todo, engine, shipped, workers, getattr(args, "scheduler", None), collect)
+        where = sweep.execute(todo, engine, shipped, workers, client, collect)
     finally:
         records.close()
         progress.close()

@@ -82,20 +82,30 @@ def _chunks(items: list, workers: int) -> list[list]:
     return [items[i:i + size] for i in range(0, len(items), size)]
 
 
-def execute(items: list, engine: str, shipped: dict, workers: int, scheduler: str | None, done) -> str:
-    """Run every item, calling `done(run id, value)` as results arrive; returns where they ran."""
-    if not items:
-        return "nothing to run"
-    if scheduler:
-        try:
-            from dask.distributed import Client, as_completed as dask_completed
-        except ImportError:
-            raise SetupError("--scheduler needs dask.distributed: pip install 'dfeif-codegen[cluster]'") from None
-        try:
-            client = Client(scheduler, timeout=30)
-        except (OSError, TimeoutError) as exc:
-            raise SetupError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+def connect(scheduler: str | None):
+    """A Dask client for --scheduler (checked before anything is compiled or run), or None."""
+    if not scheduler:
+        return None
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise SetupError("--scheduler needs dask.distributed: pip install 'dfeif-codegen[cluster]'") from None
+    try:
+        return Client(scheduler, timeout=30)
+    except (OSError, TimeoutError) as exc:
+        raise SetupError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+
+
+def execute(items: list, engine: str, shipped: dict, workers: int, client, done) -> str:
+    """Run every item, calling `done(run id, value)` as results arrive; returns where they ran.
+    `client`: a Dask client (see connect), closed here, or None for local processes."""
+    if client is not None:
+        from dask.distributed import as_completed as dask_completed
+
+        scheduler = getattr(client.scheduler, "address", "?")
         with client:
+            if not items:
+                return "nothing to run"
             cores = sum(client.ncores().values()) or 1
             [shared] = client.scatter([shipped], broadcast=True, hash=False)
             futures = [client.submit(batch, chunk, engine, shared, pure=False) for chunk in _chunks(items, cores)]
@@ -103,6 +113,8 @@ def execute(items: list, engine: str, shipped: dict, workers: int, scheduler: st
                 for rid, value in fut.result():
                     done(rid, value)
         return f"Dask cluster {scheduler} ({cores} threads)"
+    if not items:
+        return "nothing to run"
     if workers == 1:
         for rid, value in batch(items, engine, shipped):
             done(rid, value)
