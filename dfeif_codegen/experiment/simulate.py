@@ -14,10 +14,8 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from statistics import NormalDist
 
@@ -26,6 +24,7 @@ import numpy as np
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import sweep
 
 
 # --- statistics ---------------------------------------------------------------------------------
@@ -96,18 +95,8 @@ def _canonical(cfg: ex.Config) -> ex.Config:
 
 def _series(res: ex.Result) -> dict:
     rec = res.recording
-    return {"t": res.t, "zeta": res.zeta, "ref": np.array([ex.state_of_flags(ex._flat(res.config.model), r)
-                                                           for r in rec.ref]),
+    return {"t": res.t, "zeta": res.zeta, "ref": ex.state_of_flags(ex._flat(res.config.model), rec.ref),
             "node_x": rec.node_x, "x": rec.x, "u": rec.u, "v": rec.v, "delays": res.delays}
-
-
-def _work(cfg: ex.Config, series: bool):
-    """Worker: one run -> (metrics or error text, time series or None)."""
-    try:
-        res = ex.run(cfg)
-    except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
-        return f"{type(exc).__name__}: {exc}", None
-    return res.metrics, (_series(res) if series else None)
 
 
 class Progress:
@@ -366,37 +355,65 @@ def run(args) -> int:
             raise ScenarioError(f"{sc.where('reference')}: {cfg.reference}: {exc}") from None
     figure_keys = {(ref, configs[0][0], configs[0][1], ri, args.seed) for ref in refs for ri in (0, len(rows) - 1)}
     need_series = bool(args.plot or args.json)
+    engine = getattr(args, "engine", "c")
+    if args.resume and args.results and Path(args.resume) != Path(args.results):
+        raise ScenarioError("--resume FILE continues FILE: give --results the same file or leave it out")
+    previous = sweep.read_records(args.resume) if args.resume else {}
     show = not args.quiet and sys.stderr.isatty()
-    progress = Progress(len(wanted), show)
     results: dict = {}
     series: dict = {}
-    failures: list[str] = []
+    failures: list[tuple] = []
+    per_run: list[tuple] = []
     jobs = list(wanted.items())
-    workers = max(1, min(os.cpu_count() or 1, len(jobs)))
+    ids = {sweep.run_id(cfg, engine): (cfg, keys) for cfg, keys in jobs}
+    todo, reused = [], []
+    for rid, (cfg, keys) in ids.items():
+        wants_series = need_series and any(k in figure_keys for k in keys)
+        if rid in previous and not wants_series:
+            reused.append((rid, sweep.decode(previous[rid]["metrics"])))
+        else:
+            todo.append((rid, cfg, _series if wants_series else None))
+    workers = sweep.default_workers(getattr(args, "workers", None), len(todo))
+    client = sweep.connect(getattr(args, "scheduler", None))
+    try:
+        shipped = sweep.prepare([cfg for _, cfg, _ in todo], engine)
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
+    records = sweep.Records(args.resume or args.results, keep_existing=bool(args.resume))
+    progress = Progress(len(todo), show)
     started = time.monotonic()
 
-    def collect(keys, value):
-        metrics, data = value
+    def collect(rid, value, fresh=True):
+        metrics, data = value if fresh else (value, None)
+        cfg, keys = ids[rid]
+        if fresh and rid not in previous:
+            records.write(rid, keys, engine, metrics)
         for key in keys:
+            per_run.append((*key[:4], key[4], metrics))
             if isinstance(metrics, str):
-                failures.append(f"{key[0]} {key[1]} {key[2]} row {key[3] + 1} seed {key[4]}: {metrics}")
+                failures.append((key, f"{key[0]} {key[1]} {key[2]} row {key[3] + 1} seed {key[4]}: {metrics}"))
             else:
-                results.setdefault(key[:4], []).append(metrics)
+                results.setdefault(key[:4], []).append((key[4], metrics))
             if data is not None and key in figure_keys:
                 series[key] = data
-        progress.step()
+        if fresh:
+            progress.step()
 
-    if workers == 1:
-        for cfg, keys in jobs:
-            collect(keys, _work(cfg, need_series and any(k in figure_keys for k in keys)))
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(_work, cfg, need_series and any(k in figure_keys for k in keys)): keys
-                       for cfg, keys in jobs}
-            for fut in as_completed(futures):
-                collect(futures[fut], fut.result())
-    progress.close()
+    for rid, metrics in reused:
+        collect(rid, metrics, fresh=False)
+    try:
+        where = sweep.execute(todo, engine, shipped, workers, client, collect)
+    finally:
+        records.close()
+        progress.close()
     elapsed = time.monotonic() - started
+    # the same numbers wherever and in whichever order the runs ran: average in seed order
+    results = {k: [m for _, m in sorted(v, key=lambda sm: sm[0])] for k, v in results.items()}
+    failures = [text for _, text in sorted(failures)]
+    if args.csv:
+        sweep.write_csv(args.csv, per_run, flat.n, nodes)
 
     groups = {(ref, m, f): [summarize(results.get((ref, m, f, ri), []), flat.n) for ri in range(len(rows))]
               for ref in refs for m, f in configs}
@@ -405,14 +422,15 @@ def run(args) -> int:
                 "max_lag": args.max_lag, "ts": ts, "duration": sc.duration, "runs": runs,
                 "seeds": [args.seed, args.seed + runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
                 "noise_scale": [_pick(sc.noise_scale, i) for i in range(nodes)], "metrics_from": sc.metrics_from,
-                "elapsed_s": round(elapsed, 1), "workers": workers}
+                "elapsed_s": round(elapsed, 3), "workers": workers, "engine": engine, "ran_on": where,
+                "runs_resumed": len(reused), "distinct_runs": len(todo)}
     to_stdout = args.json == "-"
     if not to_stdout:
         out = sys.stdout
         print(f"codegen simulate: scenario {sc.name} on {flat.model.name}: {nodes} nodes, Ts = {ts:g} s, "
               f"{sc.duration:g} s runs, N_max = {args.max_lag}, q = {sc.q}, poles {sc.poles}, "
-              f"seeds {args.seed}..{args.seed + runs - 1}, {len(jobs)} runs in {elapsed:.0f} s on {workers} "
-              f"process(es)\n", file=out)
+              f"seeds {args.seed}..{args.seed + runs - 1}, {len(todo)} runs in {elapsed:.0f} s on {where} "
+              f"({engine} engine{f', {len(reused)} resumed' if reused else ''})\n", file=out)
         print_tables(out, sc, rows, groups, flat, nodes)
         print_summary(out, rows, groups)
         if failures:

@@ -18,7 +18,7 @@ typedef char dc_motor_link_check_real[(sizeof(dc_motor_link_real) == 8) ? 1 : -1
 int dc_motor_link_kern_predict(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
 #define DC_MOTOR_LINK_KERN_PREDICT_SZ_ARG 4
 #define DC_MOTOR_LINK_KERN_PREDICT_SZ_RES 2
-#define DC_MOTOR_LINK_KERN_PREDICT_SZ_W 14
+#define DC_MOTOR_LINK_KERN_PREDICT_SZ_W 11
 /* dc_motor_link_kern_update:(xm[3],Pm[3x3],z,gamma,R)->(x[3],P[3x3],piv) */
 int dc_motor_link_kern_update(const dc_motor_link_real** arg, dc_motor_link_real** res, dc_motor_link_real* w);
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_ARG 5

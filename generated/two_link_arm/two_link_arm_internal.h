@@ -18,7 +18,7 @@ typedef char two_link_arm_check_real[(sizeof(two_link_arm_real) == 8) ? 1 : -1];
 int two_link_arm_kern_predict(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_PREDICT_SZ_ARG 4
 #define TWO_LINK_ARM_KERN_PREDICT_SZ_RES 2
-#define TWO_LINK_ARM_KERN_PREDICT_SZ_W 22
+#define TWO_LINK_ARM_KERN_PREDICT_SZ_W 21
 /* two_link_arm_kern_update:(xm[6],Pm[6x6],z[2],gamma,R[2x2])->(x[6],P[6x6],piv[2]) */
 int two_link_arm_kern_update(const two_link_arm_real** arg, two_link_arm_real** res, two_link_arm_real* w);
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_ARG 5
