@@ -25,6 +25,7 @@ import numpy as np
 
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.errors import ScenarioError, SetupError
+from dfeif_codegen.experiment import bounds
 from dfeif_codegen.experiment import closed_loop as ex
 
 
@@ -164,7 +165,8 @@ def _row_label(row, drop: bool = False) -> str:
     return " ".join(f"{d:3d}" for d in row.d) + f"  {row.p:3.1f}" + (f"  {row.p_drop:6.2f}" if drop else "")
 
 
-def print_tables(out, sc, rows, groups, flat, nodes: int) -> None:
+def print_tables(out, sc, rows, groups, flat, nodes: int, bound=None) -> None:
+    """`bound`: per row, the exact optimal filter on the matched linear model (bounds.RowBound)."""
     names = [str(z) for z in flat.zeta]
     n = flat.n
     drop = any(r.p_drop for r in rows)
@@ -205,6 +207,16 @@ def print_tables(out, sc, rows, groups, flat, nodes: int) -> None:
                   f"error at node {i + 1}", xcols, [cells(s, "rmse_nodes", i) for s in summaries])
         table("Table IV: RMSE of the estimation error at the master", xcols,
               [cells(s, "rmse_master") for s in summaries])
+        if bound is not None and method in ex.OOSM:
+            table("Table IV-c: exact optimal filter's RMSE on the matched linear model, centralized "
+                  "(per node below)", xcols, [[f"{v:.3e}" for v in b.rmse_central] for b in bound])
+            for i in range(nodes):
+                table(f"  ... node {i + 1} alone", xcols, [[f"{v:.3e}" for v in b.rmse_nodes[i]] for b in bound])
+        if bound is not None:
+            table("Table IV-d: measured master RMSE / the centralized bound (< 1 is possible: the real "
+                  "plant has no process noise)", xcols,
+                  [[f"{a / c:.3f}" for a, c in zip(s["rmse_master"]["mean"], b.rmse_central)] if s.get("runs")
+                   else ["failed"] * n for s, b in zip(summaries, bound)])
         table("Table IV-b: RMSE tracking error of the plant (x - x_d, the chapter's quantity)", xcols,
               [cells(s, "rmse_tracking") for s in summaries])
         nees_rows = []
@@ -381,6 +393,8 @@ def run(args) -> int:
     progress.close()
     elapsed = time.monotonic() - started
 
+    bound = [bounds.row_bound([make_config(sc, args.model, nodes, args.max_lag, refs[0], row, "replay", "difference", s)
+                               for s in seeds]) for row in rows]
     groups = {(ref, m, f): [summarize(results.get((ref, m, f, ri), []), flat.n) for ri in range(len(rows))]
               for ref in refs for m, f in configs}
     ts = sc.ts or flat.model.ts
@@ -396,7 +410,7 @@ def run(args) -> int:
               f"{sc.duration:g} s runs, N_max = {args.max_lag}, q = {sc.q}, poles {sc.poles}, "
               f"seeds {args.seed}..{args.seed + runs - 1}, {len(jobs)} runs in {elapsed:.0f} s on {workers} "
               f"process(es)\n", file=out)
-        print_tables(out, sc, rows, groups, flat, nodes)
+        print_tables(out, sc, rows, groups, flat, nodes, bound)
         print_summary(out, rows, groups)
         if failures:
             print(f"\n{len(failures)} run(s) failed (left out of the averages):", file=out)
@@ -413,6 +427,7 @@ def run(args) -> int:
         doc = {"settings": settings, "rows": [{"d": r.d, "p": r.p, "p_drop": r.p_drop} for r in rows],
                "states": [str(z) for z in flat.zeta],
                "tables": [{"reference": ref, "method": m, "fusion": f, "rows": s} for (ref, m, f), s in groups.items()],
+               "bounds": [{"rmse_central": b.rmse_central, "rmse_nodes": b.rmse_nodes} for b in bound],
                "failures": failures, "figures": figures}
         text = json.dumps(_jsonable(doc))
         if to_stdout:
