@@ -18,6 +18,7 @@ COMMANDS = {
     "build": ("dfeif_codegen.cli", "generate the C module for a model into generated/<model>"),
     "verify": ("dfeif_codegen.check.verify", "compile the generated C and compare it with the Python reference"),
     "simulate": ("dfeif_codegen.experiment.simulate", "run the closed-loop experiment (chapter tables, plots, JSON)"),
+    "scenario": ("dfeif_codegen.experiment.starter", "write a starting scenario for a model (q, P0, poles, noise)"),
     "inspect": ("dfeif_codegen.symbolic.inspect_model", "show the derived flatness transform and discrete model"),
     "bench": ("dfeif_codegen.check.bench", "measure build time, code size, stack and instruction counts"),
 }
@@ -77,6 +78,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--json", metavar="FILE", help="write every figure machine-readably ('-' for stdout)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    p = add("scenario")
+    p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
 
     p = add("inspect")
     p.add_argument("--json", action="store_true", help="machine-readable output")
