@@ -99,7 +99,8 @@ def _series(res: ex.Result) -> dict:
     rec = res.recording
     return {"t": res.t, "zeta": res.zeta, "ref": np.array([ex.state_of_flags(ex._flat(res.config.model), r)
                                                            for r in rec.ref]),
-            "node_x": rec.node_x, "x": rec.x, "u": rec.u, "v": rec.v, "delays": res.delays}
+            "node_x": rec.node_x, "x": rec.x, "u": rec.u, "v": rec.v, "delays": res.delays,
+            "P_diag": np.diagonal(rec.P, axis1=1, axis2=2)}
 
 
 def _work(cfg: ex.Config, series: bool):
@@ -265,64 +266,50 @@ def _jsonable(value):
 
 
 def plot(directory: str, figures: dict, flat) -> list[str]:
-    """PNG figures like the chapter's Figs 9-13: states against the reference, input, delays."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
+    """PNG figures like the chapter's Figs 9-13 (experiment/figures.py): states against the
+    reference, the estimation error with its +-3 sigma band, the delays."""
+    from dfeif_codegen.experiment import figures as figs
+
+    figs.pyplot()
     folder = Path(directory)
     folder.mkdir(parents=True, exist_ok=True)
-    names = [str(z) for z in flat.zeta]
     written = []
+    name = flat.model.name
 
-    def states(path, title, t, est, truth, ref, u):
-        panels = len(names) + u.shape[1]
-        cols = 2
-        fig, axes = plt.subplots((panels + 1) // cols, cols, figsize=(10, 2.4 * ((panels + 1) // cols)), squeeze=False)
-        for i, name in enumerate(names):
-            ax = axes.flat[i]
-            ax.plot(t, ref[:, i], "r", lw=1, label="reference")
-            ax.plot(t, truth[:, i], "k", lw=0.8, label="true")
-            ax.plot(t, est[:, i], "b--", lw=0.8, label="estimate")
-            ax.set_ylabel(f"x{i + 1} ({name})")
-        for j in range(u.shape[1]):
-            ax = axes.flat[len(names) + j]
-            ax.plot(t, u[:, j], "g", lw=0.8)
-            ax.set_ylabel(f"control input u{j + 1}")
-        for ax in axes.flat:
-            ax.set_xlabel("t (sec)")
-        axes.flat[0].legend(fontsize=7)
-        fig.suptitle(title)
-        fig.tight_layout()
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+    def save(path):
         written.append(str(path))
+        return path
 
     for ref, fig in figures.items():
         a, b = fig["no_delay"], fig["delay"]
-        states(folder / f"fig09_{ref}_master_no_delay.png", f"Fig. 9: master, no delays ({ref})",
-               a["t"], np.asarray(a["x"]), np.asarray(a["zeta"]), np.asarray(a["ref"]), np.asarray(a["u"]))
-        delays = np.asarray(b["delays"])
-        f, axes = plt.subplots(delays.shape[0], 1, figsize=(8, 2.2 * delays.shape[0]), squeeze=False)
-        for i, ax in enumerate(axes.flat):
-            ax.step(b["t"], np.where(delays[i] < 0, np.nan, delays[i]), where="post", lw=0.6)
-            ax.set_ylabel(f"node {i + 1} delay [Ts]")
-            ax.set_xlabel("t (sec)")
-        f.suptitle(f"Fig. 10: measurement delays ({b['row']}, {ref})")
-        f.tight_layout()
-        f.savefig(folder / f"fig10_{ref}_delays.png", dpi=110)
-        plt.close(f)
-        written.append(str(folder / f"fig10_{ref}_delays.png"))
+        how = f"{fig['method']} + {fig['fusion']}"
+        b = {**b, "row": figs.row_text(b["row"])}
+        t = np.asarray(a["t"])
+        figs.states_figure(save(folder / f"fig09_{ref}_master_no_delay.png"),
+                           f"Fig. 9: {name}, master estimate without delays ({ref} reference, {how})", flat,
+                           t, np.asarray(a["x"]), np.asarray(a["zeta"]), np.asarray(a["ref"]), np.asarray(a["u"]),
+                           who="master estimate")
+        ts = float(t[1] - t[0]) if len(t) > 1 else 1.0
+        figs.delay_figure(save(folder / f"fig10_{ref}_delays.png"),
+                          f"Fig. 10: {name}, camera -> node delays at {b['row']}: late with probability p by 1..d_i steps",
+                          np.asarray(b["t"]), b["delays"], ts)
         node_x = np.asarray(b["node_x"])
         for i in range(node_x.shape[0]):
-            states(folder / f"fig{11 + i}_{ref}_node{i + 1}_delay.png",
-                   f"Fig. {11 + i}: node {i + 1} under delays {b['row']} ({ref})",
-                   b["t"], node_x[i], np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]))
-        states(folder / f"fig{11 + node_x.shape[0]}_{ref}_master_delay.png",
-               f"Fig. {11 + node_x.shape[0]}: master under delays {b['row']} ({ref})",
-               b["t"], np.asarray(b["x"]), np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]))
+            figs.states_figure(save(folder / f"fig{11 + i}_{ref}_node{i + 1}_delay.png"),
+                               f"Fig. {11 + i}: {name}, node {i + 1} under delays {b['row']} ({ref})", flat,
+                               b["t"], node_x[i], np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
+                               who=f"node {i + 1} estimate")
+        last = 11 + node_x.shape[0]
+        figs.states_figure(save(folder / f"fig{last}_{ref}_master_delay.png"),
+                           f"Fig. {last}: {name}, master under delays {b['row']} ({ref}, {how})", flat,
+                           b["t"], np.asarray(b["x"]), np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
+                           who="master estimate")
+        for key, label in (("no_delay", "without delays"), ("delay", f"under delays {b['row']}")):
+            d = fig[key]
+            if "P_diag" in d:
+                figs.error_figure(save(folder / f"fig{last + 1}_{ref}_master_error_{key}.png"),
+                                  f"{name}: master estimation error {label} ({ref}, {how})", flat,
+                                  np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]))
     return written
 
 
