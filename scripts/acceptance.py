@@ -3,7 +3,8 @@
 `python scripts/acceptance.py MODEL RUNS OUT.npy [--seed S] [--rows 0,1,5] [--filters]`: for every
 seed and delay row of the paper scenario (sinusoid reference), the closed loop with replay +
 difference, with discard and with retrodict; `--filters` instead runs replay + difference only and
-the EKF and UKF nodes on its recording (experiment/compare.py), with the cost per step of each. Stores
+the EKF and UKF nodes on its recording (experiment/compare.py), with the cost per step of each;
+`--matched` runs the matched linear plant (experiment/matched.py) instead of the real one. Stores
 per-run metrics (so ratios get paired intervals) and per-step master NEES. Runs in 2 processes.
 """
 
@@ -21,8 +22,28 @@ from dfeif_codegen.experiment import scenario, simulate
 METHODS = ("replay", "discard", "retrodict")
 
 
+def matched_one(model, ri, seed):
+    """The matched linear plant (experiment/matched.py) with replay + difference, and the gap
+    between the master's covariance and the centralized Riccati recursion of the same arrivals."""
+    from dfeif_codegen.experiment import bounds, matched
+    sc = scenario.load("paper")
+    cfg = simulate.make_config(sc, model, 2, 32, "sinusoid", sc.grid[ri], "replay", "difference", seed)
+    out = matched.run(cfg)
+    m = matched.metrics(cfg, out)
+    flat = ex._flat(model)
+    A, Q, R, P0, _ = bounds.matched_model(cfg)
+    C = np.zeros((flat.m, flat.n))
+    C[np.arange(flat.m), flat.heads] = 1.0
+    H = np.array([C.T @ np.linalg.solve(Ri, C) for Ri in R])
+    central = bounds.posterior_covariances(A, Q, H, P0, bounds.arrivals(bounds.network_of(cfg, out["x"].shape[0]), 32))
+    m["P_gap"] = float(np.max(np.abs(out["P"] - central) / np.abs(central).max(axis=(1, 2))[:, None, None]))
+    return {"matched": m}
+
+
 def one(args):
     model, ri, seed, with_filters = args
+    if with_filters == "matched":
+        return model, ri, seed, matched_one(model, ri, seed)
     sc = scenario.load("paper")
     row = sc.grid[ri]
     out = {}
@@ -54,7 +75,7 @@ def one(args):
 
 def main():
     model, runs, path = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-    with_filters = "--filters" in sys.argv
+    with_filters = "matched" if "--matched" in sys.argv else "--filters" in sys.argv
     first = int(sys.argv[sys.argv.index("--seed") + 1]) if "--seed" in sys.argv else 0
     rows = range(len(scenario.load("paper").grid))
     if "--rows" in sys.argv:

@@ -143,7 +143,9 @@ def summarize(runs: list[dict], n: int) -> dict:
     if not runs:
         return out
     for key in ("trace_nodes", "trace_master", "rmse_nodes", "rmse_master", "rmse_tracking",
-                "late_applied", "late_rejected"):
+                "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected"):
+        if key not in runs[0]:
+            continue
         mean, half = mean_ci([r[key] for r in runs])
         out[key] = {"mean": mean.tolist(), "ci95": half.tolist()}
     lo, hi = nees_band(n, len(runs))
@@ -220,6 +222,11 @@ def print_tables(out, sc, rows, groups, flat, nodes: int, bound=None) -> None:
                    else ["failed"] * n for s, b in zip(summaries, bound)])
         table("Table IV-b: RMSE tracking error of the plant (x - x_d, the chapter's quantity)", xcols,
               [cells(s, "rmse_tracking") for s in summaries])
+        if "rmse_est_tracking_master" in ok[0]:
+            table("Table IV-e: RMSE of the estimated tracking error x_hat - x_d, x1 (the chapter's Tables II-IV "
+                  "give one value per filter)", [f"node {i + 1}" for i in range(nodes)] + ["master"],
+                  [(cells(s, "rmse_est_tracking_nodes", (slice(None), 0)) + cells(s, "rmse_est_tracking_master", 0))
+                   if s.get("runs") else ["failed"] * (nodes + 1) for s in summaries])
         nees_rows = []
         for s in summaries:
             if not s.get("runs"):
