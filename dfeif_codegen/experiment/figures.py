@@ -88,6 +88,7 @@ def states_figure(path, title, flat, t, est, truth, ref, u, who="estimate"):
         ax.plot(t, ref[:, i], color="tab:orange", lw=3.0, alpha=0.45, label="reference")
         ax.plot(t, truth[:, i], "k", lw=0.8, label="true")
         ax.plot(t, est[:, i], color="tab:blue", ls="--", lw=0.8, label=who)
+        ax.plot(t, ref[:, i], color="tab:red", lw=0.8, zorder=5)     # and thin on top: seen through noise
         ax.set_ylabel(label)
         ax.legend(fontsize=7, loc="upper right", ncol=3)
     for j, label in enumerate(ulabels):
