@@ -96,3 +96,27 @@ def test_monte_carlo_of_the_matched_plant():
     mse = np.array([matched.metrics(c, matched.run(c))["mse_nodes"] for c in cfgs])   # (S, M, n)
     mean, se = mse.mean(axis=0), mse.std(axis=0, ddof=1) / math.sqrt(len(cfgs))
     assert np.all(np.abs(mean - bound.var_nodes) < 4 * se), (mean, bound.var_nodes, se)
+
+
+def test_simulate_prints_and_writes_the_bounds(tmp_path, capsys):
+    """`codegen simulate` puts each row's exact bound beside the measurements (Table IV-c/IV-d)
+    and into the JSON, equal to bounds.row_bound over the same seeds (the same computation, so
+    to the last bit)."""
+    import json
+    from dfeif_codegen import cli
+    path = tmp_path / "short.toml"
+    path.write_text("[scenario]\nduration = 2.0\nreferences = [\"sinusoid\"]\nfusion = [\"difference\"]\n"
+                    "baselines = []\n[filter]\nq = 20.0\n[control]\npoles = 10.0\n"
+                    "[[grid]]\nd = [0, 0]\np = 0.0\n[[grid]]\nd = [8, 10]\np = 0.8\n")
+    out = tmp_path / "s.json"
+    assert cli.main(["simulate", "--scenario", str(path), "--runs", "2", "--quiet", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "Table IV-c" in text and "Table IV-d" in text
+    doc = json.loads(out.read_text())
+    sc = scenario.load(str(path))
+    for ri, row in enumerate(sc.grid):
+        cfgs = [simulate.make_config(sc, "dc_motor_link", 2, 32, "sinusoid", row, "replay", "difference", s)
+                for s in (0, 1)]
+        expect = bounds.row_bound(cfgs)
+        assert doc["bounds"][ri]["rmse_central"] == expect.rmse_central.tolist()
+        assert doc["bounds"][ri]["rmse_nodes"] == expect.rmse_nodes.tolist()
