@@ -24,7 +24,7 @@ from statistics import NormalDist
 import numpy as np
 
 from dfeif_codegen.experiment import scenario as scenario_mod
-from dfeif_codegen.errors import ScenarioError, SetupError
+from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import bounds
 from dfeif_codegen.experiment import closed_loop as ex
 
@@ -328,6 +328,9 @@ def run(args) -> int:
 
     sc = scenario_mod.load(args.scenario)
     flat = derive(load_model(args.model))
+    if args.plot:                          # a missing matplotlib is said before the runs, not after
+        from dfeif_codegen.experiment import figures as figs
+        figs.pyplot()
     sc.check_model(flat)
     # --nodes defaults to 2 in the parser: a scenario with another node count keeps its own
     # unless --nodes asks for something other than 2 (node settings then repeat cyclically).
