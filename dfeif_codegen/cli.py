@@ -19,6 +19,7 @@ COMMANDS = {
     "build": "generate the C module for a model into generated/<model>",
     "verify": "compile the generated C and compare it with the Python reference",
     "simulate": "run the closed-loop experiment (chapter tables, plots, JSON)",
+    "scenario": "write a starting scenario for a model (q, P0, poles, noise)",
     "inspect": "show the derived flatness transform and discrete model",
     "bench": "measure build time, code size, stack and instruction counts",
     "network": "run nodes and master as separate processes over UDP on 127.0.0.1 through a seeded "
@@ -111,6 +112,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="FILE", help="per-run scalar results as CSV")
     p.add_argument("--resume", metavar="FILE",
                    help="continue the sweep recorded in FILE (a --results file): finished runs are not rerun")
+
+    p = add("scenario")
+    p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
 
     p = add("inspect")
     p.add_argument("--json", action="store_true", help="machine-readable output")
@@ -219,6 +223,12 @@ def bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def scenario(args: argparse.Namespace) -> int:
+    from dfeif_codegen.experiment import starter
+
+    return starter.run(args)
+
+
 def network(args: argparse.Namespace) -> int:
     from dfeif_codegen.net import run
 
@@ -226,7 +236,7 @@ def network(args: argparse.Namespace) -> int:
 
 
 HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench,
-            "network": network}
+            "network": network, "scenario": scenario}
 
 
 def main(argv: list[str] | None = None) -> int:
