@@ -49,7 +49,8 @@ class DivergenceWatch:
     """Raises Diverged when the true state leaves its declared domain or the master's NEES has
     stayed above NEES_DIVERGED * n for NEES_STEPS steps in a row."""
 
-    def __init__(self, model):
+    def __init__(self, model, nees: bool = True):
+        self.nees = nees
         self.names = [v.name for v in model.states]
         self.lo = np.array([-np.inf if v.min is None else v.min for v in model.states])
         self.hi = np.array([np.inf if v.max is None else v.max for v in model.states])
@@ -63,6 +64,8 @@ class DivergenceWatch:
             i = int(outside[0])
             raise Diverged(f"diverged at t = {t:.2f} s: state {self.names[i]} = {x[i]:.4g} left its domain "
                            f"[{self.lo[i]:g}, {self.hi[i]:g}]")
+        if not self.nees:
+            return
         n = len(err)
         with np.errstate(all="ignore"):
             nees = float(err @ np.linalg.solve(P, err)) if np.all(np.isfinite(P)) else np.inf
@@ -125,6 +128,7 @@ class Config:
     fusion: str = "difference"
     seed: int = 0
     metrics_from: float = 1.0         # [s] metrics skip the initial transient
+    watch_nees: bool = True           # a run whose master NEES stays huge has diverged (off: calibration)
 
 
 @dataclass
@@ -412,7 +416,7 @@ def run(cfg: Config) -> Result:
     out = _Outputs(M, K, n, m)
     late_at = np.searchsorted(s.late[:, 0], np.arange(K + 1))
     x = s.x0
-    watch = DivergenceWatch(flat.model)
+    watch = DivergenceWatch(flat.model, cfg.watch_nees)
     for k in range(K):
         x_true[k], zeta[k] = x, flat.phi_num(x)
         for i in range(M):
@@ -430,7 +434,7 @@ def check_divergence(s: "Setup", x_true, zeta, x, P, steps: int | None = None) -
     """The divergence watch over a run's arrays (an engine that ran the loop elsewhere), over its
     first `steps` steps (default all): the state after step k is the next step's x_true, so the
     last step's successor goes unchecked."""
-    watch = DivergenceWatch(s.flat.model)
+    watch = DivergenceWatch(s.flat.model, s.cfg.watch_nees)
     for k in range(min(s.K, s.K if steps is None else steps + 1) - 1):
         watch.step(s.t[k], x_true[k + 1], _errors(s.flat, x[k], zeta[k]), P[k])
 
