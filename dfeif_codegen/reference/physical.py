@@ -18,24 +18,19 @@ functions, rewind-and-replay of late frames, and fusion, shared by `ekf.py` and 
 
 from __future__ import annotations
 
-import math
-
 import casadi as ca
 import numpy as np
 import sympy as sp
 
 from dfeif_codegen.reference.linalg import spd_inv
+from dfeif_codegen.symbolic import numeric
 from dfeif_codegen.reference.node import measurement_covariance
 
-_CASADI = {"sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "exp": ca.exp, "log": ca.log, "sqrt": ca.sqrt,
-           "atan2": ca.atan2, "atan": ca.atan, "asin": ca.asin, "acos": ca.acos, "sinh": ca.sinh,
-           "cosh": ca.cosh, "tanh": ca.tanh, "Abs": ca.fabs, "sign": ca.sign, "pi": math.pi, "E": math.e}
-
-
 def _sx(args: list[sp.Symbol], exprs, values: list[ca.SX]) -> ca.SX:
-    """sympy expressions (parameters already substituted) evaluated on casadi symbols."""
-    fn = sp.lambdify([args], list(exprs), modules=[_CASADI], cse=True)
-    return ca.vertcat(*fn(values))
+    """sympy expressions (parameters already substituted) evaluated on casadi symbols, through
+    the one sympy -> CasADi bridge."""
+    table = dict(zip(args, values))
+    return ca.vertcat(*[numeric.to_casadi(sp.sympify(e), table, f"physical model [{i}]") for i, e in enumerate(exprs)])
 
 
 class PhysicalModel:
