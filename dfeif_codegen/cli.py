@@ -19,6 +19,7 @@ COMMANDS = {
     "build": "generate the C module for a model into generated/<model>",
     "verify": "compile the generated C and compare it with the Python reference",
     "simulate": "run the closed-loop experiment (chapter tables, plots, JSON)",
+    "scenario": "write a starting scenario for a model (q, P0, poles, noise)",
     "inspect": "show the derived flatness transform and discrete model",
     "bench": "measure build time, code size, stack and instruction counts",
     "network": "run nodes and master as separate processes over UDP on 127.0.0.1 through a seeded "
@@ -102,6 +103,18 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--json", metavar="FILE", help="write every figure machine-readably ('-' for stdout)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--engine", choices=["c", "reference"], default="c",
+                   help="closed loops in compiled C (default) or in the numpy reference")
+    p.add_argument("--workers", type=int, default=None, metavar="N", help="local processes (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on an existing Dask distributed cluster (extra 'cluster')")
+    p.add_argument("--results", metavar="FILE", help="per-run results as JSON lines, written as runs finish")
+    p.add_argument("--csv", metavar="FILE", help="per-run scalar results as CSV")
+    p.add_argument("--resume", metavar="FILE",
+                   help="continue the sweep recorded in FILE (a --results file): finished runs are not rerun")
+
+    p = add("scenario")
+    p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
 
     p = add("inspect")
     p.add_argument("--json", action="store_true", help="machine-readable output")
@@ -125,6 +138,7 @@ def parser() -> argparse.ArgumentParser:
     p = add("bench")
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
     p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures (median reported)")
+    p.add_argument("--quick", action="store_true", help="skip the scaling sweeps and the Monte Carlo figures")
     return top
 
 
@@ -199,7 +213,7 @@ def bench(args: argparse.Namespace) -> int:
     writable_file(args.out, "--out")
     command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
         else None
-    text = bench.bench(args.model, repeat=args.repeat, command=command,
+    text = bench.bench(args.model, repeat=args.repeat, command=command, quick=args.quick,
                        progress=lambda line: print(line, file=sys.stderr))
     out = Path(args.out)
     text = bench.keep_network_section(text, out.read_text() if out.exists() else "")
@@ -209,6 +223,12 @@ def bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def scenario(args: argparse.Namespace) -> int:
+    from dfeif_codegen.experiment import starter
+
+    return starter.run(args)
+
+
 def network(args: argparse.Namespace) -> int:
     from dfeif_codegen.net import run
 
@@ -216,7 +236,7 @@ def network(args: argparse.Namespace) -> int:
 
 
 HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench,
-            "network": network}
+            "network": network, "scenario": scenario}
 
 
 def main(argv: list[str] | None = None) -> int:

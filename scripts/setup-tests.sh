@@ -24,4 +24,4 @@ if [ "$missing" = 1 ]; then
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${apt_packages[@]}" >/dev/null
   fi
 fi
-python -m pip install -q -e '.[test,plot,control]'
+python -m pip install -q -e '.[test,plot,control,cluster,bench]'

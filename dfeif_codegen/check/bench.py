@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from dfeif_codegen import __version__
-from dfeif_codegen.check import harness, target
+from dfeif_codegen.check import bench_peers, harness, target
 from dfeif_codegen.codegen import render
 from dfeif_codegen.errors import CodegenError, SetupError
 
@@ -105,9 +105,11 @@ def keep_network_section(text: str, previous: str) -> str:
     return text.rstrip() + "\n\n" + NETWORK_MARK + previous.split(NETWORK_MARK, 1)[1]
 
 
-def bench(model: str | None = None, *, repeat: int = 5, command: str | None = None, progress=None) -> str:
+def bench(model: str | None = None, *, repeat: int = 5, command: str | None = None, progress=None,
+          quick: bool = False) -> str:
     """BENCHMARKS.md's text for a model file, or (default, or a built-in name) both built-in
-    models side by side. `command` is the line the report says regenerates it."""
+    models side by side. `command` is the line the report says regenerates it; `quick` skips
+    the scaling sweeps and the Monte Carlo figures."""
     if isinstance(repeat, bool) or not isinstance(repeat, int) or not 1 <= repeat <= 1000:
         raise CodegenError(f"--repeat must be an integer between 1 and 1000, got {repeat!r}")
     harness.host_compiler()
@@ -121,7 +123,22 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
             if progress:
                 progress(f"codegen bench: {name}")
             sections.append(_bench_model(name, repeat, work / name))
-    return _markdown(command or f"codegen bench --repeat {repeat}", sections, repeat)
+        if progress:
+            progress("codegen bench: peers")
+        for sec in sections:
+            md = harness.build_model(sec["name"], work / sec["name"] / "peers-build")
+            sec["peers"] = bench_peers.c_peers(sec["name"], md, work / sec["name"] / "peers")
+            sec["py_peers"] = bench_peers.python_peers(sec["name"])
+        comparisons = {}
+        if not quick:
+            if progress:
+                progress("codegen bench: scaling")
+            comparisons["scaling"] = bench_peers.scaling(work / "scaling", callgrind)
+            if progress:
+                progress("codegen bench: closed-loop Monte Carlo")
+            comparisons["mc"] = bench_peers.monte_carlo(work / "mc")
+    return (_markdown(command or f"codegen bench --repeat {repeat}", sections, repeat)
+            + _markdown_more(sections, comparisons))
 
 
 def _bench_model(name: str, repeat: int, work: Path) -> dict:
@@ -198,4 +215,104 @@ def _markdown(command: str, sections: list[dict], repeat: int) -> str:
         for kind in ("node", "master", "packet"):
             out.append(f"| `{name}_{kind}` | {sf[kind]} | {sd[kind]} | {sd[kind] / sf[kind]:.2f} |")
         out.append("")
+    return "\n".join(out)
+
+
+def _ratio(a, b) -> str:
+    return "-" if a is None or b is None else f"{a / b:.2f}"
+
+
+def _markdown_more(sections: list[dict], comp: dict) -> str:
+    """Peers side by side, targets, worst cases, scaling and Monte Carlo throughput."""
+    out = ["## Peers side by side (one node step: update with an on-time frame, then predict)", "",
+           "Host, double. C instruction counts from callgrind; wall time median of 7 timed loops of "
+           "20,000 steps (C) or of 5 loops of 2,000 steps (Python). The C peers are checked to give the "
+           "generated filter's estimate (1e-9) before they are reported.", "",
+           "| model | filter | instructions | x generated | ns per step | x generated |",
+           "|---|---|---:|---:|---:|---:|"]
+    for sec in sections:
+        pe, py = sec["peers"], sec["py_peers"]
+        gi, gn = pe["instructions"]["generated"], pe["ns"]["generated"]
+        labels = {"generated": "generated (this tool)", "dense": "dense-loop C (embedded-library style)",
+                  "straight": "hand-written straight-line C (n = 3 limit)"}
+        for key, label in labels.items():
+            if key in pe["instructions"]:
+                i, t = pe["instructions"][key], pe["ns"][key]
+                out.append(f"| {sec['name']} | {label} | {_fmt(i)} | {i / gi:.2f} | {t:.1f} | {t / gn:.2f} |")
+        for label, t in py.items():
+            out.append(f"| {sec['name']} | {label} | - | - | {'-' if t is None else f'{t:,.0f}'} | "
+                       f"{_ratio(t, gn)} |")
+    out.append("")
+    for sec in sections:
+        c = sec["counts"][("replay", "difference")]
+        r = sec["counts"][("retrodict", "difference")]
+        step = c["node_update"] + c["node_predict"]
+        per = (c["node_update_delayed_lag32"] - c["node_update_delayed_lag8"]) / 24
+        out += [f"### Targets, {sec['name']} (host, double)", "", "| figure | measured | target |",
+                "|---|---:|---:|",
+                f"| node predict + update | {_fmt(step)} | 350 (dc_motor_link) |",
+                f"| replay, per replayed step (lag 8 -> 32) | {_fmt(per)} = {per / step:.2f}x a plain step | 1.0x |",
+                f"| update_delayed, lag 32, replay / retrodict | {_fmt(c['node_update_delayed_lag32'])} / "
+                f"{_fmt(r['node_update_delayed_lag32'])} | |",
+                f"| master fuse, difference rule, M = 2 | {_fmt(sec['counts'][('replay', 'difference')]['master_fuse'])}"
+                " | 1,500 (dc_motor_link) |",
+                f"| node struct, double, N_max = 32 (Cortex-M4F layout) | {sec['sizeof']['double']['node']} B | "
+                "2,560 B (two_link_arm 8,192 B) |", ""]
+        out += ["Worst case per entry point (the real-time budget): the generated code is straight-line except "
+                "the window walk of update_delayed (longest at lag = N_max) and a fixed number of CI Newton steps, "
+                "so the count at the longest input is the worst case.", "",
+                "| entry point | worst-case instructions |", "|---|---:|"]
+        for key, label in (("node_update", "node_update"), ("node_predict", "node_predict"), ("control", "control")):
+            out.append(f"| `{label}` | {_fmt(c[key])} |")
+        out.append(f"| `node_update_delayed` (replay, lag 32 = N_max) | {_fmt(c['node_update_delayed_lag32'])} |")
+        out.append(f"| `node_update_delayed` (retrodict, lag 32 = N_max) | {_fmt(r['node_update_delayed_lag32'])} |")
+        for fusion in ("paper", "difference", "ci"):
+            out.append(f"| `master_fuse` ({fusion}, 2 packets) | {_fmt(sec['counts'][('replay', fusion)]['master_fuse'])} |")
+        out.append("")
+    sc = comp.get("scaling")
+    if sc:
+        ch = sc["chains"]
+        ns = sorted(ch)
+        out += ["## Scaling (host, double instructions; Cortex-M4F float -Os sizes)", "",
+                "Synthetic flat chains: one output, relative degree n (`n` integrators).", "",
+                "| n | node step instructions | filter kernels .text [B] | kernels + node .text [B] |",
+                "|---:|---:|---:|---:|"]
+        for n in ns:
+            out.append(f"| {n} | {_fmt(ch[n]['step'])} | {ch[n]['kernel_text']} | {ch[n]['filter_text']} |")
+        out += ["", f"Fitted growth over n = {ns[0]}..{ns[-1]}: node step ~ n^"
+                f"{bench_peers.growth(ns, [ch[n]['step'] for n in ns]):.2f}, filter kernel .text ~ n^"
+                f"{bench_peers.growth(ns, [ch[n]['kernel_text'] for n in ns]):.2f} (target: no faster than n^2).", ""]
+        nd = sc["nodes"]
+        Ms = sorted(nd)
+        out += ["| nodes M (dc_motor_link) | master fuse, difference | master fuse, CI |", "|---:|---:|---:|"]
+        out += [f"| {M} | {_fmt(nd[M]['difference'])} | {_fmt(nd[M]['ci'])} |" for M in Ms]
+        out += ["", f"Fitted growth over M = {Ms[0]}..{Ms[-1]}: difference ~ M^"
+                f"{bench_peers.growth(Ms, [nd[M]['difference'] for M in Ms]):.2f}, CI ~ M^"
+                f"{bench_peers.growth(Ms, [nd[M]['ci'] for M in Ms]):.2f} (CI target at M = 8: 20,000).", ""]
+        wd = sc["windows"]
+        Ns = sorted(wd)
+        out += ["| N_max (dc_motor_link) | update_delayed at lag N_max, replay | retrodict | node struct, double [B] |",
+                "|---:|---:|---:|---:|"]
+        out += [f"| {N} | {_fmt(wd[N]['replay'])} | {_fmt(wd[N]['retrodict'])} | {wd[N]['node_bytes']} |" for N in Ns]
+        out += ["", f"Fitted growth over N_max = {Ns[0]}..{Ns[-1]}: replay ~ N^"
+                f"{bench_peers.growth(Ns, [wd[N]['replay'] for N in Ns]):.2f}, retrodict ~ N^"
+                f"{bench_peers.growth(Ns, [wd[N]['retrodict'] for N in Ns]):.2f}, node struct ~ N^"
+                f"{bench_peers.growth(Ns, [wd[N]['node_bytes'] for N in Ns]):.2f}.", ""]
+    mc = comp.get("mc")
+    if mc:
+        out += ["## Closed-loop Monte Carlo (`codegen simulate`, scenario paper, dc_motor_link)", "",
+                "Runs of 2,000 steps per second of the sweep itself (start-up and compilation excluded); "
+                "the machine's other load is not controlled, so these are wall-clock figures of this run.", "",
+                "| engine | where | runs | seconds | runs/s |", "|---|---|---:|---:|---:|"]
+        for r in mc["rates"]:
+            out.append(f"| {r['engine']} | {r['how']} | {r['runs']} | {r['seconds']:.1f} | {r['per_s']:.1f} |")
+        p = mc["paper100"]
+        per_run = p["cpu_s"] / p["runs"]   # CPU per run, start-up and compilation spread over the runs
+        out += ["", f"100 seeds of the paper table ({p['runs']} distinct runs, 6 rows x 2 references x the 4 "
+                f"methods the table compares): {p['wall_s']:.1f} s wall as a user runs it (start-up and "
+                f"compilation included; {p['cpu_s']:.1f} CPU-s in all, so at best {p['cpu_s'] / p['workers']:.1f} s on "
+                f"{p['workers']} otherwise idle cores), {p['loop_s']:.1f} s of runs on {p['workers']} processes "
+                f"(target 60 s). "
+                f"At {per_run * 1000:.1f} CPU-ms per run, a 64-core cluster would take about "
+                f"{p['runs'] * per_run / 64:.1f} s for the runs plus the start-up.", ""]
     return "\n".join(out)

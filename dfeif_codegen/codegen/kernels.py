@@ -185,6 +185,18 @@ class _Builder:
         K, piv = _right_divide(self.head_cols(Pm), S)
         return S, scale * K, piv
 
+    @staticmethod
+    def symmetric(P: ca.SX) -> ca.SX:
+        """P from its upper triangle: each distinct entry of a symmetric result computed once (the
+        lower triangle reuses the same expressions), and of an input read once."""
+        n = P.shape[0]
+        out = ca.SX(n, n)
+        for i in range(n):
+            for j in range(i, n):
+                out[i, j] = P[i, j]
+                out[j, i] = P[i, j]
+        return out
+
     def joseph(self, Pm: ca.SX, K: ca.SX, R: ca.SX) -> ca.SX:
         IKC = self.I - ca.mtimes(K, self.C)
         return ca.mtimes(ca.mtimes(IKC, Pm), IKC.T) + ca.mtimes(ca.mtimes(K, R), K.T)
@@ -194,7 +206,8 @@ class _Builder:
         n, m = self.n, self.m
         x, P, v, q = _sym("x", n), _sym("P", n, n), _sym("v", m), _sym("q", m)
         x1 = ca.mtimes(self.A, x) + ca.mtimes(self.B, v)
-        P1 = ca.mtimes(ca.mtimes(self.A, P), self.A.T) + self.Q_of(q)
+        Ps = self.symmetric(P)
+        P1 = self.symmetric(ca.mtimes(ca.mtimes(self.A, Ps), self.A.T) + self.Q_of(q))
         return ca.Function(name, [x, P, v, q], [x1, P1], ["x", "P", "v", "q"], ["x1", "P1"])
 
     def update(self, name: str) -> ca.Function:

@@ -49,7 +49,8 @@ class DivergenceWatch:
     """Raises Diverged when the true state leaves its declared domain or the master's NEES has
     stayed above NEES_DIVERGED * n for NEES_STEPS steps in a row."""
 
-    def __init__(self, model):
+    def __init__(self, model, nees: bool = True):
+        self.nees = nees
         self.names = [v.name for v in model.states]
         self.lo = np.array([-np.inf if v.min is None else v.min for v in model.states])
         self.hi = np.array([np.inf if v.max is None else v.max for v in model.states])
@@ -63,6 +64,8 @@ class DivergenceWatch:
             i = int(outside[0])
             raise Diverged(f"diverged at t = {t:.2f} s: state {self.names[i]} = {x[i]:.4g} left its domain "
                            f"[{self.lo[i]:g}, {self.hi[i]:g}]")
+        if not self.nees:
+            return
         n = len(err)
         with np.errstate(all="ignore"):
             nees = float(err @ np.linalg.solve(P, err)) if np.all(np.isfinite(P)) else np.inf
@@ -125,6 +128,7 @@ class Config:
     fusion: str = "difference"
     seed: int = 0
     metrics_from: float = 1.0         # [s] metrics skip the initial transient
+    watch_nees: bool = True           # a run whose master NEES stays huge has diverged (off: calibration)
 
 
 @dataclass
@@ -275,9 +279,14 @@ def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndar
 
 # --- the closed loop ------------------------------------------------------------------------------
 
+# model files' text by spec, set on workers that may not see the caller's files (sweep.py)
+MODEL_TEXT: dict[str, str] = {}
+
+
 @lru_cache(maxsize=None)
 def _flat(spec: str):
-    return flatness.derive(model_mod.load(spec))
+    text = MODEL_TEXT.get(spec)
+    return flatness.derive(model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec))
 
 
 @lru_cache(maxsize=None)
@@ -302,18 +311,62 @@ def initial_covariance(flat, p0_std) -> np.ndarray:
     return np.diag(np.concatenate([std[:r] for r in flat.degrees]) ** 2)
 
 
+@lru_cache(maxsize=64)
+def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K) -> np.ndarray:
+    """The reference flags of every step (the same for every seed and method of a row: computed once)."""
+    flat = _flat(spec)
+    cfg = Config(model=spec, reference=kind, amplitude=amplitude, period=period, offset=offset, harmonics=harmonics)
+    refs = references(cfg, flat.m)
+    table = np.array([flags(refs, flat.degrees, tk) for tk in np.arange(K) * ts])
+    table.flags.writeable = False
+    return table
+
+
 def references(cfg: Config, m: int) -> list[Reference]:
     amp, off = _per_chain(cfg.amplitude, m), _per_chain(cfg.offset, m)
     return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics) for j in range(m)]
 
 
 def state_of_flags(flat, ref_flags) -> np.ndarray:
-    """The canonical state the reference flags describe (drop each chain's top derivative)."""
-    return np.concatenate([ref_flags[c.offset + j:c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
+    """The canonical state the reference flags describe (drop each chain's top derivative);
+    `ref_flags` may hold one step per row."""
+    idx = np.concatenate([np.arange(c.offset + j, c.offset + j + c.degree) for j, c in enumerate(flat.chains)])
+    return np.asarray(ref_flags)[..., idx]
 
 
-def run(cfg: Config) -> Result:
-    """One closed-loop run, reproducible from `cfg.seed`."""
+@dataclass
+class Setup:
+    """Everything a run draws or derives before its first step: the same for every engine, so the
+    numpy loop and the compiled one see the same noise, network and initial state."""
+
+    cfg: Config
+    flat: object
+    ts: float
+    K: int
+    t: np.ndarray
+    ref: np.ndarray           # (K, n + m) reference flags
+    net: Network
+    cams: list
+    noise: list               # per node (K, channels), standard normal
+    x0: np.ndarray            # true initial physical state
+    q: np.ndarray
+    gains: np.ndarray
+    R: np.ndarray
+    oosm: str
+    node_x0: np.ndarray
+    node_P0: np.ndarray
+    x_hat0: np.ndarray
+    P0: np.ndarray
+    upd: np.ndarray           # (M, K) lag of the frame node i's update at k uses, -1: none
+    late: np.ndarray          # (E, 3) late events (step, node, lag) in the order applied
+
+    def bank(self) -> "FilterBank":
+        return FilterBank(self.flat, self.ts, self.q, self.R, self.node_x0, self.node_P0, self.x_hat0, self.P0,
+                          self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion)
+
+
+def prepare(cfg: Config) -> Setup:
+    """Draw and derive everything of one run that does not depend on the loop's state."""
     if cfg.method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, not {cfg.method!r}")
     flat = _flat(cfg.model)
@@ -321,12 +374,10 @@ def run(cfg: Config) -> Result:
     ts = float(cfg.ts or model.ts)
     n, m, M = flat.n, flat.m, len(cfg.sensor)
     K = int(round(cfg.duration / ts))
-    plant = _plant(cfg.model, ts, cfg.substeps)
     cams = [_camera(cfg.model, float(s), None if std is None else tuple(std))
             for s, std in zip(cfg.noise_scale, cfg.noise_std)]
-    refs = references(cfg, m)
     t = np.arange(K) * ts
-    ref = np.array([flags(refs, flat.degrees, tk) for tk in t])
+    ref = _reference_table(cfg.model, cfg.reference, cfg.amplitude, cfg.period, cfg.offset, cfg.harmonics, ts, K)
 
     net_rng, noise_rng, init_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(3))
     net = Network(list(cfg.sensor), list(cfg.uplink), K, net_rng)
@@ -335,50 +386,77 @@ def run(cfg: Config) -> Result:
     x_hat0 = state_of_flags(flat, ref[0])     # everyone starts at the reference's start
     zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
     check_reference(flat, ref, t)
-    x = flat.phi_inv_num(zeta0)
-    watch = DivergenceWatch(model)
 
     q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
     R = np.array([c.R for c in cams])
     oosm = cfg.method if cfg.method in OOSM else "replay"
-    node_x0, node_P0 = np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1))
-    bank = FilterBank(flat, ts, q, R, node_x0, node_P0, x_hat0, P0, gains, cfg.max_lag, oosm, cfg.fusion)
+    # which frame each update takes, and the late frames applied: fixed by the network alone
+    upd = np.where(net.lag == 0, 0, -1)
+    late = []
+    for i, events in enumerate(net.late):
+        for k, arriving in events.items():
+            if upd[i, k] < 0 and cfg.method == "as-current":
+                upd[i, k] = min(arriving)
+            if cfg.method in OOSM:
+                late += [(k, i, lag) for lag in arriving]
+    late.sort(key=lambda e: (e[0], e[1]))   # by step, then node; stable: arrival order kept
+    return Setup(cfg, flat, ts, K, t, ref, net, cams, noise, flat.phi_inv_num(zeta0), q, gains, R, oosm,
+                 np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1)), x_hat0, P0, upd,
+                 np.array(late, dtype=int).reshape(-1, 3))
 
+
+def run(cfg: Config) -> Result:
+    """One closed-loop run, reproducible from `cfg.seed` (the numpy reference engine)."""
+    s = prepare(cfg)
+    flat, K, M, n, m = s.flat, s.K, len(cfg.sensor), s.flat.n, s.flat.m
+    plant = _plant(cfg.model, s.ts, cfg.substeps)
+    bank = s.bank()
     frames = np.zeros((M, K, m))
-    z, gamma = np.zeros((M, K, m)), np.zeros((M, K), dtype=np.int8)
-    late_rows: list[tuple] = []
     zeta, x_true = np.zeros((K, n)), np.zeros((K, n))
     out = _Outputs(M, K, n, m)
+    late_at = np.searchsorted(s.late[:, 0], np.arange(K + 1))
+    x = s.x0
+    watch = DivergenceWatch(flat.model, cfg.watch_nees)
     for k in range(K):
         x_true[k], zeta[k] = x, flat.phi_num(x)
-        late = []
         for i in range(M):
-            frames[i, k] = cams[i].measure(x, noise[i][k])
-            arriving = net.late[i].get(k, [])
-            if net.lag[i, k] == 0:
-                z[i, k], gamma[i, k] = frames[i, k], 1
-            elif cfg.method == "as-current" and arriving:
-                z[i, k], gamma[i, k] = frames[i, k - min(arriving)], 1
-            if cfg.method in OOSM:
-                late += [(i, lag, frames[i, k - lag]) for lag in arriving]
-        late_rows += [(k, i, lag, zl) for i, lag, zl in late]
-        out.put(k, bank.step(k, z[:, k], gamma[:, k], late, net.source[:, k], ref[k]))
+            frames[i, k] = s.cams[i].measure(x, s.noise[i][k])
+        z = np.array([frames[i, k - s.upd[i, k]] if s.upd[i, k] >= 0 else np.zeros(m) for i in range(M)])
+        late = [(int(i), int(lag), frames[i, k - lag]) for _, i, lag in s.late[late_at[k]:late_at[k + 1]]]
+        out.put(k, bank.step(k, z, (s.upd[:, k] >= 0).astype(np.int8), late, s.net.source[:, k], s.ref[k]))
         x = plant.step(x, out.u[k])
-        watch.step(t[k], x, _errors(flat, out.x[k], zeta[k]), out.P[k])
+        watch.step(s.t[k], x, _errors(flat, out.x[k], zeta[k]), out.P[k])
+    return finish(s, x_true, zeta, frames, out.node_x, out.node_P, out.x, out.P, out.u, out.v,
+                  np.array(out.applied, dtype=bool), [dict(nd.counters) for nd in bank.nodes])
 
-    pk, pn = np.nonzero(net.source.T >= 0)
+
+def check_divergence(s: "Setup", x_true, zeta, x, P, steps: int | None = None) -> None:
+    """The divergence watch over a run's arrays (an engine that ran the loop elsewhere), over its
+    first `steps` steps (default all): the state after step k is the next step's x_true, so the
+    last step's successor goes unchecked."""
+    watch = DivergenceWatch(s.flat.model, s.cfg.watch_nees)
+    for k in range(min(s.K, s.K if steps is None else steps + 1) - 1):
+        watch.step(s.t[k], x_true[k + 1], _errors(s.flat, x[k], zeta[k]), P[k])
+
+
+def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, counters) -> Result:
+    """The recording, the result and its metrics from one run's loop outputs (any engine)."""
+    cfg, flat = s.cfg, s.flat
+    n, m, M = flat.n, flat.m, len(cfg.sensor)
+    gamma = (s.upd >= 0).astype(np.int8)
+    rows = np.arange(M)[:, None]
+    z = np.where(gamma[..., None] > 0, frames[rows, np.arange(s.K)[None] - np.maximum(s.upd, 0)], 0.0)
+    late_step, late_node, late_lag = s.late.T
+    pk, pn = np.nonzero(s.net.source.T >= 0)
     rec = Recording(
-        model=cfg.model, n=n, m=m, nodes=M, max_lag=cfg.max_lag, method=cfg.method, oosm=oosm,
-        fusion=cfg.fusion, ts=ts, q=q, R=R, node_x0=node_x0, node_P0=node_P0, master_x0=x_hat0,
-        master_P0=P0, gains=gains, params=flat.param_vector, seed=cfg.seed, z=z, gamma=gamma, ref=ref,
-        late_step=np.array([r[0] for r in late_rows], dtype=int),
-        late_node=np.array([r[1] for r in late_rows], dtype=int),
-        late_lag=np.array([r[2] for r in late_rows], dtype=int),
-        late_z=np.array([r[3] for r in late_rows]).reshape(-1, m),
-        pkt_step=pk, pkt_node=pn, pkt_src=net.source.T[pk, pn],
-        late_applied=np.array(out.applied, dtype=bool), node_x=out.node_x, node_P=out.node_P,
-        x=out.x, P=out.P, u=out.u, v=out.v)
-    result = Result(cfg, t, zeta, x_true, net.lag.copy(), rec, [dict(nd.counters) for nd in bank.nodes])
+        model=cfg.model, n=n, m=m, nodes=M, max_lag=cfg.max_lag, method=cfg.method, oosm=s.oosm,
+        fusion=cfg.fusion, ts=s.ts, q=s.q, R=s.R, node_x0=s.node_x0, node_P0=s.node_P0, master_x0=s.x_hat0,
+        master_P0=s.P0, gains=s.gains, params=flat.param_vector, seed=cfg.seed, z=z, gamma=gamma, ref=s.ref,
+        late_step=late_step.copy(), late_node=late_node.copy(), late_lag=late_lag.copy(),
+        late_z=frames[late_node, late_step - late_lag].reshape(-1, m),
+        pkt_step=pk, pkt_node=pn, pkt_src=s.net.source.T[pk, pn],
+        late_applied=applied, node_x=node_x, node_P=node_P, x=x, P=P, u=u, v=v)
+    result = Result(cfg, s.t, zeta, x_true, s.net.lag.copy(), rec, counters)
     result.metrics = metrics(result)
     return result
 
@@ -399,14 +477,16 @@ def _nees(err, P) -> np.ndarray:
 
 def metrics(res: Result) -> dict:
     """Per run, from `metrics_from` on: estimation RMSE per canonical state (nodes, master),
-    mean tr P, NEES per step (averaged later over runs), tracking RMSE of the true plant."""
+    mean tr P, NEES per step (averaged later over runs), tracking RMSE of the true plant and of
+    the estimates (x_hat - x_d per node and master, what the chapter's tables report)."""
     flat = _flat(res.config.model)
     rec = res.recording
     k0 = min(int(round(res.config.metrics_from / rec.ts)), len(res.t) - 1)
     zeta = res.zeta[k0:]
     node_err = _errors(flat, rec.node_x[:, k0:], zeta[None])
     err = _errors(flat, rec.x[k0:], zeta)
-    track = _errors(flat, zeta, np.array([state_of_flags(flat, r) for r in rec.ref[k0:]]))
+    desired = state_of_flags(flat, rec.ref[k0:])
+    track = _errors(flat, zeta, desired)
     return {
         "rmse_nodes": np.sqrt(np.mean(node_err ** 2, axis=1)),
         "rmse_master": np.sqrt(np.mean(err ** 2, axis=0)),
@@ -415,6 +495,9 @@ def metrics(res: Result) -> dict:
         "nees_nodes": _nees(node_err, rec.node_P[:, k0:]),
         "nees_master": _nees(err, rec.P[k0:]),
         "rmse_tracking": np.sqrt(np.mean(track ** 2, axis=0)),
+        # the chapter's literal quantity (Tables II-IV): the *estimated* tracking error x_hat - x_d
+        "rmse_est_tracking_nodes": np.sqrt(np.mean(_errors(flat, rec.node_x[:, k0:], desired[None]) ** 2, axis=1)),
+        "rmse_est_tracking_master": np.sqrt(np.mean(_errors(flat, rec.x[k0:], desired) ** 2, axis=0)),
         "late_applied": sum(c["late_applied"] for c in res.counters),
         "late_rejected": sum(c["late_rejected"] for c in res.counters),
     }

@@ -80,7 +80,6 @@ class Network:
             arrive = src + self.up_lag[i][src]
             keep = arrive < steps
             np.maximum.at(best, arrive[keep], src[keep])
-            last = -1
-            for k in range(steps):
-                if best[k] > last:
-                    self.source[i, k] = last = best[k]
+            # fused at k when newer than every packet fused before (the running maximum)
+            before = np.concatenate([[-1], np.maximum.accumulate(best)[:-1]])
+            self.source[i] = np.where(best > before, best, -1)

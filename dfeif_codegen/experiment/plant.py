@@ -82,6 +82,7 @@ class Camera:
         self.std = scale * np.broadcast_to(np.asarray(std, dtype=float), (len(self.channels),)).copy()
         observe, recover = _fixed(model, observe), [sp.sympify(e).subs(values) for e in recover]
         self._n_outputs = len(recover)
+        self.expressions = (observe, recover_syms, recover)  # for the compiled closed loop
         self._observe = numeric.Numeric.of("observe", [list(model.x)], observe)
         self._recover = numeric.Numeric.of("recover", [recover_syms], recover)
         self._jac = numeric.Numeric.of("recover_jacobian", [recover_syms], sp.Matrix(recover).jacobian(recover_syms))

@@ -14,10 +14,8 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from statistics import NormalDist
 
@@ -25,7 +23,9 @@ import numpy as np
 
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.errors import ScenarioError, SetupError
+from dfeif_codegen.experiment import bounds
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import sweep
 
 
 # --- statistics ---------------------------------------------------------------------------------
@@ -96,18 +96,9 @@ def _canonical(cfg: ex.Config) -> ex.Config:
 
 def _series(res: ex.Result) -> dict:
     rec = res.recording
-    return {"t": res.t, "zeta": res.zeta, "ref": np.array([ex.state_of_flags(ex._flat(res.config.model), r)
-                                                           for r in rec.ref]),
-            "node_x": rec.node_x, "x": rec.x, "u": rec.u, "v": rec.v, "delays": res.delays}
-
-
-def _work(cfg: ex.Config, series: bool):
-    """Worker: one run -> (metrics or error text, time series or None)."""
-    try:
-        res = ex.run(cfg)
-    except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
-        return f"{type(exc).__name__}: {exc}", None
-    return res.metrics, (_series(res) if series else None)
+    return {"t": res.t, "zeta": res.zeta, "ref": ex.state_of_flags(ex._flat(res.config.model), rec.ref),
+            "node_x": rec.node_x, "x": rec.x, "u": rec.u, "v": rec.v, "delays": res.delays,
+            "P_diag": np.diagonal(rec.P, axis1=1, axis2=2)}
 
 
 class Progress:
@@ -141,7 +132,9 @@ def summarize(runs: list[dict], n: int) -> dict:
     if not runs:
         return out
     for key in ("trace_nodes", "trace_master", "rmse_nodes", "rmse_master", "rmse_tracking",
-                "late_applied", "late_rejected"):
+                "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected"):
+        if key not in runs[0]:
+            continue
         mean, half = mean_ci([r[key] for r in runs])
         out[key] = {"mean": mean.tolist(), "ci95": half.tolist()}
     lo, hi = nees_band(n, len(runs))
@@ -164,7 +157,8 @@ def _row_label(row, drop: bool = False) -> str:
     return " ".join(f"{d:3d}" for d in row.d) + f"  {row.p:3.1f}" + (f"  {row.p_drop:6.2f}" if drop else "")
 
 
-def print_tables(out, sc, rows, groups, flat, nodes: int) -> None:
+def print_tables(out, sc, rows, groups, flat, nodes: int, bound=None) -> None:
+    """`bound`: per row, the exact optimal filter on the matched linear model (bounds.RowBound)."""
     names = [str(z) for z in flat.zeta]
     n = flat.n
     drop = any(r.p_drop for r in rows)
@@ -205,8 +199,23 @@ def print_tables(out, sc, rows, groups, flat, nodes: int) -> None:
                   f"error at node {i + 1}", xcols, [cells(s, "rmse_nodes", i) for s in summaries])
         table("Table IV: RMSE of the estimation error at the master", xcols,
               [cells(s, "rmse_master") for s in summaries])
+        if bound is not None and method in ex.OOSM:
+            table("Table IV-c: exact optimal filter's RMSE on the matched linear model, centralized "
+                  "(per node below)", xcols, [[f"{v:.3e}" for v in b.rmse_central] for b in bound])
+            for i in range(nodes):
+                table(f"  ... node {i + 1} alone", xcols, [[f"{v:.3e}" for v in b.rmse_nodes[i]] for b in bound])
+        if bound is not None:
+            table("Table IV-d: measured master RMSE / the centralized bound (< 1 is possible: the real "
+                  "plant has no process noise)", xcols,
+                  [[f"{a / c:.3f}" for a, c in zip(s["rmse_master"]["mean"], b.rmse_central)] if s.get("runs")
+                   else ["failed"] * n for s, b in zip(summaries, bound)])
         table("Table IV-b: RMSE tracking error of the plant (x - x_d, the chapter's quantity)", xcols,
               [cells(s, "rmse_tracking") for s in summaries])
+        if "rmse_est_tracking_master" in ok[0]:
+            table("Table IV-e: RMSE of the estimated tracking error x_hat - x_d, x1 (the chapter's Tables II-IV "
+                  "give one value per filter)", [f"node {i + 1}" for i in range(nodes)] + ["master"],
+                  [(cells(s, "rmse_est_tracking_nodes", (slice(None), 0)) + cells(s, "rmse_est_tracking_master", 0))
+                   if s.get("runs") else ["failed"] * (nodes + 1) for s in summaries])
         nees_rows = []
         for s in summaries:
             if not s.get("runs"):
@@ -253,64 +262,50 @@ def _jsonable(value):
 
 
 def plot(directory: str, figures: dict, flat) -> list[str]:
-    """PNG figures like the chapter's Figs 9-13: states against the reference, input, delays."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
+    """PNG figures like the chapter's Figs 9-13 (experiment/figures.py): states against the
+    reference, the estimation error with its +-3 sigma band, the delays."""
+    from dfeif_codegen.experiment import figures as figs
+
+    figs.pyplot()
     folder = Path(directory)
     folder.mkdir(parents=True, exist_ok=True)
-    names = [str(z) for z in flat.zeta]
     written = []
+    name = flat.model.name
 
-    def states(path, title, t, est, truth, ref, u):
-        panels = len(names) + u.shape[1]
-        cols = 2
-        fig, axes = plt.subplots((panels + 1) // cols, cols, figsize=(10, 2.4 * ((panels + 1) // cols)), squeeze=False)
-        for i, name in enumerate(names):
-            ax = axes.flat[i]
-            ax.plot(t, ref[:, i], "r", lw=1, label="reference")
-            ax.plot(t, truth[:, i], "k", lw=0.8, label="true")
-            ax.plot(t, est[:, i], "b--", lw=0.8, label="estimate")
-            ax.set_ylabel(f"x{i + 1} ({name})")
-        for j in range(u.shape[1]):
-            ax = axes.flat[len(names) + j]
-            ax.plot(t, u[:, j], "g", lw=0.8)
-            ax.set_ylabel(f"control input u{j + 1}")
-        for ax in axes.flat:
-            ax.set_xlabel("t (sec)")
-        axes.flat[0].legend(fontsize=7)
-        fig.suptitle(title)
-        fig.tight_layout()
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+    def save(path):
         written.append(str(path))
+        return path
 
     for ref, fig in figures.items():
         a, b = fig["no_delay"], fig["delay"]
-        states(folder / f"fig09_{ref}_master_no_delay.png", f"Fig. 9: master, no delays ({ref})",
-               a["t"], np.asarray(a["x"]), np.asarray(a["zeta"]), np.asarray(a["ref"]), np.asarray(a["u"]))
-        delays = np.asarray(b["delays"])
-        f, axes = plt.subplots(delays.shape[0], 1, figsize=(8, 2.2 * delays.shape[0]), squeeze=False)
-        for i, ax in enumerate(axes.flat):
-            ax.step(b["t"], np.where(delays[i] < 0, np.nan, delays[i]), where="post", lw=0.6)
-            ax.set_ylabel(f"node {i + 1} delay [Ts]")
-            ax.set_xlabel("t (sec)")
-        f.suptitle(f"Fig. 10: measurement delays ({b['row']}, {ref})")
-        f.tight_layout()
-        f.savefig(folder / f"fig10_{ref}_delays.png", dpi=110)
-        plt.close(f)
-        written.append(str(folder / f"fig10_{ref}_delays.png"))
+        how = f"{fig['method']} + {fig['fusion']}"
+        b = {**b, "row": figs.row_text(b["row"])}
+        t = np.asarray(a["t"])
+        figs.states_figure(save(folder / f"fig09_{ref}_master_no_delay.png"),
+                           f"Fig. 9: {name}, master estimate without delays ({ref} reference, {how})", flat,
+                           t, np.asarray(a["x"]), np.asarray(a["zeta"]), np.asarray(a["ref"]), np.asarray(a["u"]),
+                           who="master estimate")
+        ts = float(t[1] - t[0]) if len(t) > 1 else 1.0
+        figs.delay_figure(save(folder / f"fig10_{ref}_delays.png"),
+                          f"Fig. 10: {name}, camera -> node delays at {b['row']}: late with probability p by 1..d_i steps",
+                          np.asarray(b["t"]), b["delays"], ts)
         node_x = np.asarray(b["node_x"])
         for i in range(node_x.shape[0]):
-            states(folder / f"fig{11 + i}_{ref}_node{i + 1}_delay.png",
-                   f"Fig. {11 + i}: node {i + 1} under delays {b['row']} ({ref})",
-                   b["t"], node_x[i], np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]))
-        states(folder / f"fig{11 + node_x.shape[0]}_{ref}_master_delay.png",
-               f"Fig. {11 + node_x.shape[0]}: master under delays {b['row']} ({ref})",
-               b["t"], np.asarray(b["x"]), np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]))
+            figs.states_figure(save(folder / f"fig{11 + i}_{ref}_node{i + 1}_delay.png"),
+                               f"Fig. {11 + i}: {name}, node {i + 1} under delays {b['row']} ({ref})", flat,
+                               b["t"], node_x[i], np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
+                               who=f"node {i + 1} estimate")
+        last = 11 + node_x.shape[0]
+        figs.states_figure(save(folder / f"fig{last}_{ref}_master_delay.png"),
+                           f"Fig. {last}: {name}, master under delays {b['row']} ({ref}, {how})", flat,
+                           b["t"], np.asarray(b["x"]), np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
+                           who="master estimate")
+        for key, label in (("no_delay", "without delays"), ("delay", f"under delays {b['row']}")):
+            d = fig[key]
+            if "P_diag" in d:
+                figs.error_figure(save(folder / f"fig{last + 1}_{ref}_master_error_{key}.png"),
+                                  f"{name}: master estimation error {label} ({ref}, {how})", flat,
+                                  np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]))
     return written
 
 
@@ -333,6 +328,9 @@ def run(args) -> int:
             raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
     sc = scenario_mod.load(args.scenario)
     flat = derive(load_model(args.model))
+    if args.plot:                          # a missing matplotlib is said before the runs, not after
+        from dfeif_codegen.experiment import figures as figs
+        figs.pyplot()
     sc.check_model(flat)
     # --nodes defaults to 2 in the parser: a scenario with another node count keeps its own
     # unless --nodes asks for something other than 2 (node settings then repeat cyclically).
@@ -366,38 +364,68 @@ def run(args) -> int:
             raise ScenarioError(f"{sc.where('reference')}: {cfg.reference}: {exc}") from None
     figure_keys = {(ref, configs[0][0], configs[0][1], ri, args.seed) for ref in refs for ri in (0, len(rows) - 1)}
     need_series = bool(args.plot or args.json)
+    engine = getattr(args, "engine", "c")
+    if args.resume and args.results and Path(args.resume) != Path(args.results):
+        raise ScenarioError("--resume FILE continues FILE: give --results the same file or leave it out")
+    previous = sweep.read_records(args.resume) if args.resume else {}
     show = not args.quiet and sys.stderr.isatty()
-    progress = Progress(len(wanted), show)
     results: dict = {}
     series: dict = {}
-    failures: list[str] = []
+    failures: list[tuple] = []
+    per_run: list[tuple] = []
     jobs = list(wanted.items())
-    workers = max(1, min(os.cpu_count() or 1, len(jobs)))
+    ids = {sweep.run_id(cfg, engine): (cfg, keys) for cfg, keys in jobs}
+    todo, reused = [], []
+    for rid, (cfg, keys) in ids.items():
+        wants_series = need_series and any(k in figure_keys for k in keys)
+        if rid in previous and not wants_series:
+            reused.append((rid, sweep.decode(previous[rid]["metrics"])))
+        else:
+            todo.append((rid, cfg, _series if wants_series else None))
+    workers = sweep.default_workers(getattr(args, "workers", None), len(todo))
+    client = sweep.connect(getattr(args, "scheduler", None))
+    try:
+        shipped = sweep.prepare([cfg for _, cfg, _ in todo], engine)
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
+    records = sweep.Records(args.resume or args.results, keep_existing=bool(args.resume))
+    progress = Progress(len(todo), show)
     started = time.monotonic()
 
-    def collect(keys, value):
-        metrics, data = value
+    def collect(rid, value, fresh=True):
+        metrics, data = value if fresh else (value, None)
+        cfg, keys = ids[rid]
+        if fresh and rid not in previous:
+            records.write(rid, keys, engine, metrics)
         for key in keys:
+            per_run.append((*key[:4], key[4], metrics))
             if isinstance(metrics, str):
-                failures.append(f"{key[0]} {key[1]} {key[2]} row {key[3] + 1} seed {key[4]}: {metrics}")
+                failures.append((key, f"{key[0]} {key[1]} {key[2]} row {key[3] + 1} seed {key[4]}: {metrics}"))
             else:
-                results.setdefault(key[:4], []).append(metrics)
+                results.setdefault(key[:4], []).append((key[4], metrics))
             if data is not None and key in figure_keys:
                 series[key] = data
-        progress.step()
+        if fresh:
+            progress.step()
 
-    if workers == 1:
-        for cfg, keys in jobs:
-            collect(keys, _work(cfg, need_series and any(k in figure_keys for k in keys)))
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(_work, cfg, need_series and any(k in figure_keys for k in keys)): keys
-                       for cfg, keys in jobs}
-            for fut in as_completed(futures):
-                collect(futures[fut], fut.result())
-    progress.close()
+    for rid, metrics in reused:
+        collect(rid, metrics, fresh=False)
+    try:
+        where = sweep.execute(todo, engine, shipped, workers, client, collect)
+    finally:
+        records.close()
+        progress.close()
     elapsed = time.monotonic() - started
+    # the same numbers wherever and in whichever order the runs ran: average in seed order
+    results = {k: [m for _, m in sorted(v, key=lambda sm: sm[0])] for k, v in results.items()}
+    failures = [text for _, text in sorted(failures)]
+    if args.csv:
+        sweep.write_csv(args.csv, per_run, flat.n, nodes)
 
+    bound = [bounds.row_bound([make_config(sc, args.model, nodes, args.max_lag, refs[0], row, "replay", "difference", s)
+                               for s in seeds]) for row in rows]
     groups = {(ref, m, f): [summarize(results.get((ref, m, f, ri), []), flat.n) for ri in range(len(rows))]
               for ref in refs for m, f in configs}
     ts = sc.ts or flat.model.ts
@@ -405,15 +433,16 @@ def run(args) -> int:
                 "max_lag": args.max_lag, "ts": ts, "duration": sc.duration, "runs": runs,
                 "seeds": [args.seed, args.seed + runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
                 "noise_scale": [_pick(sc.noise_scale, i) for i in range(nodes)], "metrics_from": sc.metrics_from,
-                "elapsed_s": round(elapsed, 1), "workers": workers}
+                "elapsed_s": round(elapsed, 3), "workers": workers, "engine": engine, "ran_on": where,
+                "runs_resumed": len(reused), "distinct_runs": len(todo)}
     to_stdout = args.json == "-"
     if not to_stdout:
         out = sys.stdout
         print(f"codegen simulate: scenario {sc.name} on {flat.model.name}: {nodes} nodes, Ts = {ts:g} s, "
               f"{sc.duration:g} s runs, N_max = {args.max_lag}, q = {sc.q}, poles {sc.poles}, "
-              f"seeds {args.seed}..{args.seed + runs - 1}, {len(jobs)} runs in {elapsed:.0f} s on {workers} "
-              f"process(es)\n", file=out)
-        print_tables(out, sc, rows, groups, flat, nodes)
+              f"seeds {args.seed}..{args.seed + runs - 1}, {len(todo)} runs in {elapsed:.0f} s on {where} "
+              f"({engine} engine{f', {len(reused)} resumed' if reused else ''})\n", file=out)
+        print_tables(out, sc, rows, groups, flat, nodes, bound)
         print_summary(out, rows, groups)
         if failures:
             print(f"\n{len(failures)} run(s) failed (left out of the averages):", file=out)
@@ -430,6 +459,7 @@ def run(args) -> int:
         doc = {"settings": settings, "rows": [{"d": r.d, "p": r.p, "p_drop": r.p_drop} for r in rows],
                "states": [str(z) for z in flat.zeta],
                "tables": [{"reference": ref, "method": m, "fusion": f, "rows": s} for (ref, m, f), s in groups.items()],
+               "bounds": [{"rmse_central": b.rmse_central, "rmse_nodes": b.rmse_nodes} for b in bound],
                "failures": failures, "figures": figures}
         text = json.dumps(_jsonable(doc))
         if to_stdout:

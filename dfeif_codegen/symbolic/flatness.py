@@ -100,14 +100,17 @@ _ROUND_TRIP = 1e-7   # |Phi^-1(Phi(x)) - x| <= 1e-7 (1 + |x|): a few hundred ulp
                      # far above double rounding and far below a wrong branch's O(|x|) error
 
 
-def _evaluate(args: list, expr: sp.Expr, columns: np.ndarray, dtype=float) -> np.ndarray:
-    """A sympy expression at many points at once (one row per point); nan where undefined."""
+def _evaluate(args: list, expr: sp.Expr, columns: np.ndarray) -> np.ndarray:
+    """A sympy expression at many points at once (one row per point), through the one
+    sympy -> CasADi bridge; nan where undefined (a square root of a negative number, a log of
+    zero) or where the expression is not real (a candidate branch with I in it)."""
+    try:
+        f = numeric.sx_function("candidate", [list(args)], [expr])
+    except (ModelError, TypeError, ValueError):
+        return np.full(len(columns), np.nan)
     with np.errstate(all="ignore"):
-        try:
-            value = sp.lambdify(args, expr, modules="numpy")(*columns.T)
-            return np.broadcast_to(np.asarray(value, dtype=dtype), (len(columns),))
-        except (TypeError, ValueError, NameError, ZeroDivisionError, OverflowError):
-            return np.full(len(columns), np.nan, dtype=dtype)
+        value = np.asarray(f.map(len(columns))(np.asarray(columns, dtype=float).T), dtype=float)
+    return value.reshape(-1)
 
 
 def _round_trips(cand: dict, rows: np.ndarray, zeta_rows: np.ndarray, zeta: list, params: dict,
@@ -115,7 +118,7 @@ def _round_trips(cand: dict, rows: np.ndarray, zeta_rows: np.ndarray, zeta: list
     """Per test point: does this candidate give back the state it came from?"""
     ok = np.ones(len(rows), dtype=bool)
     for var, expr in cand.items():
-        got = _evaluate(list(zeta), sp.sympify(expr).subs(params), zeta_rows, complex)
+        got = _evaluate(list(zeta), sp.sympify(expr).subs(params), zeta_rows)
         want = rows[:, index[var]]
         ok &= np.isfinite(got) & (np.abs(got - want) <= _ROUND_TRIP * (1 + np.abs(want)))
     return ok

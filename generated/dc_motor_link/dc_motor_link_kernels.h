@@ -10,11 +10,11 @@
 #include "dc_motor_link.h"
 
 /* dc_motor_link_kern_predict:(x[3],P[3x3],v,q)->(x1[3],P1[3x3]) */
-#define DC_MOTOR_LINK_KERN_PREDICT_SZ_W 14
+#define DC_MOTOR_LINK_KERN_PREDICT_SZ_W 11
 int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
                                const dc_motor_link_real v[1], const dc_motor_link_real q[1],
                                dc_motor_link_real x1[3], dc_motor_link_real P1[9],
-                               dc_motor_link_real w[14]);
+                               dc_motor_link_real w[11]);
 
 /* dc_motor_link_kern_update:(xm[3],Pm[3x3],z,gamma,R)->(x[3],P[3x3],piv) */
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_W 14

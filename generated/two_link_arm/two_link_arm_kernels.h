@@ -10,11 +10,11 @@
 #include "two_link_arm.h"
 
 /* two_link_arm_kern_predict:(x[6],P[6x6],v[2],q[2])->(x1[6],P1[6x6]) */
-#define TWO_LINK_ARM_KERN_PREDICT_SZ_W 22
+#define TWO_LINK_ARM_KERN_PREDICT_SZ_W 21
 int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
                               const two_link_arm_real v[2], const two_link_arm_real q[2],
                               two_link_arm_real x1[6], two_link_arm_real P1[36],
-                              two_link_arm_real w[22]);
+                              two_link_arm_real w[21]);
 
 /* two_link_arm_kern_update:(xm[6],Pm[6x6],z[2],gamma,R[2x2])->(x[6],P[6x6],piv[2]) */
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_W 49

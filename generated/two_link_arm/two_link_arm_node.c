@@ -170,37 +170,45 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
     return TWO_LINK_ARM_OK;
 }
 
-/* Re-run steps j0..k: the update of each step from its prior (slot j0 with the late z), then the
- * prediction into the next slot. commit = 0 only checks that nothing fails; commit = 1 rewrites
- * the slots' priors (bit-identical to the checked run) and returns the posterior of step k. */
-static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, int commit, real* x,
-                  real* P)
+/* Re-run steps j0..k in one pass: the update of each step from its prior (slot j0 with the late
+ * z), then the prediction into the next slot, written in place; returns the posterior of step k.
+ * On a failure the slots are put back as they were: the priors' x from a copy, the priors' P by
+ * recomputing the old history from slot j0 (the P recursion reads neither x nor z, so it gives
+ * the old values bit for bit, and it succeeded before). */
+static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real* x, real* P)
 {
-    real xp[NX], Pp[NXX];
-    const real* xm = &node->ring_x[slot_of(j0) * NX];
-    const real* Pm = &node->ring_P[slot_of(j0) * NXX];
-    uint32_t j;
-    int rc = TWO_LINK_ARM_OK;
-    for (j = j0; j <= node->k; j++) {
+    real old_x[TWO_LINK_ARM_NMAX * NX];
+    real xd[NX], Pd[NXX], xe[NX];
+    uint32_t j = j0;
+    uint32_t written = 0u; /* priors rewritten so far: slots j0 + 1 .. j0 + written */
+    uint32_t i;
+    int rc;
+    do {
         int slot = slot_of(j);
+        int next = slot_of(j + 1u);
         const real* z = (j == j0) ? zlate : &node->ring_z[slot * NY];
         real gamma = (j == j0 || (node->ring_flags[slot] & USED) != 0u) ? (real)1 : (real)0;
-        rc = update_step(xm, Pm, z, gamma, node->R, x, P);
-        if (rc != TWO_LINK_ARM_OK || j == node->k) {
-            return rc;
+        rc = update_step(&node->ring_x[slot * NX], &node->ring_P[slot * NXX], z, gamma, node->R, x,
+                         P);
+        if (rc == TWO_LINK_ARM_OK && j != node->k) {
+            (void)memcpy(&old_x[(int)written * NX], &node->ring_x[next * NX],
+                         sizeof(real) * (size_t)NX);
+            written++;
+            rc = predict_step(x, P, &node->ring_v[slot * NY], node->q, &node->ring_x[next * NX],
+                              &node->ring_P[next * NXX]);
         }
-        rc = predict_step(x, P, &node->ring_v[slot * NY], node->q, xp, Pp);
-        if (rc != TWO_LINK_ARM_OK) {
-            return rc;
-        }
-        if (commit != 0) {
-            (void)memcpy(&node->ring_x[slot_of(j + 1u) * NX], xp, sizeof(xp));
-            (void)memcpy(&node->ring_P[slot_of(j + 1u) * NXX], Pp, sizeof(Pp));
-        }
-        xm = xp;
-        Pm = Pp;
+        j++;
+    } while (rc == TWO_LINK_ARM_OK && j <= node->k);
+    for (i = 0u; rc != TWO_LINK_ARM_OK && i < written; i++) {
+        int s = slot_of(j0 + i);
+        int after = slot_of(j0 + i + 1u);
+        real g = ((node->ring_flags[s] & USED) != 0u) ? (real)1 : (real)0;
+        (void)memcpy(&node->ring_x[after * NX], &old_x[(int)i * NX], sizeof(real) * (size_t)NX);
+        (void)update_step(&node->ring_x[s * NX], &node->ring_P[s * NXX], &node->ring_z[s * NY], g,
+                          node->R, xd, Pd);
+        (void)predict_step(xd, Pd, &node->ring_v[s * NY], node->q, xe, &node->ring_P[after * NXX]);
     }
-    return rc; /* not reached: the loop returns at step k */
+    return rc;
 }
 
 int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[NY], int32_t lag)
@@ -229,11 +237,10 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
         node->health.late_rejected++;
         return TWO_LINK_ARM_ERR_DUPLICATE;
     }
-    rc = replay(node, node->k - N, z, 0, x, P);
+    rc = replay(node, node->k - N, z, x, P);
     if (rc != TWO_LINK_ARM_OK) {
         return rc;
     }
-    (void)replay(node, node->k - N, z, 1, x, P);
     (void)memcpy(&node->ring_z[slot * NY], z, sizeof(real) * (size_t)NY);
     node->ring_flags[slot] = (uint8_t)(HAS | USED);
     (void)memcpy(node->x, x, sizeof(x));

@@ -1,0 +1,183 @@
+"""Figures of `codegen simulate --plot`: what a reader wants to see, in the model's own names and
+units. Each canonical state is labelled by its flat output and derivative order with the unit
+that implies (theta, theta' [rad/s], theta'' [rad/s^2]); the input by its name and unit.
+
+- states against the reference (the reference drawn wide underneath, so it stays visible), one
+  legend per panel, and the input;
+- the estimation error x_hat - x with the filter's own +-3 sigma band (where a consistent filter
+  keeps 99.7% of it);
+- the delays: each late frame as a dot at (taken at, lag), per node, with the shares of on-time,
+  late and dropped frames in the legend, and the row's settings in the title;
+- the derivative-free filter against the EKF and UKF: master RMSE per state and row, with 95%
+  intervals.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dfeif_codegen.errors import SetupError
+
+
+def pyplot():
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
+    return plt
+
+
+def _unit_of(model, expr) -> str:
+    names = {s.name: s.unit for s in model.states}
+    return names.get(str(expr), "")
+
+
+def _per_s(unit: str, k: int) -> str:
+    if k == 0:
+        return unit
+    tail = "/s" if k == 1 else f"/s^{k}"
+    if not unit:
+        return f"1{tail}"
+    if unit.endswith("/s"):                       # rad/s -> rad/s^2 for the next order
+        return unit[:-2] + ("/s^2" if k == 1 else f"/s^{k + 1}")
+    return unit + tail
+
+
+def state_labels(flat) -> list[str]:
+    """'theta [rad]', "theta' [rad/s]", ... per canonical state, chain by chain."""
+    out = []
+    for chain, output in zip(flat.chains, flat.model.outputs):
+        unit = _unit_of(flat.model, output.expr)
+        for k in range(chain.degree):
+            name = chain.output + ("'" * k if k <= 3 else f"^({k})")
+            u = _per_s(unit, k)
+            out.append(f"{name} [{u}]" if u else name)
+    return out
+
+
+def input_labels(model) -> list[str]:
+    return [f"{u.name} [{u.unit}]" if u.unit else u.name for u in model.inputs]
+
+
+def row_text(label: str) -> str:
+    """'25  30  0.6' (simulate's row label) -> '(d1, d2, p) = (25, 30, 0.6)'."""
+    parts = label.split()
+    if len(parts) < 2:
+        return label
+    ds = ", ".join(f"d{i + 1}" for i in range(len(parts) - 1))
+    return f"({ds}, p) = ({', '.join(parts)})"
+
+
+def _grid(plt, panels, height=2.3):
+    cols = 2 if panels > 1 else 1
+    rows = (panels + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(11, height * rows), squeeze=False)
+    for ax in axes.flat[panels:]:
+        ax.set_visible(False)
+    return fig, axes.flat
+
+
+def states_figure(path, title, flat, t, est, truth, ref, u, who="estimate"):
+    plt = pyplot()
+    labels, ulabels = state_labels(flat), input_labels(flat.model)
+    fig, axes = _grid(plt, len(labels) + len(ulabels))
+    for i, label in enumerate(labels):
+        ax = axes[i]
+        ax.plot(t, ref[:, i], color="tab:orange", lw=3.0, alpha=0.45, label="reference")
+        ax.plot(t, truth[:, i], "k", lw=0.8, label="true")
+        ax.plot(t, est[:, i], color="tab:blue", ls="--", lw=0.8, label=who)
+        ax.plot(t, ref[:, i], color="tab:red", lw=0.8, zorder=5)     # and thin on top: seen through noise
+        ax.set_ylabel(label)
+        ax.legend(fontsize=7, loc="upper right", ncol=3)
+    for j, label in enumerate(ulabels):
+        ax = axes[len(labels) + j]
+        ax.plot(t, u[:, j], color="tab:green", lw=0.8, label="control input")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=7, loc="upper right")
+    for ax in axes:
+        ax.set_xlabel("time [s]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def error_figure(path, title, flat, t, est, truth, var, metrics_from=1.0):
+    """x_hat - x per state with +-3 sqrt(P_ii); the share of steps inside the band in the legend."""
+    plt = pyplot()
+    labels = state_labels(flat)
+    err = est - truth
+    for c in flat.chains:
+        if c.angle:
+            err[:, c.offset] = (err[:, c.offset] + np.pi) % (2 * np.pi) - np.pi
+    sigma = 3 * np.sqrt(np.maximum(var, 0))
+    keep = t >= metrics_from
+    fig, axes = _grid(plt, len(labels))
+    for i, label in enumerate(labels):
+        ax = axes[i]
+        inside = np.mean(np.abs(err[keep, i]) <= sigma[keep, i])
+        ax.fill_between(t, -sigma[:, i], sigma[:, i], color="tab:blue", alpha=0.2, lw=0,
+                        label="±3σ of the filter")
+        ax.plot(t, err[:, i], "k", lw=0.6, label=f"error ({100 * inside:.1f}% inside)")
+        lim = 1.5 * np.percentile(sigma[keep, i], 99) if keep.any() else None
+        if lim:
+            ax.set_ylim(-lim, lim)
+        ax.set_ylabel("error of " + label)
+        ax.legend(fontsize=7, loc="upper right", ncol=2)
+        ax.set_xlabel("time [s]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def delay_figure(path, title, t, delays, ts):
+    """Per node: each late frame as a dot (time taken, lag in steps), dropped frames as ticks."""
+    plt = pyplot()
+    delays = np.asarray(delays)
+    fig, axes = plt.subplots(delays.shape[0], 1, figsize=(11, 2.3 * delays.shape[0]), squeeze=False, sharex=True)
+    top = max(int(delays.max()), 1)
+    for i, ax in enumerate(axes.flat):
+        lag = delays[i]
+        late, drop = lag > 0, lag < 0
+        on = np.mean(lag == 0)
+        ax.plot(t[late], lag[late], ".", ms=2.5, color="tab:red",
+                label=f"late frame: {100 * late.mean():.0f}% (mean {lag[late].mean() if late.any() else 0:.1f} steps)")
+        if drop.any():
+            ax.plot(t[drop], np.full(drop.sum(), -0.5), "|", color="k", ms=4, label=f"dropped: {100 * drop.mean():.0f}%")
+        ax.axhline(0, color="tab:green", lw=1.0, label=f"on time: {100 * on:.0f}%")
+        ax.set_ylim(-1, top + 1)
+        ax.set_ylabel(f"node {i + 1}: delay\n[steps of {1000 * ts:g} ms]")
+        ax.legend(fontsize=7, loc="upper right", ncol=3)
+        sec = ax.secondary_yaxis("right", functions=(lambda s: s * ts * 1000, lambda ms: ms / (ts * 1000)))
+        sec.set_ylabel("[ms]")
+    axes.flat[-1].set_xlabel("time the frame was taken [s]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def comparison_figure(path, title, flat, row_labels, series):
+    """`series`: {filter name: (mean (rows, n), ci95 (rows, n))} of the master RMSE per state."""
+    plt = pyplot()
+    labels = state_labels(flat)
+    fig, axes = _grid(plt, len(labels), height=2.6)
+    width = 0.8 / max(len(series), 1)
+    xs = np.arange(len(row_labels))
+    for i, label in enumerate(labels):
+        ax = axes[i]
+        for j, (name, (mean, half)) in enumerate(series.items()):
+            ax.bar(xs + (j - (len(series) - 1) / 2) * width, np.asarray(mean)[:, i], width,
+                   yerr=np.nan_to_num(np.asarray(half)[:, i]), capsize=2, label=name)
+        ax.set_yscale("log")
+        ax.set_xticks(xs, row_labels, fontsize=7)
+        ax.set_ylabel("master RMSE of\n" + label)
+        ax.legend(fontsize=7)
+        ax.set_xlabel("delay row (d1, d2, p)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,224 @@
+"""`codegen scenario MODEL`: a starting scenario for any flat model, without hand tuning.
+
+What a user would otherwise guess, derived from the model:
+
+- poles: every pole of each chain at -0.1/Ts (the paper's lambda Ts = 0.1), whatever the degree;
+- P0 per derivative order k: std 0.05 A (2 omega)^k for the reference's amplitude A and angular
+  frequency omega (the paper's 3 degrees on the angle, looser on each derivative);
+- camera noise: the model's [measurement]; a model without one gets 0.4% of the amplitude per flat
+  output (the paper's 4 mrad on 1 rad), node 2 at 1.25 times node 1;
+- q per chain: the derivative-free filter's only model error is the canonical model's one-step
+  residual r(k) = zeta(k+1) - A zeta(k) - B v(k) (the plant holds u over Ts, the model holds v).
+  It is measured first along the reference (the plant driven by the flat feedforward from the
+  reference's own states), then along the true trajectory of a 5 s closed loop run with that q
+  (ten times larger if that run diverges): q_j = max over the chain's states i of
+  mean(r_i^2) / Q_d(Ts, 1)_ii, the smallest white-noise density that covers every component's
+  residual variance. One closed-loop round, not a fixed point: the residual grows with q (a
+  noisier estimate makes a noisier u, which the plant holds and the model does not), so
+  iterating drifts upwards without settling (motor: 1.4, 17.5, 120, 580, ...); one round gives
+  the motor 17.5, where the paper's hand calibration chose 20.
+- a warning, as a comment, when an oscillatory mode of the plant (eigenvalues of its Jacobian
+  along the reference) turns by more than 0.3 rad per period: the flat controller holds u over
+  Ts and cannot cancel such a mode, whatever q (the comment says which Ts would do).
+
+The residual grows with the relative degree and with how fast the dynamics are against Ts: a
+stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e7, the motor ~20.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.experiment.trajectory import flags
+
+MARKER = "# Starting scenario written by `codegen scenario`"
+PERIOD, AMPLITUDE = 5.0, 0.5
+
+
+def _unit_q(flat, ts) -> np.ndarray:
+    """diag Q_d(Ts, q = 1) per state, chain by chain."""
+    return np.diag(flat.process_noise(ts, np.ones(flat.m)))
+
+
+def implied_q(flat, ts, zeta, v) -> np.ndarray:
+    """Per chain, the q whose Q_d covers every component of the one-step residual (zeta (K, n),
+    v (K, m): states and inputs of the canonical model along a trajectory)."""
+    A, B, _ = flat.discrete(ts)
+    res = zeta[1:] - zeta[:-1] @ A.T - v[:-1] @ B.T
+    for c in flat.chains:
+        if c.angle:
+            res[:, c.offset] = (res[:, c.offset] + math.pi) % (2 * math.pi) - math.pi
+    ratio = np.mean(res ** 2, axis=0) / _unit_q(flat, ts)
+    return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
+
+
+def _reference_q(flat, spec, ts, substeps, amplitude) -> np.ndarray:
+    """Residual along the reference: the plant started on each reference state, driven one step
+    by the feedforward input of that state."""
+    plant = ex._plant(spec, ts, substeps)
+    cfg = ex.Config(model=spec, amplitude=tuple(amplitude), period=PERIOD)
+    refs = ex.references(cfg, flat.m)
+    t = np.arange(int(round(PERIOD / ts)) + 1) * ts
+    zeta, v = [], []
+    p = flat.param_vector
+    for tk in t:
+        fl = flags(refs, flat.degrees, tk)
+        z = ex.state_of_flags(flat, fl)
+        top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
+        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+        zn = flat.phi_num(plant.step(flat.phi_inv_num(z, p), u), p)
+        zeta.append(np.stack([z, zn]))
+        v.append(top)
+    A, B, _ = flat.discrete(ts)
+    res = np.array([zz[1] - A @ zz[0] - B @ vv for zz, vv in zip(zeta, v)])
+    ratio = np.mean(res ** 2, axis=0) / _unit_q(flat, ts)
+    return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
+
+
+def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
+              duration: float = 5.0, seed: int = 1000, rounds: int = 3) -> tuple[np.ndarray, list[str]]:
+    """q per chain and a log of the rounds (see the module docstring)."""
+    q = _reference_q(flat, spec, ts, substeps, [AMPLITUDE])
+    floor = 1e-6 * np.array([(AMPLITUDE * (2 * math.pi / PERIOD) ** c.degree) ** 2 * PERIOD for c in flat.chains])
+    q = np.maximum(q, floor)
+    log = [f"along the reference: q = {_fmt(q)}"]
+    for _ in range(rounds):
+        cfg = ex.Config(model=spec, ts=ts, duration=duration, substeps=substeps, q=tuple(q), poles=tuple(poles),
+                        p0_std=tuple(p0_std), amplitude=(AMPLITUDE,), period=PERIOD,
+                        noise_std=tuple(None if s is None else tuple(s) for s in noise_std),
+                        noise_scale=(1.0, 1.25), seed=seed, watch_nees=False)  # too small a q is what
+        # this loop is run to measure: its NEES is meant to be high, only a plant that leaves its
+        # domain or overflows ends it
+        try:
+            res = ex.run(cfg)
+        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
+            q = q * 10
+            log.append(f"closed loop diverged: q x 10 -> {_fmt(q)}")
+            continue
+        k0 = int(round(cfg.metrics_from / ts))
+        q = np.maximum(implied_q(flat, ts, res.zeta[k0:], res.recording.v[k0:]), q)
+        log.append(f"along the closed loop: q = {_fmt(q)}")
+        break
+    return q, log
+
+
+def fastest_oscillation(flat, spec: str, ts: float, points: int = 12) -> float:
+    """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]."""
+    plant = ex._plant(spec, ts, 1)
+    cfg = ex.Config(model=spec, amplitude=(AMPLITUDE,), period=PERIOD)
+    refs = ex.references(cfg, flat.m)
+    p, n, worst = flat.param_vector, flat.n, 0.0
+    for tk in np.linspace(0, PERIOD, points, endpoint=False):
+        fl = flags(refs, flat.degrees, tk)
+        z = ex.state_of_flags(flat, fl)
+        top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
+        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+        x = flat.phi_inv_num(z, p)
+        h = 1e-6 * np.maximum(1.0, np.abs(x))
+        jac = np.column_stack([(plant.rhs(x + h[i] * np.eye(n)[i], u) - plant.rhs(x - h[i] * np.eye(n)[i], u))
+                               / (2 * h[i]) for i in range(n)])
+        worst = max(worst, float(np.abs(np.linalg.eigvals(jac).imag).max()))
+    return worst
+
+
+def _fmt(values) -> str:
+    return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
+
+
+def starting_scenario(spec: str) -> tuple[str, list[str]]:
+    """The TOML text of a starting scenario for model `spec`, and the calibration log."""
+    flat = ex._flat(spec)
+    model = flat.model
+    ts = float(model.ts)
+    omega = 2 * math.pi / PERIOD
+    poles = [round(0.1 / ts, 6)]
+    p0_std = [float(f"{0.05 * AMPLITUDE * (2 * omega) ** k:.3g}") for k in range(max(flat.degrees))]
+    if model.measurement is None:
+        std = [float(f"{0.004 * AMPLITUDE:.3g}")] * flat.m
+        noise_std = [std, [1.25 * s for s in std]]
+    else:
+        noise_std = [None, None]
+    q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std)
+    omega_max = fastest_oscillation(flat, spec, ts)
+    warn = []
+    if omega_max * ts > 0.3:
+        warn = [f"# WARNING: the plant oscillates at up to {omega_max:.3g} rad/s, {omega_max * ts:.2f} rad per "
+                f"period at Ts = {ts:g} s:",
+                "# the flat controller holds u over Ts and cannot cancel that mode; expect the loop not to",
+                f"# close whatever q. A period of about {0.1 / omega_max:.2g} s (scenario.ts) would, at "
+                f"{ts * omega_max / 0.1:.0f} times the work."]
+        log.append(f"fastest oscillation {omega_max:.3g} rad/s: too fast for Ts = {ts:g} s")
+    paper = scenario_mod.load("paper")
+    lines = [
+        MARKER + f" for model {model.name}.",
+        "# Every number below comes from the model (docs/experiment.md, \"A starting scenario\"):",
+        "# q from the canonical model's one-step residual, poles from Ts, P0 from the reference.",
+        *(f"#   calibration: {entry}" for entry in log),
+        *warn,
+        "",
+        "[scenario]",
+        f'name = "{model.name}_start"',
+        f'description = "starting scenario for {model.name}, generated by codegen scenario"',
+        "duration = 20.0",
+        "runs = 4",
+        "substeps = 10",
+        "metrics_from = 1.0",
+        'references = ["sinusoid", "seesaw"]',
+        'oosm = ["replay"]',
+        'fusion = ["difference", "paper"]',
+        'baselines = ["discard", "as-current"]',
+        "",
+        "[filter]",
+        f"q = {_toml_list(q)}               # per chain, from the one-step residual",
+        f"p0_std = {_toml_list(p0_std)}   # per derivative order",
+        "initial_error = true",
+        "",
+        "[control]",
+        f"poles = {poles[0]:g}              # every pole at -0.1/Ts",
+        "",
+        "[reference]",
+        f"amplitude = {AMPLITUDE:g}",
+        f"period = {PERIOD:g}",
+        "offset = 0.0",
+        "harmonics = 4",
+        "",
+    ]
+    for i, std in enumerate(noise_std):
+        lines += ["[[nodes]]", f"noise_scale = {1.0 if i == 0 else 1.25:g}" if std is None
+                  else f"noise_std = {_toml_list(std)}", ""]
+    lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
+    for row in paper.grid:
+        lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
+    return "\n".join(lines), log
+
+
+def _toml_list(values) -> str:
+    return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
+
+
+def run(args) -> int:
+    """`codegen scenario MODEL [--out FILE]`."""
+    out = Path(args.out) if args.out else None
+    if out is not None and out.exists():
+        try:
+            first = out.read_text(encoding="utf-8").split("\n", 1)[0]
+        except (OSError, UnicodeDecodeError):
+            first = ""
+        if not first.startswith(MARKER):
+            raise ScenarioError(f"{out}: exists and was not written by `codegen scenario`; not overwriting it")
+    if out is not None and not out.parent.is_dir():
+        raise ScenarioError(f"{out}: folder {out.parent} does not exist")
+    text, _ = starting_scenario(args.model)
+    scenario_mod.loads(text, str(out or "<generated>")).check_model(ex._flat(args.model))
+    if out is None:
+        print(text)
+    else:
+        out.write_text(text + "\n", encoding="utf-8")
+        print(f"codegen scenario: wrote {out}")
+    return 0

@@ -1,0 +1,226 @@
+"""Many closed-loop runs at once: in this process, in local worker processes, or on a Dask cluster.
+
+Why batches: a run in C takes milliseconds, so one task per run would be mostly scheduling; a task
+is a batch of runs. Why the compiled code travels with the tasks: a Dask worker may share no
+filesystem with the caller, so the shared libraries go as bytes (scattered once to every worker,
+or handed to each local process when it starts) and each worker loads them from a private file.
+
+Per-run records (JSON lines, one per finished run, appended and flushed as runs finish) let an
+interrupted sweep continue (`--resume`): a run is identified by a hash of its engine and its
+whole configuration, so a finished run is never recomputed and a changed setting is never reused.
+Results do not depend on where or in which order the runs ran: each run is a pure function of its
+configuration, and the caller orders them by seed before averaging.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import hashlib
+import json
+import math
+import os
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+from dfeif_codegen.errors import ScenarioError, SetupError
+from dfeif_codegen.experiment import closed_loop as ex
+
+ENGINES = ("c", "reference")
+_CODES: dict = {}          # compiled loops of this worker process (set by the pool's initializer)
+
+
+def run_id(cfg: ex.Config, engine: str) -> str:
+    return hashlib.sha256(repr((engine, cfg)).encode()).hexdigest()[:20]
+
+
+# --- one batch, wherever it runs ------------------------------------------------------------------
+
+def one(cfg: ex.Config, engine: str, codes: dict, series):
+    """One run -> (metrics or the error text, `series(result)` or None)."""
+    try:
+        if engine == "c":
+            from dfeif_codegen.check import closed_loop_c
+            res = closed_loop_c.run(cfg, codes.get(closed_loop_c.build_key(cfg)))
+        else:
+            res = ex.run(cfg)
+    except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        return f"{type(exc).__name__}: {exc}", None
+    return res.metrics, (series(res) if series else None)
+
+
+def batch(items: list, engine: str, shipped: dict | None = None) -> list:
+    """items: (run id, cfg, series function or None) -> [(run id, value)]."""
+    if shipped is not None:
+        _init_worker(shipped)
+    return [(rid, one(cfg, engine, _CODES, series)) for rid, cfg, series in items]
+
+
+def _init_worker(shipped: dict) -> None:
+    ex.MODEL_TEXT.update(shipped["models"])
+    _CODES.update(shipped["codes"])
+
+
+def prepare(configs, engine: str) -> dict:
+    """What every worker needs: the compiled loop of each distinct build (built here, once) and the
+    text of any model file (a worker on another machine cannot read the caller's files)."""
+    configs = list(configs)
+    models = {c.model: Path(c.model).read_text(encoding="utf-8") for c in configs if Path(c.model).is_file()}
+    if engine != "c":
+        return {"codes": {}, "models": models}
+    from dfeif_codegen.check import closed_loop_c, harness
+    harness.host_compiler()
+    keys = list(dict.fromkeys(closed_loop_c.build_key(c) for c in configs))
+    with ThreadPoolExecutor(max_workers=max(1, min(len(keys), os.cpu_count() or 1))) as pool:  # the compiler runs outside the GIL
+        return {"codes": dict(zip(keys, pool.map(closed_loop_c.compiled, keys))), "models": models}
+
+
+def _chunks(items: list, workers: int) -> list[list]:
+    size = max(1, min(16, math.ceil(len(items) / (4 * max(workers, 1)))))
+    return [items[i:i + size] for i in range(0, len(items), size)]
+
+
+def connect(scheduler: str | None):
+    """A Dask client for --scheduler (checked before anything is compiled or run), or None."""
+    if not scheduler:
+        return None
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise SetupError("--scheduler needs dask.distributed: pip install 'dfeif-codegen[cluster]'") from None
+    try:
+        return Client(scheduler, timeout=30)
+    except (OSError, TimeoutError) as exc:
+        raise SetupError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+
+
+def execute(items: list, engine: str, shipped: dict, workers: int, client, done) -> str:
+    """Run every item, calling `done(run id, value)` as results arrive; returns where they ran.
+    `client`: a Dask client (see connect), closed here, or None for local processes."""
+    if client is not None:
+        from dask.distributed import as_completed as dask_completed
+
+        scheduler = getattr(client.scheduler, "address", "?")
+        with client:
+            if not items:
+                return "nothing to run"
+            cores = sum(client.ncores().values()) or 1
+            [shared] = client.scatter([shipped], broadcast=True, hash=False)
+            futures = [client.submit(batch, chunk, engine, shared, pure=False) for chunk in _chunks(items, cores)]
+            for fut in dask_completed(futures):
+                for rid, value in fut.result():
+                    done(rid, value)
+        return f"Dask cluster {scheduler} ({cores} threads)"
+    if not items:
+        return "nothing to run"
+    if workers == 1:
+        for rid, value in batch(items, engine, shipped):
+            done(rid, value)
+        return "1 process"
+    with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(shipped,)) as pool:
+        futures = [pool.submit(batch, chunk, engine) for chunk in _chunks(items, workers)]
+        for fut in as_completed(futures):
+            for rid, value in fut.result():
+                done(rid, value)
+    return f"{workers} processes"
+
+
+def default_workers(requested: int | None, jobs: int) -> int:
+    if requested is not None and requested < 1:
+        raise ScenarioError(f"--workers: needs at least 1, got {requested}")
+    return max(1, min(requested or os.cpu_count() or 1, jobs))
+
+
+# --- per-run records ----------------------------------------------------------------------------
+
+def encode(metrics) -> dict | str:
+    """Metrics as JSON: short arrays as lists, long ones (NEES per step) as base64 float64; both
+    round-trip exactly."""
+    if isinstance(metrics, str):
+        return metrics
+    out = {}
+    for key, value in metrics.items():
+        a = np.asarray(value)
+        if a.size > 64:
+            out[key] = {"shape": list(a.shape), "f8": base64.b64encode(a.astype("<f8").tobytes()).decode()}
+        else:
+            out[key] = a.tolist()
+    return out
+
+
+def decode(doc):
+    if isinstance(doc, str):
+        return doc
+    out = {}
+    for key, value in doc.items():
+        if isinstance(value, dict):
+            out[key] = np.frombuffer(base64.b64decode(value["f8"]), dtype="<f8").reshape(value["shape"]).copy()
+        elif isinstance(value, list):
+            out[key] = np.asarray(value)
+        else:
+            out[key] = value
+    return out
+
+
+def read_records(path) -> dict[str, dict]:
+    """run id -> record from a --results file (a torn last line from an interrupted run is ignored)."""
+    records = {}
+    p = Path(path)
+    if not p.is_file():
+        raise ScenarioError(f"--resume {path}: no such file")
+    lines = p.read_text(encoding="utf-8").splitlines()
+    for number, line in enumerate(lines, 1):
+        try:
+            rec = json.loads(line)
+            records[rec["id"]] = rec
+        except (json.JSONDecodeError, KeyError, TypeError):
+            if number != len(lines):
+                raise ScenarioError(f"--resume {path}: line {number} is not a run record") from None
+    return records
+
+
+class Records:
+    """Appends one JSON line per finished run (flushed, so an interruption loses at most one)."""
+
+    def __init__(self, path, keep_existing: bool):
+        self.path = Path(path) if path else None
+        self.file = None
+        if self.path:
+            if keep_existing and self.path.is_file():
+                text = self.path.read_text(encoding="utf-8")
+                if text and not text.endswith("\n"):   # drop a torn last line
+                    self.path.write_text(text[:text.rfind("\n") + 1], encoding="utf-8")
+            self.file = open(self.path, "a" if keep_existing else "w", encoding="utf-8")
+
+    def write(self, rid: str, keys: list, engine: str, value) -> None:
+        if self.file:
+            self.file.write(json.dumps({"id": rid, "engine": engine, "runs": [list(k) for k in keys],
+                                        "metrics": encode(value)}) + "\n")
+            self.file.flush()
+
+    def close(self) -> None:
+        if self.file:
+            self.file.close()
+
+
+def write_csv(path, rows: list[tuple], n: int, nodes: int) -> None:
+    """rows: (reference, method, fusion, row number, seed, metrics or error text)."""
+    head = ["reference", "method", "fusion", "row", "seed", "error"]
+    head += [f"rmse_master_x{j + 1}" for j in range(n)] + [f"rmse_tracking_x{j + 1}" for j in range(n)]
+    head += [f"rmse_node{i + 1}_x{j + 1}" for i in range(nodes) for j in range(n)]
+    head += ["trace_master"] + [f"trace_node{i + 1}" for i in range(nodes)]
+    head += ["nees_master"] + [f"nees_node{i + 1}" for i in range(nodes)] + ["late_applied", "late_rejected"]
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        out = csv.writer(f)
+        out.writerow(head)
+        for ref, method, fusion, ri, seed, m in sorted(rows, key=lambda r: r[:5]):
+            if isinstance(m, str):
+                out.writerow([ref, method, fusion, ri + 1, seed, m] + [""] * (len(head) - 6))
+                continue
+            vals = list(m["rmse_master"]) + list(m["rmse_tracking"]) + list(np.ravel(m["rmse_nodes"]))
+            vals += [float(m["trace_master"])] + list(m["trace_nodes"])
+            vals += [float(np.mean(m["nees_master"]))] + list(np.mean(m["nees_nodes"], axis=-1))
+            vals += [int(m["late_applied"]), int(m["late_rejected"])]
+            out.writerow([ref, method, fusion, ri + 1, seed, ""] + [repr(float(v)) for v in vals[:-2]] + vals[-2:])

@@ -1,0 +1,167 @@
+"""Filters on the physical model (the EKF and UKF the chapter compares itself with): the model's
+functions, rewind-and-replay of late frames, and fusion, shared by `ekf.py` and `ukf.py`.
+
+- Prediction integrates `x' = f(x) + g(x) u` with `u` held over Ts (classical RK4, the same
+  substeps as the true plant), by CasADi, which also gives the exact Jacobian of that step (AD).
+- Measurement: the flat outputs `y = h(x)` the nodes recover from the camera (the same `z` and
+  `R_i` as the derivative-free nodes).
+- Process noise: the derivative-free filter's assumption mapped to physical coordinates,
+  `Q_x = J Q_d Jᵀ` with `J = dPhi^-1/dzeta` at the current estimate: both filters assume the same
+  disturbance, so the comparison is of the filters, not of their tuning.
+- Late frames: the exact method, as the derivative-free nodes' `replay`: each frame is put into
+  its step's slot and the filter is re-run from there (re-linearizing on the way). All frames
+  arriving at one step are placed first and the filter re-run once from the earliest: the same
+  result as one re-run per frame, with less work.
+- Fusion: the information-difference rule in *physical* coordinates,
+  `Y = Y⁻ + Σ (Y_i - Y_pred_i)`, about the master's own prediction `x⁻` (made with the same filter).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import sympy as sp
+
+from dfeif_codegen.reference.linalg import spd_inv
+from dfeif_codegen.symbolic import numeric
+from dfeif_codegen.reference.node import measurement_covariance
+
+def _sx(args: list[sp.Symbol], exprs, values: list[ca.SX]) -> ca.SX:
+    """sympy expressions (parameters already substituted) evaluated on casadi symbols, through
+    the one sympy -> CasADi bridge."""
+    table = dict(zip(args, values))
+    return ca.vertcat(*[numeric.to_casadi(sp.sympify(e), table, f"physical model [{i}]") for i, e in enumerate(exprs)])
+
+
+class PhysicalModel:
+    """CasADi functions of one model at one sampling period: step and its Jacobian, outputs and
+    their Jacobian, Phi and its Jacobian, and the process noise in physical coordinates."""
+
+    def __init__(self, flat, ts: float, q, substeps: int = 10):
+        model = flat.model
+        vals = model.param_values
+        n, m = model.n, model.m
+        self.n, self.m, self.ts = n, m, float(ts)
+        self.angle_out = np.array([c.angle for c in flat.chains])
+        x, u, z = ca.SX.sym("x", n), ca.SX.sym("u", m), ca.SX.sym("z", n)
+        xs, us = list(model.x), list(model.u)
+        rhs = [sp.sympify(e).subs(vals) for e in (model.f + model.g * model.u)]
+        f = ca.Function("f", [x, u], [_sx(xs + us, rhs, [x[i] for i in range(n)] + [u[j] for j in range(m)])])
+        h_step, xn = self.ts / substeps, x
+        for _ in range(substeps):
+            k1 = f(xn, u)
+            k2 = f(xn + h_step / 2 * k1, u)
+            k3 = f(xn + h_step / 2 * k2, u)
+            k4 = f(xn + h_step * k3, u)
+            xn = xn + h_step / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        xl = [x[i] for i in range(n)]
+        hx = _sx(xs, [sp.sympify(o.expr).subs(vals) for o in model.outputs], xl)
+        phi = _sx(xs, [sp.sympify(e).subs(vals) for e in flat.phi], xl)
+        phi_inv = _sx(list(flat.zeta), [sp.sympify(e).subs(vals) for e in flat.phi_inv], [z[i] for i in range(n)])
+        self._step = ca.Function("step", [x, u], [xn, ca.jacobian(xn, x)])
+        self.step_many = ca.Function("s", [x, u], [xn]).map(2 * n + 1)
+        self._h = ca.Function("h", [x], [hx, ca.jacobian(hx, x)])
+        self.h_many = ca.Function("h1", [x], [hx]).map(2 * n + 1)
+        self._phi = ca.Function("phi", [x], [phi, ca.jacobian(phi, x)])
+        self._phi_inv = ca.Function("phi_inv", [z], [phi_inv, ca.jacobian(phi_inv, z)])
+        self.Qd = flat.process_noise(self.ts, q)
+
+    def step(self, x, u) -> tuple[np.ndarray, np.ndarray]:
+        xn, F = self._step(x, u)
+        return np.asarray(xn).reshape(-1), np.asarray(F)
+
+    def h(self, x) -> tuple[np.ndarray, np.ndarray]:
+        y, H = self._h(x)
+        return np.asarray(y).reshape(-1), np.asarray(H)
+
+    def phi(self, x) -> tuple[np.ndarray, np.ndarray]:
+        z, J = self._phi(x)
+        return np.asarray(z).reshape(-1), np.asarray(J)
+
+    def phi_inv(self, zeta) -> tuple[np.ndarray, np.ndarray]:
+        x, J = self._phi_inv(zeta)
+        return np.asarray(x).reshape(-1), np.asarray(J)
+
+    def Qx(self, x) -> np.ndarray:
+        _, J = self.phi_inv(self.phi(x)[0])
+        return J @ self.Qd @ J.T
+
+
+class ReplayNode:
+    """One camera node on the physical model: `update` once per step, `update_delayed` with the
+    frames arriving at this step, `predict` with the input applied. `filt` supplies
+    `predict(x, P, u)` and `update(x, P, z, R)` (ekf.EKF or ukf.UKF)."""
+
+    def __init__(self, filt, R, x0, P0, max_lag: int = 32):
+        self.filt, self.max_lag = filt, max_lag
+        self.R = measurement_covariance(R, filt.model.m)
+        self.k = 0
+        self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
+        self.x_pred, self.P_pred = self.x, self.P
+        self.applied = self.rejected = 0
+        self._slots: dict[int, list] = {0: [self.x, self.P, None, None]}   # prior x, P, z, u
+
+    def update(self, z, gamma: bool) -> None:
+        slot = self._slots[self.k]
+        slot[2] = np.asarray(z, dtype=float) if gamma else None
+        self.x, self.P = self._correct(slot[0], slot[1], slot[2])
+
+    def update_delayed(self, frames) -> list[bool]:
+        """`frames`: (z, lag) pairs arriving now; the same rejections as the derivative-free nodes."""
+        ok, start = [], None
+        for z, lag in frames:
+            j = self.k - int(lag)
+            good = 1 <= lag <= self.max_lag and j >= 0 and self._slots[j][2] is None
+            if good:
+                self._slots[j][2] = np.asarray(z, dtype=float)
+                start = j if start is None else min(start, j)
+            self.applied, self.rejected = self.applied + good, self.rejected + (not good)
+            ok.append(good)
+        if start is not None:
+            x, P = self._slots[start][0], self._slots[start][1]
+            for j in range(start, self.k + 1):
+                slot = self._slots[j]
+                slot[0], slot[1] = x, P
+                x, P = self._correct(x, P, slot[2])
+                if j < self.k:
+                    x, P = self.filt.predict(x, P, slot[3])
+            self.x, self.P = x, P
+        return ok
+
+    def predict(self, u) -> None:
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        self._slots[self.k][3] = u
+        self.x, self.P = self.filt.predict(self.x, self.P, u)
+        self.k += 1
+        self._slots[self.k] = [self.x, self.P, None, None]
+        self._slots.pop(self.k - self.max_lag - 1, None)
+        self.x_pred, self.P_pred = self.x, self.P
+
+    def _correct(self, x, P, z):
+        return (x, P) if z is None else self.filt.update(x, P, z, self.R)
+
+
+class PhysicalMaster:
+    """The information-difference rule in physical coordinates, with the filter's own prediction."""
+
+    def __init__(self, filt, x0, P0):
+        self.filt = filt
+        self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
+        self.x_prior, self.P_prior = self.x, self.P
+
+    def fuse(self, packets) -> None:
+        """`packets`: per node (x, P, x_pred, P_pred) of this step, or None."""
+        used = [p for p in packets if p is not None]
+        if not used:
+            self.x, self.P = self.x_prior, self.P_prior
+            return
+        c = self.x_prior
+        Y, y = spd_inv(self.P_prior), np.zeros_like(c)
+        for x, P, xp, Pp in used:
+            Yi, Yp = spd_inv(P), spd_inv(Pp)
+            Y, y = Y + Yi - Yp, y + Yi @ (x - c) - Yp @ (xp - c)
+        self.P = spd_inv(Y)
+        self.x = c + self.P @ y
+
+    def predict(self, u) -> None:
+        self.x_prior, self.P_prior = self.filt.predict(self.x, self.P, np.atleast_1d(np.asarray(u, dtype=float)))

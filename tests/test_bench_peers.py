@@ -1,0 +1,36 @@
+"""`codegen bench`'s comparisons: the synthetic chains, the growth fit and the C peers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from conftest import require_tool
+from dfeif_codegen.check import bench_peers, harness
+from dfeif_codegen.symbolic import flatness, model as model_mod
+
+
+def test_synthetic_chain_is_flat_with_relative_degree_n(tmp_path):
+    for n in (2, 5, 10):
+        path = tmp_path / f"chain{n}.toml"
+        path.write_text(bench_peers.chain_model(n))
+        flat = flatness.derive(model_mod.load(str(path)))
+        assert flat.degrees == [n] and flat.n == n
+
+
+def test_growth_fit_recovers_a_power_law():
+    sizes = np.array([2.0, 3.0, 5.0, 8.0, 13.0])
+    # exact in exact arithmetic; the least-squares fit of 5 logs is good to ~1e-14
+    assert abs(bench_peers.growth(sizes, 7.0 * sizes ** 2.25) - 2.25) < 1e-12
+
+
+def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
+    """c_peers raises unless the dense-loop and the straight-line filters end where the generated
+    filter ends after 200 steps (1e-9); the straight-line one exists for the 3-state motor only."""
+    require_tool("valgrind", "valgrind")
+    md = harness.build_model("dc_motor_link", tmp_path / "b")
+    out = bench_peers.c_peers("dc_motor_link", md, tmp_path / "w")
+    assert set(out["instructions"]) == set(out["ns"]) == {"generated", "dense", "straight"}
+    # the hand-written filter does strictly less work than the generated one, which checks its inputs
+    assert 0 < out["instructions"]["straight"] < out["instructions"]["generated"]
+    arm = harness.build_model("two_link_arm", tmp_path / "a")
+    assert set(bench_peers.c_peers("two_link_arm", arm, tmp_path / "wa")["instructions"]) == {"generated", "dense"}

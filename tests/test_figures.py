@@ -1,0 +1,38 @@
+"""Figures in the model's own names and units (experiment/figures.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import figures
+
+
+def test_labels_carry_the_models_units():
+    """The motor's TOML gives theta in rad and V in V: derivatives get rad/s, rad/s^2."""
+    flat = ex._flat("dc_motor_link")
+    assert figures.state_labels(flat) == ["theta [rad]", "theta' [rad/s]", "theta'' [rad/s^2]"]
+    assert figures.input_labels(flat.model) == ["V [V]"]
+    arm = ex._flat("two_link_arm")
+    assert figures.state_labels(arm)[3:] == ["q2 [rad]", "q2' [rad/s]", "q2'' [rad/s^2]"]
+
+
+def test_row_text():
+    assert figures.row_text("  25  30  0.6") == "(d1, d2, p) = (25, 30, 0.6)"
+
+
+def test_every_figure_renders(tmp_path):
+    """matplotlib is installed by scripts/setup-tests.sh (the [plot] extra): rendered, not skipped."""
+    flat = ex._flat("dc_motor_link")
+    t = np.arange(200) * 0.01
+    truth = np.column_stack([np.sin(t), np.cos(t), -np.sin(t)])
+    est = truth + 1e-3
+    figures.states_figure(tmp_path / "a.png", "t", flat, t, est, truth, truth, np.zeros((200, 1)))
+    figures.error_figure(tmp_path / "b.png", "t", flat, t, est, truth, np.full((200, 3), 1e-6))
+    lags = np.where(np.arange(400).reshape(2, 200) % 3 == 0, 5, 0)
+    lags[0, 7] = -1
+    figures.delay_figure(tmp_path / "c.png", "t", t, lags, 0.01)
+    figures.comparison_figure(tmp_path / "d.png", "t", flat, ["(0, 0, 0)", "(4, 6, 0.8)"],
+                              {"DF": (np.ones((2, 3)), np.full((2, 3), 0.1)), "EKF": (np.ones((2, 3)), np.zeros((2, 3)))})
+    for name in "abcd":
+        assert (tmp_path / f"{name}.png").stat().st_size > 10_000
