@@ -1,4 +1,5 @@
-"""Output paths checked before long work starts: a run of minutes must not end in 'cannot write'."""
+"""User paths checked before long work starts: output paths a run of minutes must be able to
+write, and the text files (models, scenarios) it reads, each refused in one line."""
 
 from __future__ import annotations
 
@@ -39,3 +40,18 @@ def writable_dir(path: str | Path, flag: str) -> None:
     base = _nearest_existing(path)
     if not base.is_dir() or not os.access(base, os.W_OK | os.X_OK):
         raise OutputPathError(f"{flag} {path}: cannot write there ({base} is not a writable folder)")
+
+
+def read_text(path: Path, source: str, error: type[CodegenError], kind: str) -> str:
+    """A user's text file (a model, a scenario), or one line naming why it cannot be one:
+    unreadable, not UTF-8, or binary (a NUL byte)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise error(f"{source}: cannot read {kind} file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise error(f"{source}: not a UTF-8 text file (byte {exc.start})") from None
+    if "\x00" in text:
+        raise error(f"{source}: not a text file (NUL byte at character {text.index(chr(0))})")
+    return text
+

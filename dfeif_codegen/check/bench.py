@@ -13,7 +13,6 @@ benchmarks that model alone.
 from __future__ import annotations
 
 import re
-import shutil
 import statistics
 import subprocess
 import sys
@@ -48,29 +47,13 @@ def build_times(model: str, repeat: int, work: Path) -> list[float]:
 
 def callgrind(model: harness.ModelDir, work: Path) -> dict[str, float]:
     """Instructions per call of each section of bench.c.j2."""
-    valgrind = shutil.which("valgrind")
-    if valgrind is None:
-        raise SetupError("valgrind not found: install the Debian package valgrind (apt-get install valgrind)")
     work.mkdir(parents=True, exist_ok=True)
     env = render.environment(model.precision)
     src = work / f"{model.name}_bench.c"
     src.write_text(env.get_template("harness/bench.c.j2").render(
         p=model.name, P=model.name.upper(), banner=render.banner("harness/bench.c.j2", model.name, __version__)))
     exe = harness.compile_program([*model.sources(), src], work / "bench", [model.path])
-    for old in work.glob("callgrind.out*"):
-        old.unlink()
-    proc = subprocess.run([valgrind, "--tool=callgrind", "--collect-atstart=no", "--callgrind-out-file=callgrind.out",
-                           str(exe)], cwd=work, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SetupError(f"callgrind run failed:\n{proc.stderr[-3000:]}")
-    result = {}
-    for dump in sorted(work.glob("callgrind.out*")):
-        text = dump.read_text(errors="replace")
-        desc = re.search(r"^desc: Trigger: Client Request: (\S+):(\d+)$", text, re.M)
-        total = re.search(r"^(?:summary|totals): (\d+)", text, re.M)
-        if desc and total:
-            result[desc.group(1)] = int(total.group(1)) / int(desc.group(2))
-    return result
+    return harness.callgrind(exe, work)[0]
 
 
 def target_sizes(model: harness.ModelDir, work: Path) -> tuple[dict, dict]:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import re
 import resource
-import shutil
 import statistics
 import subprocess
 import sys
@@ -86,24 +85,9 @@ def c_peers(spec: str, md: harness.ModelDir, work: Path) -> dict:
 
 
 def _callgrind(exe: Path, work: Path) -> tuple[dict, dict]:
-    valgrind = shutil.which("valgrind")
-    if valgrind is None:
-        raise SetupError("valgrind not found: install the Debian package valgrind (apt-get install valgrind)")
-    for old in work.glob("callgrind.out*"):
-        old.unlink()
-    proc = subprocess.run([valgrind, "--tool=callgrind", "--collect-atstart=no", "--callgrind-out-file=callgrind.out",
-                           str(exe)], cwd=work, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SetupError(f"callgrind run failed:\n{proc.stderr[-3000:]}")
-    counts = {}
-    for dump in sorted(work.glob("callgrind.out*")):
-        text = dump.read_text(errors="replace")
-        desc = re.search(r"^desc: Trigger: Client Request: (\S+):(\d+)$", text, re.M)
-        total = re.search(r"^(?:summary|totals): (\d+)", text, re.M)
-        if desc and total:
-            counts[desc.group(1)] = int(total.group(1)) / int(desc.group(2))
+    counts, stdout = harness.callgrind(exe, work)
     finals = {m.group(1): [float(v) for v in m.group(2).split()]
-              for m in re.finditer(r"^final (\w+) (.*)$", proc.stdout, re.M)}
+              for m in re.finditer(r"^final (\w+) (.*)$", stdout, re.M)}
     return counts, finals
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import ctypes
 import json
 import os
+import re
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -63,6 +64,29 @@ def compile_program(sources: Iterable[Path], out: Path, include_dirs: Iterable[P
     flags = [*HOST_CFLAGS, *(SANITIZE_FLAGS if sanitize else ())]
     _cc([*flags, *incs, *extra, *sources, "-lm", "-o", out])
     return out
+
+
+def callgrind(exe: Path, work: Path) -> tuple[dict[str, float], str]:
+    """Instructions per call of each section a program marks with valgrind client requests
+    (`CALLGRIND_DUMP_STATS_AT("name:calls")`), counted by callgrind (deterministic for the same
+    binary and inputs), and the program's stdout."""
+    valgrind = shutil.which("valgrind")
+    if valgrind is None:
+        raise SetupError("valgrind not found: install the Debian package valgrind (apt-get install valgrind)")
+    for old in work.glob("callgrind.out*"):
+        old.unlink()
+    proc = subprocess.run([valgrind, "--tool=callgrind", "--collect-atstart=no", "--callgrind-out-file=callgrind.out",
+                           str(exe)], cwd=work, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SetupError(f"callgrind run failed:\n{proc.stderr[-3000:]}")
+    counts = {}
+    for dump in sorted(work.glob("callgrind.out*")):
+        text = dump.read_text(errors="replace")
+        desc = re.search(r"^desc: Trigger: Client Request: (\S+):(\d+)$", text, re.M)
+        total = re.search(r"^(?:summary|totals): (\d+)", text, re.M)
+        if desc and total:
+            counts[desc.group(1)] = int(total.group(1)) / int(desc.group(2))
+    return counts, proc.stdout
 
 
 def load(path: Path) -> ctypes.CDLL:

@@ -13,6 +13,7 @@ from importlib import resources
 from pathlib import Path
 
 from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.paths import read_text
 from dfeif_codegen.symbolic.model import _key_lines
 from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
 from dfeif_codegen.reference.fusion import RULES
@@ -148,15 +149,7 @@ def load(spec: str) -> Scenario:
     path = Path(spec)
     if path.suffix != ".toml" and not path.exists():
         raise ScenarioError(f"{spec}: not a built-in scenario ({', '.join(BUILTIN)}) nor a .toml file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(f"{spec}: cannot read scenario file ({exc.strerror})") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{spec}: not a UTF-8 text file (byte {exc.start})") from None
-    if "\x00" in text:
-        raise ScenarioError(f"{spec}: not a text file (NUL byte at character {text.index(chr(0))})")
-    return loads(text, spec)
+    return loads(read_text(path, spec, ScenarioError, "scenario"), spec)
 
 
 def loads(text: str, source: str = "<string>") -> Scenario:

@@ -16,6 +16,7 @@ from typing import Mapping, Sequence
 import sympy as sp
 
 from dfeif_codegen.errors import ModelError
+from dfeif_codegen.paths import read_text
 from dfeif_codegen.symbolic.expr_parser import parse_expression
 
 try:  # the standard library's TOML reader from Python 3.11, its backport before
@@ -345,15 +346,7 @@ def load_toml(path: str | Path, source: str | None = None) -> Model:
     """Read a model file. Every expression goes through the restricted parser (no eval)."""
     path = Path(path)
     source = source or str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ModelError(f"{source}: cannot read model file ({exc.strerror})") from None
-    except UnicodeDecodeError as exc:
-        raise ModelError(f"{source}: not a UTF-8 text file (byte {exc.start})") from None
-    if "\x00" in text:
-        raise ModelError(f"{source}: not a text file (NUL byte at character {text.index(chr(0))})")
-    return loads_toml(text, source)
+    return loads_toml(read_text(path, source, ModelError, "model"), source)
 
 
 def loads_toml(text: str, source: str = "<string>") -> Model:
