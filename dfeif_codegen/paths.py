@@ -8,6 +8,11 @@ from pathlib import Path
 
 from dfeif_codegen.errors import CodegenError
 
+try:  # the standard library's TOML reader from Python 3.11, its backport before
+    import tomllib  # novermin
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
 
 class OutputPathError(CodegenError):
     """An output file or folder the command would not be able to write."""
@@ -54,4 +59,12 @@ def read_text(path: Path, source: str, error: type[CodegenError], kind: str) -> 
     if "\x00" in text:
         raise error(f"{source}: not a text file (NUL byte at character {text.index(chr(0))})")
     return text
+
+
+def parse_toml(text: str, source: str, error: type[CodegenError]) -> dict:
+    """TOML text as a dict, or one line naming the file and the syntax error."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{source}: malformed TOML: {exc}") from None
 

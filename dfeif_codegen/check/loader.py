@@ -191,11 +191,31 @@ class Packet:
         self.library, self.data = library, library.state("packet")
 
 
-class Node:
+class _Filter:
+    """What a node and the master share: a C struct, its prediction and its estimate."""
+
+    _library: Library
+    _kind: str   # the C prefix after the model's: "node" or "master"
+
+    def predict(self, v) -> None:
+        """Predict to the next step with the broadcast canonical input v."""
+        lib = self._library
+        what = f"{type(self).__name__}.predict: v"
+        lib.call(f"{self._kind}_predict", self._state, lib.ptr(lib.array(v, (lib.ny,), what)))
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        """(x, P) of the current step, in canonical coordinates."""
+        lib = self._library
+        x, P = lib.output(lib.nx), lib.output(lib.nx, lib.nx)
+        lib.call(f"{self._kind}_estimate", self._state, lib.ptr(x), lib.ptr(P))
+        return x, P
+
+
+class Node(_Filter):
     """One camera node's filter (`<model>_node_*`). Per step: `update` once, `update_delayed`
     any number of times, then `predict` with the broadcast v."""
 
-    _library: Library
+    _kind = "node"
 
     def __init__(self, x0, P0, R, q):
         lib = self._library
@@ -217,18 +237,6 @@ class Node:
         z = lib.array(z_late, (lib.ny,), "Node.update_delayed: z_late")
         lib.call("node_update_delayed", self._state, lib.ptr(z), ctypes.c_int32(int(lag)))
 
-    def predict(self, v) -> None:
-        """Predict to the next step with the broadcast canonical input v."""
-        lib = self._library
-        lib.call("node_predict", self._state, lib.ptr(lib.array(v, (lib.ny,), "Node.predict: v")))
-
-    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        """(x, P) of the current step, in canonical coordinates."""
-        lib = self._library
-        x, P = lib.output(lib.nx), lib.output(lib.nx, lib.nx)
-        lib.call("node_estimate", self._state, lib.ptr(x), lib.ptr(P))
-        return x, P
-
     def packet(self) -> Packet:
         lib = self._library
         out = Packet(lib)
@@ -242,11 +250,11 @@ class Node:
         return dict(zip(("updates", "drops", "late_applied", "late_rejected"), map(int, h)))
 
 
-class Master:
+class Master(_Filter):
     """The fusion centre (`<model>_master_*`). Per step: `fuse` the packets that arrived, then
     `predict` with the v it broadcasts."""
 
-    _library: Library
+    _kind = "master"
 
     def __init__(self, x0, P0, q):
         lib = self._library
@@ -274,13 +282,3 @@ class Master:
             ctypes.memmove(ctypes.addressof(buf) + i * size, p.data, size)
             present[i] = 1
         lib.call("master_fuse", self._state, buf, present)
-
-    def predict(self, v) -> None:
-        lib = self._library
-        lib.call("master_predict", self._state, lib.ptr(lib.array(v, (lib.ny,), "Master.predict: v")))
-
-    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        lib = self._library
-        x, P = lib.output(lib.nx), lib.output(lib.nx, lib.nx)
-        lib.call("master_estimate", self._state, lib.ptr(x), lib.ptr(P))
-        return x, P

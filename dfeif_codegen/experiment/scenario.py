@@ -13,17 +13,12 @@ from importlib import resources
 from pathlib import Path
 
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.paths import read_text
+from dfeif_codegen.paths import parse_toml, read_text
 from dfeif_codegen.symbolic.model import _key_lines
 from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
 from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.experiment.trajectory import KINDS
-
-try:  # the standard library's TOML reader from Python 3.11, its backport before
-    import tomllib  # novermin
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 BUILTIN = ("paper",)
 
@@ -153,10 +148,7 @@ def load(spec: str) -> Scenario:
 
 
 def loads(text: str, source: str = "<string>") -> Scenario:
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
+    data = parse_toml(text, source, ScenarioError)
     lines = _key_lines(text)
     sc = Scenario(name=Path(source).stem, source=source, _lines=lines)
     where = sc.where

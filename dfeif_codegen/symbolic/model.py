@@ -16,13 +16,8 @@ from typing import Mapping, Sequence
 import sympy as sp
 
 from dfeif_codegen.errors import ModelError
-from dfeif_codegen.paths import read_text
+from dfeif_codegen.paths import parse_toml, read_text
 from dfeif_codegen.symbolic.expr_parser import parse_expression
-
-try:  # the standard library's TOML reader from Python 3.11, its backport before
-    import tomllib  # novermin
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _RESERVED = {"pi", "e", "E", "I_", "t"}
@@ -350,10 +345,7 @@ def load_toml(path: str | Path, source: str | None = None) -> Model:
 
 
 def loads_toml(text: str, source: str = "<string>") -> Model:
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ModelError(f"{source}: malformed TOML: {exc}") from None
+    data = parse_toml(text, source, ModelError)
     lines = _key_lines(text)
 
     def where(key: str) -> str:
