@@ -103,7 +103,8 @@ CLI = {
     "--singular-rtol 2": (["build", "--singular-rtol", "2"], {}, ["--singular-rtol", "[0, 1)"]),
     "--max-seconds 0": (["build", "--max-seconds", "0"], {}, ["--max-seconds", "positive"]),
     "time budget": (["build", "--max-seconds", "0.001"], {}, ["stopped after 0.001 s while", "--max-seconds"]),
-    "memory budget": (["build", "{d}/in/m.toml", "--max-memory", "0.001"],
+    # a generous clock, so that on a loaded machine the memory budget, not the time budget, stops it
+    "memory budget": (["build", "{d}/in/m.toml", "--max-memory", "0.001", "--max-seconds", "600"],
                       {"m.toml": motor('theta = "omega"', NESTED14)},
                       ["m.toml", "memory budget", "--max-memory"]),
     "--out is a file": (["build", "--out", "{d}/user/notes.txt"], {}, ["--out", "notes.txt", "not a folder"]),
