@@ -209,6 +209,9 @@ class Model:
         if not c_safe(self.name) or self.name.lower() in C_HEADERS:
             raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module (a C identifier "
                              "of at most 31 characters, not a C keyword, a standard header or casadi*)")
+        if self.name.endswith("_") or "__" in self.name:
+            raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module: it must not end "
+                             "with '_' or contain '__' (CasADi refuses its kernels' names, <name>_kern_*)")
         for kind, items in (("states", self.states), ("inputs", self.inputs)):
             for i, item in enumerate(items):
                 at = self.where(f"{kind}#{i}")
