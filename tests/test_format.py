@@ -1,7 +1,7 @@
 """The layout of the generated C: every line at most 100 columns, and clang-format with the
 shipped style file (templates/.clang-format) changes nothing, for the built-in models in several
-option sets and for user models with names of NAME_LIMIT characters (longer names compile the
-same, but their prefixed identifiers may make some lines longer than 100 columns).
+option sets and for user models with names of MODEL_NAME_LIMIT characters, the longest the model
+loader accepts (the name prefixes every identifier; a longer one is refused at load time).
 The generator lays the code out itself (codegen/layout.py), so these tests are what ties its
 output to the style file."""
 
@@ -15,6 +15,7 @@ import pytest
 
 from conftest import require_tool
 from dfeif_codegen.codegen import build, layout
+from dfeif_codegen.symbolic.model import MODEL_NAME_LIMIT
 from test_user_models import FLEX_JOINT, MIXED
 
 VARIANTS = [
@@ -27,7 +28,6 @@ VARIANTS = [
     ("user:flex_joint_link_a", {"oosm": "retrodict", "fusion": "ci"}),
     ("user:mixed_two_input_m", {"precision": "float"}),
 ]
-NAME_LIMIT = 17
 STYLE = Path(str(resources.files("dfeif_codegen.templates") / ".clang-format"))
 
 
@@ -36,7 +36,7 @@ def _spec(name: str, tmp: Path):
     if not name.startswith("user:"):
         return name
     new = name[5:]
-    assert len(new) == NAME_LIMIT
+    assert len(new) == MODEL_NAME_LIMIT
     text = FLEX_JOINT if new.startswith("flex") else MIXED
     old = "flex_joint" if new.startswith("flex") else "mixed"
     path = tmp / f"{new}.toml"
