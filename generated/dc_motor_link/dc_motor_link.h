@@ -56,10 +56,11 @@ extern "C" {
 #define DC_MOTOR_LINK_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
 #define DC_MOTOR_LINK_NRING (DC_MOTOR_LINK_NMAX + 1)
+/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+#define DC_MOTOR_LINK_NRING_NY DC_MOTOR_LINK_NRING
+#define DC_MOTOR_LINK_NMAX_NY DC_MOTOR_LINK_NMAX
 /** camera nodes fused by the master */
 #define DC_MOTOR_LINK_NNODES 2
-/** sampling period [s] */
-#define DC_MOTOR_LINK_TS 0.01
 /** Newton steps of covariance intersection */
 #define DC_MOTOR_LINK_CI_ITERATIONS 12
 #define DC_MOTOR_LINK_PRECISION_FLOAT 0
@@ -68,18 +69,16 @@ extern "C" {
 #define DC_MOTOR_LINK_FUSION_PAPER 0
 #define DC_MOTOR_LINK_FUSION_DIFFERENCE 1
 #define DC_MOTOR_LINK_FUSION_CI 0
-#define DC_MOTOR_LINK_MODEL_HASH "b1585456bf7d7bcc34de16dc48db6f33a222d77e554b2d0360ca48648ffdbafb"
 
 /* Chains of the canonical state (initializers for int arrays of NY entries): degree, offset
- * (= index of each output in zeta), angle (1: innovations wrapped to (-pi, pi]). clang-format
- * cannot lay out a braced initializer in a macro, so it leaves these three lines alone. */
+ * (= index of each output in zeta). clang-format cannot lay out a braced initializer in a macro,
+ * so it leaves these lines alone. */
 /* clang-format off */
 #define DC_MOTOR_LINK_CHAIN_DEGREES {3}
 #define DC_MOTOR_LINK_CHAIN_OFFSETS {0}
-#define DC_MOTOR_LINK_CHAIN_ANGLE {1}
 /* clang-format on */
 
-/* Index of each parameter in params[NP]. */
+/* Index of each parameter in params[NP] (the library's default table is laid out by them). */
 /** L [H]: armature inductance */
 #define DC_MOTOR_LINK_P_L 0
 /** R [ohm]: armature resistance */
@@ -98,6 +97,13 @@ extern "C" {
 #define DC_MOTOR_LINK_P_l 7
 
 typedef double dc_motor_link_real;
+
+/** Sampling period [s] the kernels were discretised with (0.01). */
+extern const dc_motor_link_real dc_motor_link_ts;
+/** SHA-256 of the model and build options (hex); frames carry its first 8 bytes. */
+extern const char dc_motor_link_model_hash[65];
+/** Per chain: 1 if its flat output is an angle (innovations wrapped to (-pi, pi]), else 0. */
+extern const uint8_t dc_motor_link_chain_angle[DC_MOTOR_LINK_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define DC_MOTOR_LINK_OK 0
@@ -149,8 +155,8 @@ typedef struct {
     dc_motor_link_real q[DC_MOTOR_LINK_NY];
     dc_motor_link_real ring_x[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NX];
     dc_motor_link_real ring_P[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NXX];
-    dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NY];
-    dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NY];
+    dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING_NY];
+    dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING_NY];
     /** current step */
     uint32_t k;
     dc_motor_link_health health;
@@ -196,7 +202,7 @@ typedef struct {
     dc_motor_link_real P_prior[DC_MOTOR_LINK_NXX];
     dc_motor_link_real q[DC_MOTOR_LINK_NY];
     /** inputs of steps k-NMAX..k-1, step j in slot j % NMAX */
-    dc_motor_link_real v[DC_MOTOR_LINK_NMAX * DC_MOTOR_LINK_NY];
+    dc_motor_link_real v[DC_MOTOR_LINK_NMAX_NY];
     uint32_t k;
     dc_motor_link_master_health health;
 } dc_motor_link_master;
@@ -270,10 +276,6 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
 #define DC_MOTOR_LINK_KIND_PACKET 1u
 /** master -> nodes and actuator: (k, v, u) */
 #define DC_MOTOR_LINK_KIND_COMMAND 2u
-/** camera -> node: z of a step (the example programs) */
-#define DC_MOTOR_LINK_KIND_CAMERA 3u
-/** clock -> node or master: end of a step (the example programs) */
-#define DC_MOTOR_LINK_KIND_TICK 4u
 /** node id field of the master's frames */
 #define DC_MOTOR_LINK_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
@@ -318,8 +320,20 @@ typedef struct {
 
 /** Rejected frames per cause. */
 typedef struct {
-    uint32_t length, crc, format, version, model, tag, node;
-    uint32_t duplicate, old, future, replay, outdated, nonfinite, other;
+    uint32_t length;
+    uint32_t crc;
+    uint32_t format;
+    uint32_t version;
+    uint32_t model;
+    uint32_t tag;
+    uint32_t node;
+    uint32_t duplicate;
+    uint32_t old;
+    uint32_t future;
+    uint32_t replay;
+    uint32_t outdated;
+    uint32_t nonfinite;
+    uint32_t other;
 } dc_motor_link_wire_counters;
 
 /** The master's receive side: checked packets staged for the next fuse, per-node last step and
