@@ -85,6 +85,26 @@ def test_pack_fits_or_aligns_after_the_parenthesis():
         assert len(line) + 1 + len(nxt.strip().split(", ")[0]) + 1 > layout.LIMIT
 
 
+def test_pack_splits_a_declaration_too_long_for_its_line_as_clang_format_does(tmp_path):
+    """A parameter that does not fit even alone at the alignment column is broken between its
+    type and its declarator (indented 4 more), and the next parameter starts a new line; the
+    oracle is clang-format with the shipped style, which must leave the result unchanged."""
+    clang_format = require_tool("clang-format", "clang-format")
+    head = "int a_model_name_of_17_kern_retro_step("
+    params = ["const a_model_name_of_17_real n[1]", "a_model_name_of_17_real w[A_MODEL_NAME_OF_17_KERN_RETRO_STEP_SZ_W]",
+              "const a_model_name_of_17_real Tp[9]", "int a"]
+    for order in (params, params[:1] + params[2:] + params[1:2]):
+        text = layout.pack(head, order, ");")
+        lines = text.splitlines()
+        assert all(len(line) <= layout.LIMIT for line in lines) and len(lines) >= 3
+        assert any(line == " " * len(head) + "a_model_name_of_17_real" for line in lines), text
+        path = tmp_path / "p.h"
+        path.write_text(text + "\n")
+        out = subprocess.run([clang_format, f"--style=file:{STYLE}", str(path)], capture_output=True,
+                             text=True, timeout=60, check=True).stdout
+        assert out == text + "\n", out
+
+
 def test_lay_out_joins_what_fits_and_repacks_conditions():
     text = "    rc = call(a,\n              b);\n    if (first_condition_that_is_long(x) || second_condition_that_is_long(y) ||\n" \
            "        third_condition_that_is_longer_still(z) || fourth(w)) {\n"
