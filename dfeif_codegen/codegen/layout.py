@@ -45,11 +45,14 @@ def pack(head: str, items: list[str], tail: str = "", sep: str = ",", limit: int
 
 
 def _last_space(piece: str) -> int:
-    """Index of the last space outside brackets (between a declaration's type and its name), or -1."""
-    depth = 0
-    for i in range(len(piece) - 1, -1, -1):
-        depth += {"]": 1, "[": -1}.get(piece[i], 0)
-        if piece[i] == " " and depth == 0:
+    """Index of the last space outside brackets (between a declaration's type and its name), or
+    -1 when the piece is not a declaration."""
+    masked, depth = _mask(piece), 0
+    if '"' in masked or "(" in masked:
+        return -1   # a call or a string: not a declaration
+    for i in range(len(masked) - 1, -1, -1):
+        depth += {"]": 1, "[": -1}.get(masked[i], 0)
+        if masked[i] == " " and depth == 0:
             return i
     return -1
 
