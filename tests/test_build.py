@@ -127,11 +127,11 @@ def test_header_defines_and_options(tmp_path):
     assert result.returncode == 0, result.stderr
     header = (tmp_path / "dc_motor_link" / "dc_motor_link.h").read_text()
     for define in ("DC_MOTOR_LINK_NX 3", "DC_MOTOR_LINK_NY 1", "DC_MOTOR_LINK_NP 8", "DC_MOTOR_LINK_NMAX 7",
-                   "DC_MOTOR_LINK_NNODES 3", "DC_MOTOR_LINK_OOSM_RETRODICT 1",
+                   "DC_MOTOR_LINK_NNODES 3", "DC_MOTOR_LINK_TS 0.005f", "DC_MOTOR_LINK_OOSM_RETRODICT 1",
                    "DC_MOTOR_LINK_FUSION_CI 1", "typedef float dc_motor_link_real"):
         assert re.search(r"(#define |)" + re.escape(define), header), define
     control = (tmp_path / "dc_motor_link" / "dc_motor_link_control.c").read_text()
-    assert "const real dc_motor_link_ts = 0.005f;" in control
+    assert "const real dc_motor_link_ts = DC_MOTOR_LINK_TS;" in control
     assert "dc_motor_link_kern_retro_step" in (tmp_path / "dc_motor_link" / "dc_motor_link_kernels.h").read_text()
 
 

@@ -61,6 +61,8 @@ extern "C" {
 #define DC_MOTOR_LINK_NMAX_NY DC_MOTOR_LINK_NMAX
 /** camera nodes fused by the master */
 #define DC_MOTOR_LINK_NNODES 2
+/** sampling period [s] */
+#define DC_MOTOR_LINK_TS 0.01
 /** Newton steps of covariance intersection */
 #define DC_MOTOR_LINK_CI_ITERATIONS 12
 #define DC_MOTOR_LINK_PRECISION_FLOAT 0
@@ -69,13 +71,15 @@ extern "C" {
 #define DC_MOTOR_LINK_FUSION_PAPER 0
 #define DC_MOTOR_LINK_FUSION_DIFFERENCE 1
 #define DC_MOTOR_LINK_FUSION_CI 0
+#define DC_MOTOR_LINK_MODEL_HASH "b1585456bf7d7bcc34de16dc48db6f33a222d77e554b2d0360ca48648ffdbafb"
 
 /* Chains of the canonical state (initializers for int arrays of NY entries): degree, offset
- * (= index of each output in zeta). clang-format cannot lay out a braced initializer in a macro,
- * so it leaves these lines alone. */
+ * (= index of each output in zeta), angle (1: innovations wrapped to (-pi, pi]). clang-format
+ * cannot lay out a braced initializer in a macro, so it leaves these three lines alone. */
 /* clang-format off */
 #define DC_MOTOR_LINK_CHAIN_DEGREES {3}
 #define DC_MOTOR_LINK_CHAIN_OFFSETS {0}
+#define DC_MOTOR_LINK_CHAIN_ANGLE {1}
 /* clang-format on */
 
 /* Index of each parameter in params[NP] (the library's default table is laid out by them). */
@@ -98,11 +102,10 @@ extern "C" {
 
 typedef double dc_motor_link_real;
 
-/** Sampling period [s] the kernels were discretised with (0.01). */
+/* The constants above that are not integers, as objects (for callers without this header, e.g.
+ * Python ctypes): TS, MODEL_HASH and CHAIN_ANGLE. */
 extern const dc_motor_link_real dc_motor_link_ts;
-/** SHA-256 of the model and build options (hex); frames carry its first 8 bytes. */
 extern const char dc_motor_link_model_hash[65];
-/** Per chain: 1 if its flat output is an angle (innovations wrapped to (-pi, pi]), else 0. */
 extern const uint8_t dc_motor_link_chain_angle[DC_MOTOR_LINK_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */

@@ -23,12 +23,11 @@ const real dc_motor_link_params_default[DC_MOTOR_LINK_NP] = {
     [DC_MOTOR_LINK_P_l] = 0.25 /* [m] */
 };
 
-/* Sampling period [s] the kernels were discretised with. */
-const real dc_motor_link_ts = 0.01;
-
-/* zeta index of each flat output (internal), and 1 for the outputs that are angles. */
-const uint8_t dc_motor_link_heads[NY] = {0};
-const uint8_t dc_motor_link_chain_angle[NY] = {1};
+/* The header's non-integer constants as objects, and the zeta index of each flat output
+ * (internal). */
+const real dc_motor_link_ts = DC_MOTOR_LINK_TS;
+const uint8_t dc_motor_link_chain_angle[NY] = DC_MOTOR_LINK_CHAIN_ANGLE;
+const uint8_t dc_motor_link_heads[NY] = DC_MOTOR_LINK_CHAIN_OFFSETS;
 
 int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAGS],
                           const real gains[NX], const real params[DC_MOTOR_LINK_NP],

@@ -21,8 +21,7 @@
 #define RS ((size_t)sizeof(real))
 
 /* The model's SHA-256 (hex), and its first 8 bytes: the frames' model field. */
-const char dc_motor_link_model_hash[65] =
-    "b1585456bf7d7bcc34de16dc48db6f33a222d77e554b2d0360ca48648ffdbafb";
+const char dc_motor_link_model_hash[65] = DC_MOTOR_LINK_MODEL_HASH;
 /* The frames' magic, "DFEW" in ASCII. */
 static const uint8_t wire_magic[4] = {0x44u, 0x46u, 0x45u, 0x57u};
 static const uint8_t wire_model[8] = {0xb1u, 0x58u, 0x54u, 0x56u, 0xbfu, 0x7du, 0x7bu, 0xccu};

@@ -48,7 +48,7 @@ static void plant(real zeta[NX], const real v[NY])
             real term = 1, acc = 0;
             for (l = i; l < r; l++) {
                 acc += term * zeta[o + l];
-                term = term * dc_motor_link_ts / (real)(l - i + 1);
+                term = term * DC_MOTOR_LINK_TS / (real)(l - i + 1);
             }
             out[o + i] = acc + term * v[j];
         }
@@ -130,7 +130,7 @@ int main(void)
         }
         rc |= dc_motor_link_master_fuse(&master, packets, present);
         rc |= dc_motor_link_master_estimate(&master, x, P);
-        reference((real)k * dc_motor_link_ts, flags);
+        reference((real)k * DC_MOTOR_LINK_TS, flags);
         rc |= dc_motor_link_control(x, flags, gains, params, u, v, &saturated);
         if (rc != DC_MOTOR_LINK_OK) {
             printf("error at step %d\n", k);

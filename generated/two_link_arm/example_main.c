@@ -48,7 +48,7 @@ static void plant(real zeta[NX], const real v[NY])
             real term = 1, acc = 0;
             for (l = i; l < r; l++) {
                 acc += term * zeta[o + l];
-                term = term * two_link_arm_ts / (real)(l - i + 1);
+                term = term * TWO_LINK_ARM_TS / (real)(l - i + 1);
             }
             out[o + i] = acc + term * v[j];
         }
@@ -130,7 +130,7 @@ int main(void)
         }
         rc |= two_link_arm_master_fuse(&master, packets, present);
         rc |= two_link_arm_master_estimate(&master, x, P);
-        reference((real)k * two_link_arm_ts, flags);
+        reference((real)k * TWO_LINK_ARM_TS, flags);
         rc |= two_link_arm_control(x, flags, gains, params, u, v, &saturated);
         if (rc != TWO_LINK_ARM_OK) {
             printf("error at step %d\n", k);

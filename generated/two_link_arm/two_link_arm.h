@@ -61,6 +61,8 @@ extern "C" {
 #define TWO_LINK_ARM_NMAX_NY (TWO_LINK_ARM_NMAX * TWO_LINK_ARM_NY)
 /** camera nodes fused by the master */
 #define TWO_LINK_ARM_NNODES 2
+/** sampling period [s] */
+#define TWO_LINK_ARM_TS 0.01
 /** Newton steps of covariance intersection */
 #define TWO_LINK_ARM_CI_ITERATIONS 12
 #define TWO_LINK_ARM_PRECISION_FLOAT 0
@@ -69,13 +71,15 @@ extern "C" {
 #define TWO_LINK_ARM_FUSION_PAPER 0
 #define TWO_LINK_ARM_FUSION_DIFFERENCE 1
 #define TWO_LINK_ARM_FUSION_CI 0
+#define TWO_LINK_ARM_MODEL_HASH "14ea0cbc80df296882b0d092fcd543c05aaf2b02aac294913c7f9ca069a9d817"
 
 /* Chains of the canonical state (initializers for int arrays of NY entries): degree, offset
- * (= index of each output in zeta). clang-format cannot lay out a braced initializer in a macro,
- * so it leaves these lines alone. */
+ * (= index of each output in zeta), angle (1: innovations wrapped to (-pi, pi]). clang-format
+ * cannot lay out a braced initializer in a macro, so it leaves these three lines alone. */
 /* clang-format off */
 #define TWO_LINK_ARM_CHAIN_DEGREES {3, 3}
 #define TWO_LINK_ARM_CHAIN_OFFSETS {0, 3}
+#define TWO_LINK_ARM_CHAIN_ANGLE {1, 1}
 /* clang-format on */
 
 /* Index of each parameter in params[NP] (the library's default table is laid out by them). */
@@ -104,11 +108,10 @@ extern "C" {
 
 typedef double two_link_arm_real;
 
-/** Sampling period [s] the kernels were discretised with (0.01). */
+/* The constants above that are not integers, as objects (for callers without this header, e.g.
+ * Python ctypes): TS, MODEL_HASH and CHAIN_ANGLE. */
 extern const two_link_arm_real two_link_arm_ts;
-/** SHA-256 of the model and build options (hex); frames carry its first 8 bytes. */
 extern const char two_link_arm_model_hash[65];
-/** Per chain: 1 if its flat output is an angle (innovations wrapped to (-pi, pi]), else 0. */
 extern const uint8_t two_link_arm_chain_angle[TWO_LINK_ARM_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */

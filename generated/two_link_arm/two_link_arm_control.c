@@ -26,12 +26,11 @@ const real two_link_arm_params_default[TWO_LINK_ARM_NP] = {
     [TWO_LINK_ARM_P_g] = 9.81 /* [m/s^2] */
 };
 
-/* Sampling period [s] the kernels were discretised with. */
-const real two_link_arm_ts = 0.01;
-
-/* zeta index of each flat output (internal), and 1 for the outputs that are angles. */
-const uint8_t two_link_arm_heads[NY] = {0, 3};
-const uint8_t two_link_arm_chain_angle[NY] = {1, 1};
+/* The header's non-integer constants as objects, and the zeta index of each flat output
+ * (internal). */
+const real two_link_arm_ts = TWO_LINK_ARM_TS;
+const uint8_t two_link_arm_chain_angle[NY] = TWO_LINK_ARM_CHAIN_ANGLE;
+const uint8_t two_link_arm_heads[NY] = TWO_LINK_ARM_CHAIN_OFFSETS;
 
 int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS],
                          const real gains[NX], const real params[TWO_LINK_ARM_NP],

@@ -21,8 +21,7 @@
 #define RS ((size_t)sizeof(real))
 
 /* The model's SHA-256 (hex), and its first 8 bytes: the frames' model field. */
-const char two_link_arm_model_hash[65] =
-    "14ea0cbc80df296882b0d092fcd543c05aaf2b02aac294913c7f9ca069a9d817";
+const char two_link_arm_model_hash[65] = TWO_LINK_ARM_MODEL_HASH;
 /* The frames' magic, "DFEW" in ASCII. */
 static const uint8_t wire_magic[4] = {0x44u, 0x46u, 0x45u, 0x57u};
 static const uint8_t wire_model[8] = {0x14u, 0xeau, 0x0cu, 0xbcu, 0x80u, 0xdfu, 0x29u, 0x68u};
