@@ -86,19 +86,45 @@ def report(modules: dict[str, tuple[Path, str]], version: str) -> str:
              "not in a table has no finding in that module. tests/test_misra.py requires no finding",
              "of any rule in the files it lists (the public and internal headers, the kernels header,",
              "the wire and the controller) and none in the kernel bodies.", ""]
+    tables = []
     for label, (folder, name) in modules.items():
         found = findings(folder, name)
         counts = per_rule(found)
+        tables.append(counts)
         lines += [f"## {label}", "", "| rule | templates | kernels | in |", "|---|---|---|---|"]
         lines += [f"| {rule} | {t} | {k} | {by_file(found, rule, name)} |" for rule, (t, k) in counts.items()]
         if not counts:
             lines.append("| (none) | 0 | 0 | |")
         lines.append("")
+    checked = checked_rules()
+    if checked:
+        seen = {rule for table in tables for rule in table}
+        clean = [r for r in checked if r not in seen]
+        lines += ["## Rules with no finding", "",
+                  f"Of the {len(checked)} rules the addon checks, these have no finding in any module above "
+                  f"({len(clean)}):", "", ", ".join(clean), ""]
     lines += ["## Kernel bodies", "",
               "The CasADi kernels are straight-line assignments to a work array: no finding in the",
               "variants above (their helpers are renamed per file for rule 5.9)." if not KERNEL_FINDINGS else
               "\n".join(f"- **{r}**: {why}." for r, why in KERNEL_FINDINGS.items())]
     return "\n".join(lines) + "\n"
+
+
+def checked_rules() -> list[str]:
+    """The rules cppcheck's MISRA addon implements (its `misra_<major>_<minor>` checks), read from
+    the addon next to the cppcheck install; empty when it is not found there."""
+    cppcheck = shutil.which("cppcheck")
+    if cppcheck is None:
+        return []
+    exe = Path(cppcheck).resolve()
+    candidates = [exe.parent / "addons" / "misra.py"] + [
+        path for pattern in ("lib*/cppcheck/addons/misra.py", "lib*/*/cppcheck/addons/misra.py",
+                             "share/cppcheck/addons/misra.py") for path in sorted(exe.parents[1].glob(pattern))]
+    for path in candidates:
+        if path.is_file():
+            rules = {f"{a}.{b}" for a, b in re.findall(r"def misra_(\d+)_(\d+)\(", path.read_text())}
+            return sorted(rules, key=rule_key)
+    return []
 
 
 def cppcheck_version() -> str:
