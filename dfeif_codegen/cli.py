@@ -1,6 +1,6 @@
 """`codegen`: the command line. It only parses arguments, calls the API function of the
-subcommand (`build`, `check`, `inspect`, `verify`, `bench`: plain keyword arguments, usable from
-Python) and presents the result; user errors become one line and a distinct exit code."""
+subcommand (`build`, `check`, `inspect`, `verify`, `bench`, `network`: plain keyword arguments,
+usable from Python) and presents the result; user errors become one line and a distinct exit code."""
 
 from __future__ import annotations
 
@@ -230,9 +230,28 @@ def scenario(args: argparse.Namespace) -> int:
 
 
 def network(args: argparse.Namespace) -> int:
+    """`codegen network`: one compared run (exit 1 on a mismatch), or with --bench the measurements."""
+    from dfeif_codegen.check import harness, verify
     from dfeif_codegen.net import run
 
-    return run.run(args)
+    if args.bench:
+        from pathlib import Path
+
+        from dfeif_codegen.net import bench
+
+        harness.host_compiler()
+        fig = bench.run_bench(Path(args.bench))
+        print(bench.markdown(fig))
+        print(f"codegen network: wrote the network section of {args.bench}", file=sys.stderr)
+        return 0 if fig["network"]["equal"] else 1
+    result = run.network(args.model, scenario=args.scenario, row=args.row, seed=args.seed,
+                         precision=args.precision, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
+                         nodes=args.nodes, max_lag=args.max_lag, duration=args.duration, key=args.key,
+                         flip_rate=args.flip_rate, keep=args.keep)
+    print(result.report())
+    verify.check(result.errors)
+    print("PASS")
+    return 0
 
 
 HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench,

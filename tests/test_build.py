@@ -130,6 +130,8 @@ def test_header_defines_and_options(tmp_path):
                    "DC_MOTOR_LINK_NNODES 3", "DC_MOTOR_LINK_TS 0.005f", "DC_MOTOR_LINK_OOSM_RETRODICT 1",
                    "DC_MOTOR_LINK_FUSION_CI 1", "typedef float dc_motor_link_real"):
         assert re.search(r"(#define |)" + re.escape(define), header), define
+    control = (tmp_path / "dc_motor_link" / "dc_motor_link_control.c").read_text()
+    assert "const real dc_motor_link_ts = DC_MOTOR_LINK_TS;" in control
     assert "dc_motor_link_kern_retro_step" in (tmp_path / "dc_motor_link" / "dc_motor_link_kernels.h").read_text()
 
 
@@ -248,3 +250,22 @@ def test_float_post_processing():
     out = kernels._float_text(text)
     assert out == ("w[1]=sinf(w[0]); w[2]=(2.f*w[1]); w[3]=1.0000000000000000e-02f; w[4]=fminf(w[2],w[3]); "
                    "a[10]=w12;")
+
+
+@pytest.mark.parametrize("other,flag", [({"precision": "float"}, "PRECISION_FLOAT"),
+                                        ({"fusion": "ci"}, "FUSION_CI"),
+                                        ({"oosm": "retrodict"}, "OOSM_RETRODICT")])
+def test_library_refuses_a_header_from_another_build(tmp_path, host_cc, other, flag):
+    """The internal header checks with #if that the public header was generated with the same
+    options as the library: each source compiles with its own header, and none with the header
+    of a build that differs in one option (the #error names the macro)."""
+    mine = build.build("dc_motor_link", tmp_path / "mine")
+    theirs = build.build("dc_motor_link", tmp_path / "theirs", **other)
+    source = mine.path / "dc_motor_link_wire.c"
+    ok = subprocess.run([host_cc, "-std=c99", "-c", str(source), "-o", str(tmp_path / "w.o"), "-I", str(mine.path)],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    shutil.copy(theirs.path / "dc_motor_link.h", mine.path / "dc_motor_link.h")
+    bad = subprocess.run([host_cc, "-std=c99", "-c", str(source), "-o", str(tmp_path / "w.o"), "-I", str(mine.path)],
+                         capture_output=True, text=True)
+    assert bad.returncode != 0 and f"DC_MOTOR_LINK_{flag}" in bad.stderr and "another build" in bad.stderr

@@ -1,7 +1,7 @@
 """The layout of the generated C: every line at most 100 columns, and clang-format with the
 shipped style file (templates/.clang-format) changes nothing, for the built-in models in several
-option sets and for user models with names of NAME_LIMIT characters (longer names compile the
-same, but their prefixed identifiers may make some lines longer than 100 columns).
+option sets and for user models with names of MODEL_NAME_LIMIT characters, the longest the model
+loader accepts (the name prefixes every identifier; a longer one is refused at load time).
 The generator lays the code out itself (codegen/layout.py), so these tests are what ties its
 output to the style file."""
 
@@ -15,6 +15,7 @@ import pytest
 
 from conftest import require_tool
 from dfeif_codegen.codegen import build, layout
+from dfeif_codegen.symbolic.model import MODEL_NAME_LIMIT
 from test_user_models import FLEX_JOINT, MIXED
 
 VARIANTS = [
@@ -27,7 +28,6 @@ VARIANTS = [
     ("user:flex_joint_link_a", {"oosm": "retrodict", "fusion": "ci"}),
     ("user:mixed_two_input_m", {"precision": "float"}),
 ]
-NAME_LIMIT = 17
 STYLE = Path(str(resources.files("dfeif_codegen.templates") / ".clang-format"))
 
 
@@ -36,7 +36,7 @@ def _spec(name: str, tmp: Path):
     if not name.startswith("user:"):
         return name
     new = name[5:]
-    assert len(new) == NAME_LIMIT
+    assert len(new) == MODEL_NAME_LIMIT
     text = FLEX_JOINT if new.startswith("flex") else MIXED
     old = "flex_joint" if new.startswith("flex") else "mixed"
     path = tmp / f"{new}.toml"
@@ -83,6 +83,26 @@ def test_pack_fits_or_aligns_after_the_parenthesis():
     # greedy: no line could take the next line's first parameter
     for line, nxt in zip(wrapped, wrapped[1:]):
         assert len(line) + 1 + len(nxt.strip().split(", ")[0]) + 1 > layout.LIMIT
+
+
+def test_pack_splits_a_declaration_too_long_for_its_line_as_clang_format_does(tmp_path):
+    """A parameter that does not fit even alone at the alignment column is broken between its
+    type and its declarator (indented 4 more), and the next parameter starts a new line; the
+    oracle is clang-format with the shipped style, which must leave the result unchanged."""
+    clang_format = require_tool("clang-format", "clang-format")
+    head = "int a_model_name_of_17_kern_retro_step("
+    params = ["const a_model_name_of_17_real n[1]", "a_model_name_of_17_real w[A_MODEL_NAME_OF_17_KERN_RETRO_STEP_SZ_W]",
+              "const a_model_name_of_17_real Tp[9]", "int a"]
+    for order in (params, params[:1] + params[2:] + params[1:2]):
+        text = layout.pack(head, order, ");")
+        lines = text.splitlines()
+        assert all(len(line) <= layout.LIMIT for line in lines) and len(lines) >= 3
+        assert any(line == " " * len(head) + "a_model_name_of_17_real" for line in lines), text
+        path = tmp_path / "p.h"
+        path.write_text(text + "\n")
+        out = subprocess.run([clang_format, f"--style=file:{STYLE}", str(path)], capture_output=True,
+                             text=True, timeout=60, check=True).stdout
+        assert out == text + "\n", out
 
 
 def test_lay_out_joins_what_fits_and_repacks_conditions():

@@ -11,6 +11,7 @@ import pytest
 
 from dfeif_codegen import cli
 from dfeif_codegen.check import verify
+from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.net import run
 
 KEY = "00112233445566778899aabbccddeeff"
@@ -110,6 +111,16 @@ def test_master_restarted(runs):
     master = {k: (None, r["x"], r["P"]) for k, r in out.master["steps"].items()}
     assert z_scores(out, master).max() < 5
     assert int(out.plant["got"].sum()) == out.steps - 30
+
+
+def test_network_api_refuses_bad_options_before_building(tmp_path, host_cc):
+    """The keyword API checks its options first: nothing is built or written for a bad one."""
+    keep = tmp_path / "keep"
+    for kw, words in [({"key": "abc"}, "--key 'abc'"), ({"flip_rate": 1.0}, "--flip-rate 1.0"),
+                      ({"row": 99}, "--row 99")]:
+        with pytest.raises(ScenarioError, match=words):
+            run.network(duration=0.5, keep=keep, **kw)
+        assert not keep.exists()
 
 
 def test_cli_network_passes_and_rejects_bad_input(capsys, host_cc):

@@ -94,7 +94,8 @@ def context(flat, opts: Options) -> dict:
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w,
                          "signature": kernels.wrap_comment(_comment(k.signature)),
-                         "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real"), ");")}
+                         "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real", k.name.upper() + "_SZ_W"),
+                                                 ");")}
                         for k in infos]
     names = render.file_names(p, list(ks.groups))
     return {

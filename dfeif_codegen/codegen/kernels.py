@@ -434,11 +434,12 @@ class KernelC:
     inputs: list[tuple[str, int]]
     outputs: list[tuple[str, int]]
 
-    def parameters(self, real: str) -> list[str]:
+    def parameters(self, real: str, work: str | None = None) -> list[str]:
         """The C parameter list: inputs const, outputs writable, every array sized, then the work
-        (its size is also <NAME>_SZ_W in the kernels header, for the callers)."""
+        (its size is also <NAME>_SZ_W in the kernels header, for the callers; `work` names that
+        macro in the prototype, so the header uses every size it defines)."""
         return ([f"const {real} {n}[{k}]" for n, k in self.inputs] + [f"{real} {n}[{k}]" for n, k in self.outputs]
-                + [f"{real} w[{self.sz_w}]"])
+                + [f"{real} w[{work or self.sz_w}]"])
 
 
 def _float_text(text: str) -> str:

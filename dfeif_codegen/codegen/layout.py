@@ -30,9 +30,31 @@ def pack(head: str, items: list[str], tail: str = "", sep: str = ",", limit: int
         if line != head and line != pad and len(line) + 1 + len(piece) > limit:
             lines.append(line)
             line = pad
+        if line in (head, pad) and len(line) + len(piece) > limit and _last_space(piece) > 0:
+            # a declaration too long even on a line of its own: clang-format breaks it between
+            # type and declarator, indents the declarator by 4 and starts the next one anew
+            cut = _last_space(piece)
+            lines.append(line + piece[:cut])
+            lines.append(pad + "    " + piece[cut + 1:])
+            line = pad
+            continue
         line += piece if line in (head, pad) else " " + piece
-    lines.append(line)
+    if line != pad:
+        lines.append(line)
     return "\n".join(lines)
+
+
+def _last_space(piece: str) -> int:
+    """Index of the last space outside brackets (between a declaration's type and its name), or
+    -1 when the piece is not a declaration."""
+    masked, depth = _mask(piece), 0
+    if '"' in masked or "(" in masked:
+        return -1   # a call or a string: not a declaration
+    for i in range(len(masked) - 1, -1, -1):
+        depth += {"]": 1, "[": -1}.get(masked[i], 0)
+        if masked[i] == " " and depth == 0:
+            return i
+    return -1
 
 
 def _mask(line: str) -> str:

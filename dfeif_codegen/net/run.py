@@ -281,43 +281,55 @@ def figures(out: Outcome) -> dict:
     }
 
 
-def run(args) -> int:
-    """`codegen network`: one run, the comparison table, the figures; exit 1 on a mismatch."""
+@dataclass
+class Network:
+    """What `network()` measured: the run, its figures and the comparison with the reference."""
+
+    outcome: Outcome
+    figures: dict
+    errors: list
+    summary: str
+
+    @property
+    def ok(self) -> bool:
+        return all(e.ok for e in self.errors)
+
+    def report(self) -> str:
+        return self.summary + "\n" + verify.table(self.errors)
+
+
+def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int = 2, seed: int = 0,
+            precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int = 2,
+            max_lag: int = 32, duration: float | None = 5.0, key: str | None = None, flip_rate: float = 0.0,
+            keep: str | Path | None = None) -> Network:
+    """One run of the estimator as separate processes, compared with the reference replaying the
+    logged arrivals. Bad options raise (one line) before anything is built; `keep` (an empty or
+    new folder) keeps the programs and logs."""
     import tempfile
 
     harness.host_compiler()
-    if args.bench:
-        from dfeif_codegen.net import bench
-
-        fig = bench.run_bench(Path(args.bench))
-        print(bench.markdown(fig))
-        print(f"codegen network: wrote the network section of {args.bench}", file=sys.stderr)
-        return 0 if fig["network"]["equal"] else 1
-    if args.key is not None and (len(args.key) != 32 or any(c not in "0123456789abcdefABCDEF" for c in args.key)):
-        raise ScenarioError(f"--key {args.key!r}: needs 32 hex digits (a 16-byte SipHash key)")
-    if not 0 <= args.flip_rate < 1:
-        raise ScenarioError(f"--flip-rate {args.flip_rate}: not in [0, 1)")
-    o = Options(model=args.model, scenario=args.scenario, row=args.row, seed=args.seed, precision=args.precision,
-                oosm=args.oosm or "replay", fusion=args.fusion or "difference", nodes=args.nodes, max_lag=args.max_lag,
-                duration=args.duration, key=args.key, flip_rate=args.flip_rate)
-    if args.keep and Path(args.keep).exists() and any(Path(args.keep).iterdir()):
-        raise ScenarioError(f"--keep {args.keep}: not empty (the run writes its programs and logs there)")
+    if key is not None and (len(key) != 32 or any(c not in "0123456789abcdefABCDEF" for c in key)):
+        raise ScenarioError(f"--key {key!r}: needs 32 hex digits (a 16-byte SipHash key)")
+    if not 0 <= flip_rate < 1:
+        raise ScenarioError(f"--flip-rate {flip_rate}: not in [0, 1)")
+    o = Options(model=model, scenario=scenario, row=row, seed=seed, precision=precision, oosm=oosm,
+                fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate)
+    if keep and Path(keep).exists() and any(Path(keep).iterdir()):
+        raise ScenarioError(f"--keep {keep}: not empty (the run writes its programs and logs there)")
     make_config(o)   # bad scenario or row: one line, before any build
     with tempfile.TemporaryDirectory(prefix="codegen-network-") as tmp:
-        work = Path(args.keep) if args.keep else Path(tmp)
+        work = Path(keep) if keep else Path(tmp)
         out = launch(o, work)
         errors, rec = compare(out)
         f = figures(out)
-        print(f"codegen network: {o.model}, {o.precision}, {o.nodes} nodes as separate processes on {HOST}, "
-              f"scenario {o.scenario} row {o.row} seed {o.seed}, {out.steps} steps in {f['wall_s']:.1f} s")
-        print(f"wire: packet {out.layout.size(out.layout.packet_reals)} B, command "
-              f"{out.layout.size(out.layout.command_reals)} B{' + SipHash-2-4 tag' if o.key else ''}; "
-              f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {f['rejected'] or 'none'}")
-        print(f"logged arrivals: {int(rec.gamma.sum())} on-time frames, {len(rec.late_step)} late, "
-              f"{len(rec.pkt_step)} packets fused")
-        print(f"frame -> command latency: median {f['latency_median_us']:.0f} us, p99 {f['latency_p99_us']:.0f} us "
-              f"(master busy {f['master_busy_us_per_step']:.1f} us/step); CPU s: {f['cpu_s']}")
-        print(verify.table(errors))
-        verify.check(errors)
-        print("PASS")
-    return 0
+    summary = "\n".join([
+        f"codegen network: {o.model}, {o.precision}, {o.nodes} nodes as separate processes on {HOST}, "
+        f"scenario {o.scenario} row {o.row} seed {o.seed}, {out.steps} steps in {f['wall_s']:.1f} s",
+        f"wire: packet {out.layout.size(out.layout.packet_reals)} B, command "
+        f"{out.layout.size(out.layout.command_reals)} B{' + SipHash-2-4 tag' if o.key else ''}; "
+        f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {f['rejected'] or 'none'}",
+        f"logged arrivals: {int(rec.gamma.sum())} on-time frames, {len(rec.late_step)} late, "
+        f"{len(rec.pkt_step)} packets fused",
+        f"frame -> command latency: median {f['latency_median_us']:.0f} us, p99 {f['latency_p99_us']:.0f} us "
+        f"(master busy {f['master_busy_us_per_step']:.1f} us/step); CPU s: {f['cpu_s']}"])
+    return Network(out, f, errors, summary)

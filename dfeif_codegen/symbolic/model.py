@@ -31,6 +31,9 @@ C_HEADERS = frozenset("""assert complex ctype errno fenv float inttypes iso646 l
 signal stdalign stdarg stdatomic stdbool stddef stdint stdio stdlib stdnoreturn string tgmath threads
 time uchar wchar wctype arm_math cmsis example_main manifest""".split())
 NAME_LIMIT = 31  # C99 guarantees 31 significant characters in external identifiers
+# The model name prefixes every identifier: up to this length the generated C keeps within 100
+# columns laid out as clang-format would (tests/test_format.py builds models of this length).
+MODEL_NAME_LIMIT = 17
 # Keys a model file may use, per section (a typo must not silently switch a feature off).
 SCHEMA = {
     "": {"model", "states", "inputs", "parameters", "dynamics", "outputs", "measurement"},
@@ -206,9 +209,13 @@ class Model:
         for q in self.parameters:
             if not isinstance(q.value, (int, float)) or q.value != q.value or abs(q.value) == float("inf"):
                 raise ModelError(f"{self.where('parameters.' + q.name)}: value must be a finite number")
-        if not c_safe(self.name) or self.name.lower() in C_HEADERS:
+        if not c_safe(self.name) or self.name.lower() in C_HEADERS or len(self.name) > MODEL_NAME_LIMIT:
             raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module (a C identifier "
-                             "of at most 31 characters, not a C keyword, a standard header or casadi*)")
+                             f"of at most {MODEL_NAME_LIMIT} characters, not a C keyword, a standard header or "
+                             "casadi*)")
+        if self.name.endswith("_") or "__" in self.name:
+            raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module: it must not end "
+                             "with '_' or contain '__' (CasADi refuses its kernels' names, <name>_kern_*)")
         for kind, items in (("states", self.states), ("inputs", self.inputs)):
             for i, item in enumerate(items):
                 at = self.where(f"{kind}#{i}")

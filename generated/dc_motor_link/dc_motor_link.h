@@ -56,6 +56,9 @@ extern "C" {
 #define DC_MOTOR_LINK_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
 #define DC_MOTOR_LINK_NRING (DC_MOTOR_LINK_NMAX + 1)
+/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+#define DC_MOTOR_LINK_NRING_NY DC_MOTOR_LINK_NRING
+#define DC_MOTOR_LINK_NMAX_NY DC_MOTOR_LINK_NMAX
 /** camera nodes fused by the master */
 #define DC_MOTOR_LINK_NNODES 2
 /** sampling period [s] */
@@ -79,7 +82,7 @@ extern "C" {
 #define DC_MOTOR_LINK_CHAIN_ANGLE {1}
 /* clang-format on */
 
-/* Index of each parameter in params[NP]. */
+/* Index of each parameter in params[NP] (the library's default table is laid out by them). */
 /** L [H]: armature inductance */
 #define DC_MOTOR_LINK_P_L 0
 /** R [ohm]: armature resistance */
@@ -98,6 +101,12 @@ extern "C" {
 #define DC_MOTOR_LINK_P_l 7
 
 typedef double dc_motor_link_real;
+
+/* The constants above that are not integers, as objects (for callers without this header, e.g.
+ * Python ctypes): TS, MODEL_HASH and CHAIN_ANGLE. */
+extern const dc_motor_link_real dc_motor_link_ts;
+extern const char dc_motor_link_model_hash[65];
+extern const uint8_t dc_motor_link_chain_angle[DC_MOTOR_LINK_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define DC_MOTOR_LINK_OK 0
@@ -149,8 +158,8 @@ typedef struct {
     dc_motor_link_real q[DC_MOTOR_LINK_NY];
     dc_motor_link_real ring_x[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NX];
     dc_motor_link_real ring_P[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NXX];
-    dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NY];
-    dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NY];
+    dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING_NY];
+    dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING_NY];
     /** current step */
     uint32_t k;
     dc_motor_link_health health;
@@ -196,7 +205,7 @@ typedef struct {
     dc_motor_link_real P_prior[DC_MOTOR_LINK_NXX];
     dc_motor_link_real q[DC_MOTOR_LINK_NY];
     /** inputs of steps k-NMAX..k-1, step j in slot j % NMAX */
-    dc_motor_link_real v[DC_MOTOR_LINK_NMAX * DC_MOTOR_LINK_NY];
+    dc_motor_link_real v[DC_MOTOR_LINK_NMAX_NY];
     uint32_t k;
     dc_motor_link_master_health health;
 } dc_motor_link_master;
@@ -270,10 +279,6 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
 #define DC_MOTOR_LINK_KIND_PACKET 1u
 /** master -> nodes and actuator: (k, v, u) */
 #define DC_MOTOR_LINK_KIND_COMMAND 2u
-/** camera -> node: z of a step (the example programs) */
-#define DC_MOTOR_LINK_KIND_CAMERA 3u
-/** clock -> node or master: end of a step (the example programs) */
-#define DC_MOTOR_LINK_KIND_TICK 4u
 /** node id field of the master's frames */
 #define DC_MOTOR_LINK_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
@@ -318,8 +323,20 @@ typedef struct {
 
 /** Rejected frames per cause. */
 typedef struct {
-    uint32_t length, crc, format, version, model, tag, node;
-    uint32_t duplicate, old, future, replay, outdated, nonfinite, other;
+    uint32_t length;
+    uint32_t crc;
+    uint32_t format;
+    uint32_t version;
+    uint32_t model;
+    uint32_t tag;
+    uint32_t node;
+    uint32_t duplicate;
+    uint32_t old;
+    uint32_t future;
+    uint32_t replay;
+    uint32_t outdated;
+    uint32_t nonfinite;
+    uint32_t other;
 } dc_motor_link_wire_counters;
 
 /** The master's receive side: checked packets staged for the next fuse, per-node last step and

@@ -13,73 +13,90 @@
 
 /* Nominal parameter values, in model order: L, R, k_e, k_d, J, m, g, l. */
 const real dc_motor_link_params_default[DC_MOTOR_LINK_NP] = {
-    0.005, /* L [H] */
-    2.0, /* R [ohm] */
-    0.5, /* k_e [N*m/A] */
-    0.05, /* k_d [N*m*s/rad] */
-    0.02, /* J [kg*m^2] */
-    0.3, /* m [kg] */
-    9.81, /* g [m/s^2] */
-    0.25 /* l [m] */
+    [DC_MOTOR_LINK_P_L] = 0.005, /* [H] */
+    [DC_MOTOR_LINK_P_R] = 2.0, /* [ohm] */
+    [DC_MOTOR_LINK_P_k_e] = 0.5, /* [N*m/A] */
+    [DC_MOTOR_LINK_P_k_d] = 0.05, /* [N*m*s/rad] */
+    [DC_MOTOR_LINK_P_J] = 0.02, /* [kg*m^2] */
+    [DC_MOTOR_LINK_P_m] = 0.3, /* [kg] */
+    [DC_MOTOR_LINK_P_g] = 9.81, /* [m/s^2] */
+    [DC_MOTOR_LINK_P_l] = 0.25 /* [m] */
 };
+
+/* The header's non-integer constants as objects, and the zeta index of each flat output
+ * (internal). */
+const real dc_motor_link_ts = DC_MOTOR_LINK_TS;
+const uint8_t dc_motor_link_chain_angle[NY] = DC_MOTOR_LINK_CHAIN_ANGLE;
+const uint8_t dc_motor_link_heads[NY] = DC_MOTOR_LINK_CHAIN_OFFSETS;
 
 int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAGS],
                           const real gains[NX], const real params[DC_MOTOR_LINK_NP],
                           real u[DC_MOTOR_LINK_NU], real v[NY], uint32_t* saturated)
 {
-    real ul[NY], vl[NY], det[1], nsat[1], mag;
+    real ul[NY];
+    real vl[NY];
+    real det[1];
+    real nsat[1];
     real w[DC_MOTOR_LINK_KERN_CONTROL_SZ_W];
-    if (!x || !flags || !gains || !params || !u) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((x == NULL) || (flags == NULL) || (gains == NULL) || (params == NULL) || (u == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else if (!dc_motor_link_finite(x, NX) || !dc_motor_link_finite(flags, DC_MOTOR_LINK_NFLAGS) ||
+               !dc_motor_link_finite(gains, NX) ||
+               !dc_motor_link_finite(params, DC_MOTOR_LINK_NP)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
+    } else {
+        (void)dc_motor_link_kern_control(x, flags, gains, params, ul, vl, det, nsat, w);
+        if (dc_motor_link_finite(det, 1) == 0) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        }
     }
-    if (!dc_motor_link_finite(x, NX) || !dc_motor_link_finite(flags, DC_MOTOR_LINK_NFLAGS) ||
-        !dc_motor_link_finite(gains, NX) || !dc_motor_link_finite(params, DC_MOTOR_LINK_NP)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if (rc == DC_MOTOR_LINK_OK) {
+        real mag = (det[0] < (real)0) ? -det[0] : det[0];
+        if (!(mag >= ((DC_MOTOR_LINK_SINGULAR_RTOL) * (DC_MOTOR_LINK_DET_NOMINAL)))) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        } else if (!dc_motor_link_finite(ul, NY) || !dc_motor_link_finite(vl, NY)) {
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
+        } else {
+            (void)memcpy(u, ul, sizeof(ul));
+            if (v != NULL) {
+                (void)memcpy(v, vl, sizeof(vl));
+            }
+            if (saturated != NULL) {
+                *saturated += (uint32_t)nsat[0];
+            }
+        }
     }
-    (void)dc_motor_link_kern_control(x, flags, gains, params, ul, vl, det, nsat, w);
-    if (!dc_motor_link_finite(det, 1)) {
-        return DC_MOTOR_LINK_ERR_SINGULAR;
-    }
-    mag = (det[0] < (real)0) ? -det[0] : det[0];
-    if (!(mag >= ((DC_MOTOR_LINK_SINGULAR_RTOL) * (DC_MOTOR_LINK_DET_NOMINAL)))) {
-        return DC_MOTOR_LINK_ERR_SINGULAR;
-    }
-    if (!dc_motor_link_finite(ul, NY) || !dc_motor_link_finite(vl, NY)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    (void)memcpy(u, ul, sizeof(ul));
-    if (v != NULL) {
-        (void)memcpy(v, vl, sizeof(vl));
-    }
-    if (saturated != NULL) {
-        *saturated += (uint32_t)nsat[0];
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_gains(const real lambda[NY], real gains[NX])
 {
     static const int degree[NY] = DC_MOTOR_LINK_CHAIN_DEGREES;
     static const int offset[NY] = DC_MOTOR_LINK_CHAIN_OFFSETS;
-    real out[NX];
-    int j, i;
-    if (!lambda || !gains) {
-        return DC_MOTOR_LINK_ERR_ARG;
-    }
-    if (!dc_motor_link_finite(lambda, NY)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    for (j = 0; j < NY; j++) {
-        real binom = (real)1, power = (real)1;
-        for (i = 1; i <= degree[j]; i++) { /* k_i = C(r, i) lambda^i */
-            binom = binom * ((real)degree[j] - (real)i + (real)1) / (real)i;
-            power = power * lambda[j];
-            out[offset[j] + i - 1] = binom * power;
+    real out[NX] = {0};
+    int j;
+    int i;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((lambda == NULL) || (gains == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else if (!dc_motor_link_finite(lambda, NY)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
+    } else {
+        for (j = 0; j < NY; j++) {
+            real binom = (real)1;
+            real power = (real)1;
+            for (i = 1; i <= degree[j]; i++) { /* k_i = C(r, i) lambda^i */
+                binom = (binom * (((real)degree[j] - (real)i) + (real)1)) / (real)i;
+                power = power * lambda[j];
+                out[(offset[j] + i) - 1] = binom * power;
+            }
+        }
+        if (dc_motor_link_finite(out, NX) != 0) {
+            (void)memcpy(gains, out, sizeof(out));
+        } else { /* lambda^r overflowed */
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
         }
     }
-    if (!dc_motor_link_finite(out, NX)) { /* lambda^r overflowed */
-        return DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    (void)memcpy(gains, out, sizeof(out));
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }

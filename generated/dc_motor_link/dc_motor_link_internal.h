@@ -13,32 +13,52 @@
 /* The real type, under a short name for the library sources. */
 typedef dc_motor_link_real real;
 
-/* Compile-time checks (C99: a negative array size fails the build). */
-typedef char dc_motor_link_check_nmax_low[(DC_MOTOR_LINK_NMAX >= 1) ? 1 : -1];
-typedef char dc_motor_link_check_nmax_high[(DC_MOTOR_LINK_NMAX < 65535) ? 1 : -1];
-typedef char dc_motor_link_check_nodes[(DC_MOTOR_LINK_NNODES >= 1) ? 1 : -1];
-typedef char dc_motor_link_check_real[(sizeof(dc_motor_link_real) == 8) ? 1 : -1];
+/* Compile-time checks: the window and node count are in range, and the public header was
+ * generated with the same build options as this library. */
+#if (DC_MOTOR_LINK_NMAX < 1) || (DC_MOTOR_LINK_NMAX >= 65535)
+#error "DC_MOTOR_LINK_NMAX must be in 1..65534"
+#endif
+#if DC_MOTOR_LINK_NNODES < 1
+#error "DC_MOTOR_LINK_NNODES must be at least 1"
+#endif
+#if DC_MOTOR_LINK_PRECISION_FLOAT != 0
+#error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_PRECISION_FLOAT)"
+#endif
+#if DC_MOTOR_LINK_OOSM_RETRODICT != 0
+#error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_OOSM_RETRODICT)"
+#endif
+#if DC_MOTOR_LINK_FUSION_PAPER != 0
+#error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_FUSION_PAPER)"
+#endif
+#if DC_MOTOR_LINK_FUSION_DIFFERENCE != 1
+#error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_FUSION_DIFFERENCE)"
+#endif
+#if DC_MOTOR_LINK_FUSION_CI != 0
+#error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_FUSION_CI)"
+#endif
+#if DC_MOTOR_LINK_CI_ITERATIONS != 12
+#error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_CI_ITERATIONS)"
+#endif
 
 /* Centring (see the node struct in dc_motor_link.h): flat outputs are stored relative to a
  * centre that moves in exact steps of 1/8, so that single precision resolves them to their own
  * size. */
 #define DC_MOTOR_LINK_CENTRE_STEP ((real)0.125)
-/* zeta index of each flat output */
-static const uint8_t dc_motor_link_heads[DC_MOTOR_LINK_NY] = {0};
+/* zeta index of each flat output (defined in control.c) */
+extern const uint8_t dc_motor_link_heads[DC_MOTOR_LINK_NY];
 
 /* The whole steps of 1/8 nearest to a stored flat output (0 when it is within 1/16, or so large
  * that centring no longer matters and (long) could overflow). Subtracting it is exact. */
 static inline real dc_motor_link_centre_shift(real value)
 {
     real d = value / DC_MOTOR_LINK_CENTRE_STEP;
-    real half;
-    real whole;
-    if (!(d < (real)1048576 && d > (real)-1048576)) {
-        return 0;
+    real shift = (real)0;
+    if ((d < (real)1048576) && (d > (real)-1048576)) {
+        real half = (d < (real)0) ? (real)-0.5 : (real)0.5;
+        real whole = d + half;
+        shift = DC_MOTOR_LINK_CENTRE_STEP * (real)(long)whole;
     }
-    half = (d < (real)0) ? (real)-0.5 : (real)0.5;
-    whole = d + half;
-    return DC_MOTOR_LINK_CENTRE_STEP * (real)(long)whole;
+    return shift;
 }
 
 /* x stored relative to centre `from`, rewritten relative to centre `to` (NULL: absolute). */
@@ -50,7 +70,7 @@ static inline void dc_motor_link_move_origin(const real* x, const real* from, co
         out[i] = x[i];
     }
     for (i = 0; i < DC_MOTOR_LINK_NY; i++) {
-        out[dc_motor_link_heads[i]] += to ? from[i] - to[i] : from[i];
+        out[dc_motor_link_heads[i]] += (to != NULL) ? (from[i] - to[i]) : from[i];
     }
 }
 
@@ -58,63 +78,69 @@ static inline void dc_motor_link_move_origin(const real* x, const real* from, co
 static inline int dc_motor_link_finite(const real* a, size_t n)
 {
     size_t i;
-    for (i = 0; i < n; i++) {
+    int ok = 1;
+    for (i = 0; (i < n) && (ok != 0); i++) {
         real d = a[i] - a[i];
         if (!(d == d)) {
-            return 0;
+            ok = 0;
         }
     }
-    return 1;
+    return ok;
 }
 
 /* 1 if all n pivots are strictly positive (and not NaN). */
 static inline int dc_motor_link_positive(const real* piv, size_t n)
 {
     size_t i;
-    for (i = 0; i < n; i++) {
+    int ok = 1;
+    for (i = 0; (i < n) && (ok != 0); i++) {
         if (!(piv[i] > (real)0)) {
-            return 0;
+            ok = 0;
         }
     }
-    return 1;
+    return ok;
 }
 
 /* 1 if the n x n matrix is symmetric and positive definite (LDL' pivots, no square roots). */
 static inline int dc_motor_link_spd_in(const real* A, int n, real* L, real* d)
 {
-    int i, j, k;
-    for (j = 0; j < n; j++) {
+    int i;
+    int j;
+    int k;
+    int ok = 1;
+    for (j = 0; (j < n) && (ok != 0); j++) {
         for (i = 0; i < j; i++) {
-            if (A[i * n + j] < A[j * n + i] || A[i * n + j] > A[j * n + i]) {
-                return 0;
+            if ((A[(i * n) + j] < A[(j * n) + i]) || (A[(i * n) + j] > A[(j * n) + i])) {
+                ok = 0;
             }
         }
-        d[j] = A[j * n + j];
+        d[j] = A[(j * n) + j];
         for (k = 0; k < j; k++) {
-            d[j] -= L[j * n + k] * L[j * n + k] * d[k];
+            d[j] -= L[(j * n) + k] * L[(j * n) + k] * d[k];
         }
         if (!(d[j] > (real)0)) {
-            return 0;
+            ok = 0;
         }
-        for (i = j + 1; i < n; i++) {
-            real s = A[i * n + j];
+        for (i = j + 1; (i < n) && (ok != 0); i++) {
+            real s = A[(i * n) + j];
             for (k = 0; k < j; k++) {
-                s -= L[i * n + k] * L[j * n + k] * d[k];
+                s -= L[(i * n) + k] * L[(j * n) + k] * d[k];
             }
-            L[i * n + j] = s / d[j];
+            L[(i * n) + j] = s / d[j];
         }
     }
-    return 1;
+    return ok;
 }
 
 static inline int dc_motor_link_spd(const real* A, int n)
 {
     real L[DC_MOTOR_LINK_NYY];
     real d[DC_MOTOR_LINK_NY];
-    if (n > DC_MOTOR_LINK_NY) {
-        return 0;
+    int ok = 0;
+    if (n <= DC_MOTOR_LINK_NY) {
+        ok = dc_motor_link_spd_in(A, n, L, d);
     }
-    return dc_motor_link_spd_in(A, n, L, d);
+    return ok;
 }
 
 /* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */

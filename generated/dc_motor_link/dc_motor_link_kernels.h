@@ -14,7 +14,7 @@
 int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
                                const dc_motor_link_real v[1], const dc_motor_link_real q[1],
                                dc_motor_link_real x1[3], dc_motor_link_real P1[9],
-                               dc_motor_link_real w[11]);
+                               dc_motor_link_real w[DC_MOTOR_LINK_KERN_PREDICT_SZ_W]);
 
 /* dc_motor_link_kern_update:(xm[3],Pm[3x3],z,gamma,R)->(x[3],P[3x3],piv) */
 #define DC_MOTOR_LINK_KERN_UPDATE_SZ_W 14
@@ -22,21 +22,21 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
                               const dc_motor_link_real z[1], const dc_motor_link_real gamma[1],
                               const dc_motor_link_real R[1], dc_motor_link_real x[3],
                               dc_motor_link_real P[9], dc_motor_link_real piv[1],
-                              dc_motor_link_real w[14]);
+                              dc_motor_link_real w[DC_MOTOR_LINK_KERN_UPDATE_SZ_W]);
 
 /* dc_motor_link_kern_info:(x[3],P[3x3],c[3])->(Y[3x3],y[3],piv[3]) */
 #define DC_MOTOR_LINK_KERN_INFO_SZ_W 15
 int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
                             const dc_motor_link_real c[3], dc_motor_link_real Y[9],
                             dc_motor_link_real y[3], dc_motor_link_real piv[3],
-                            dc_motor_link_real w[15]);
+                            dc_motor_link_real w[DC_MOTOR_LINK_KERN_INFO_SZ_W]);
 
 /* dc_motor_link_kern_fuse_finish:(Y[3x3],y[3],c[3])->(x[3],P[3x3],piv[3]) */
 #define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W 18
 int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Y[9], const dc_motor_link_real y[3],
                                    const dc_motor_link_real c[3], dc_motor_link_real x[3],
                                    dc_motor_link_real P[9], dc_motor_link_real piv[3],
-                                   dc_motor_link_real w[18]);
+                                   dc_motor_link_real w[DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W]);
 
 /* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det,nsat) */
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 13
@@ -44,6 +44,7 @@ int dc_motor_link_kern_control(const dc_motor_link_real x[3], const dc_motor_lin
                                const dc_motor_link_real gains[3],
                                const dc_motor_link_real params[8], dc_motor_link_real u[1],
                                dc_motor_link_real v[1], dc_motor_link_real det[1],
-                               dc_motor_link_real nsat[1], dc_motor_link_real w[13]);
+                               dc_motor_link_real nsat[1],
+                               dc_motor_link_real w[DC_MOTOR_LINK_KERN_CONTROL_SZ_W]);
 
 #endif /* DC_MOTOR_LINK_KERNELS_H */

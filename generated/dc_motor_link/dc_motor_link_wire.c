@@ -20,17 +20,19 @@
 #define HDR DC_MOTOR_LINK_WIRE_HEADER
 #define RS ((size_t)sizeof(real))
 
-/* First 8 bytes of the model's SHA-256 (DC_MOTOR_LINK_MODEL_HASH). */
+/* The model's SHA-256 (hex), and its first 8 bytes: the frames' model field. */
+const char dc_motor_link_model_hash[65] = DC_MOTOR_LINK_MODEL_HASH;
+/* The frames' magic, "DFEW" in ASCII. */
+static const uint8_t wire_magic[4] = {0x44u, 0x46u, 0x45u, 0x57u};
 static const uint8_t wire_model[8] = {0xb1u, 0x58u, 0x54u, 0x56u, 0xbfu, 0x7du, 0x7bu, 0xccu};
-
-/* CRC-32 nibble table for the reflected polynomial 0xEDB88320. */
-static const uint32_t crc_nibble[16] = {0x00000000u, 0x1DB71064u, 0x3B6E20C8u, 0x26D930ACu,
-                                        0x76DC4190u, 0x6B6B51F4u, 0x4DB26158u, 0x5005713Cu,
-                                        0xEDB88320u, 0xF00F9344u, 0xD6D6A3E8u, 0xCB61B38Cu,
-                                        0x9B64C2B0u, 0x86D3D2D4u, 0xA00AE278u, 0xBDBDF21Cu};
 
 uint32_t dc_motor_link_crc32(const uint8_t* data, size_t len)
 {
+    /* CRC-32 nibble table for the reflected polynomial 0xEDB88320. */
+    static const uint32_t crc_nibble[16] = {0x00000000u, 0x1DB71064u, 0x3B6E20C8u, 0x26D930ACu,
+                                            0x76DC4190u, 0x6B6B51F4u, 0x4DB26158u, 0x5005713Cu,
+                                            0xEDB88320u, 0xF00F9344u, 0xD6D6A3E8u, 0xCB61B38Cu,
+                                            0x9B64C2B0u, 0x86D3D2D4u, 0xA00AE278u, 0xBDBDF21Cu};
     uint32_t c = 0xFFFFFFFFu;
     size_t i;
     for (i = 0; i < len; i++) {
@@ -107,9 +109,13 @@ static void sip_round(uint64_t v[4])
 
 uint64_t dc_motor_link_siphash24(const uint8_t key[16], const uint8_t* data, size_t len)
 {
-    uint64_t k0 = get64(key), k1 = get64(&key[8]), m, v[4];
+    uint64_t k0 = get64(key);
+    uint64_t k1 = get64(&key[8]);
+    uint64_t m;
+    uint64_t v[4];
     uint8_t last[8];
-    size_t i, full = len - (len % 8u);
+    size_t i;
+    size_t full = len - (len % 8u);
     v[0] = k0 ^ 0x736f6d6570736575u;
     v[1] = k1 ^ 0x646f72616e646f6du;
     v[2] = k0 ^ 0x6c7967656e657261u;
@@ -177,70 +183,86 @@ static real get_real(const uint8_t* b)
 int dc_motor_link_frame_encode(const dc_motor_link_frame_header* header, const real* values,
                                uint16_t count, const uint8_t* key, uint8_t* buf, size_t cap)
 {
-    size_t i, body = HDR + RS * count;
-    if (header == NULL || (count > 0u && values == NULL) || buf == NULL ||
-        cap < DC_MOTOR_LINK_FRAME_SIZE(count)) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    size_t i;
+    size_t body = HDR + (RS * count);
+    int rc = DC_MOTOR_LINK_OK;
+    if ((header == NULL) || ((count > 0u) && (values == NULL)) || (buf == NULL) ||
+        (cap < DC_MOTOR_LINK_FRAME_SIZE(count))) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        (void)memcpy(buf, wire_magic, 4);
+        buf[4] = DC_MOTOR_LINK_WIRE_VERSION;
+        buf[5] = header->kind;
+        buf[6] = (uint8_t)((key != NULL) ? 1u : 0u);
+        buf[7] = (uint8_t)RS;
+        (void)memcpy(&buf[8], wire_model, 8);
+        put16(&buf[16], header->node);
+        put16(&buf[18], count);
+        put32(&buf[20], header->step);
+        put32(&buf[24], header->seq);
+        for (i = 0; i < count; i++) {
+            put_real(&buf[HDR + (RS * i)], values[i]);
+        }
+        put64(&buf[body], (key != NULL) ? dc_motor_link_siphash24(key, buf, body) : 0u);
+        put32(&buf[body + 8u], dc_motor_link_crc32(buf, body + 8u));
     }
-    (void)memcpy(buf, "DFEW", 4);
-    buf[4] = DC_MOTOR_LINK_WIRE_VERSION;
-    buf[5] = header->kind;
-    buf[6] = (uint8_t)((key != NULL) ? 1u : 0u);
-    buf[7] = (uint8_t)RS;
-    (void)memcpy(&buf[8], wire_model, 8);
-    put16(&buf[16], header->node);
-    put16(&buf[18], count);
-    put32(&buf[20], header->step);
-    put32(&buf[24], header->seq);
-    for (i = 0; i < count; i++) {
-        put_real(&buf[HDR + RS * i], values[i]);
+    return rc;
+}
+
+/* The frame checks in order: size, CRC, format, version, model, tag; OK or the first failure. */
+static int frame_check(const uint8_t* buf, size_t len, const uint8_t* key, uint8_t kind,
+                       uint16_t count)
+{
+    size_t body = HDR + (RS * count);
+    int rc = DC_MOTOR_LINK_OK;
+    if (len != DC_MOTOR_LINK_FRAME_SIZE(count)) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_LENGTH;
+    } else if (dc_motor_link_crc32(buf, body + 8u) != get32(&buf[body + 8u])) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_CRC;
+    } else if ((memcmp(buf, wire_magic, 4) != 0) || (buf[5] != kind) || (buf[7] != RS) ||
+               (get16(&buf[18]) != count) || ((buf[6] & ~1u) != 0u) ||
+               (((buf[6] & 1u) == 0u) && (get64(&buf[body]) != 0u))) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_FORMAT; /* (untagged: the tag field must be zero) */
+    } else if (buf[4] != DC_MOTOR_LINK_WIRE_VERSION) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_VERSION;
+    } else if (memcmp(&buf[8], wire_model, 8) != 0) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_MODEL;
+    } else if ((key != NULL) && ((buf[6] & 1u) == 0u)) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_TAG; /* keyed receiver, untagged frame */
+    } else if ((key != NULL) && (dc_motor_link_siphash24(key, buf, body) != get64(&buf[body]))) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_TAG;
+    } else {
+        rc = DC_MOTOR_LINK_OK;
     }
-    put64(&buf[body], (key != NULL) ? dc_motor_link_siphash24(key, buf, body) : 0u);
-    put32(&buf[body + 8u], dc_motor_link_crc32(buf, body + 8u));
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_frame_decode(const uint8_t* buf, size_t len, const uint8_t* key, uint8_t kind,
                                real* values, uint16_t count, dc_motor_link_frame_header* header)
 {
-    size_t i, body = HDR + RS * count;
-    if (buf == NULL || (count > 0u && values == NULL) || header == NULL) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    size_t i;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((buf == NULL) || ((count > 0u) && (values == NULL)) || (header == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        rc = frame_check(buf, len, key, kind, count);
     }
-    if (len != DC_MOTOR_LINK_FRAME_SIZE(count)) {
-        return DC_MOTOR_LINK_ERR_WIRE_LENGTH;
-    }
-    if (dc_motor_link_crc32(buf, body + 8u) != get32(&buf[body + 8u])) {
-        return DC_MOTOR_LINK_ERR_WIRE_CRC;
-    }
-    if (memcmp(buf, "DFEW", 4) != 0 || buf[5] != kind || buf[7] != RS || get16(&buf[18]) != count ||
-        (buf[6] & ~1u) != 0u || ((buf[6] & 1u) == 0u && get64(&buf[body]) != 0u)) {
-        return DC_MOTOR_LINK_ERR_WIRE_FORMAT; /* (untagged: the tag field must be zero) */
-    }
-    if (buf[4] != DC_MOTOR_LINK_WIRE_VERSION) {
-        return DC_MOTOR_LINK_ERR_WIRE_VERSION;
-    }
-    if (memcmp(&buf[8], wire_model, 8) != 0) {
-        return DC_MOTOR_LINK_ERR_WIRE_MODEL;
-    }
-    if (key != NULL &&
-        ((buf[6] & 1u) == 0u || dc_motor_link_siphash24(key, buf, body) != get64(&buf[body]))) {
-        return DC_MOTOR_LINK_ERR_WIRE_TAG;
-    }
-    for (i = 0; i < count; i++) {
-        real x = get_real(&buf[HDR + RS * i]);
+    for (i = 0; (i < count) && (rc == DC_MOTOR_LINK_OK); i++) {
+        real x = get_real(&buf[HDR + (RS * i)]);
         if (!dc_motor_link_finite(&x, 1)) {
-            return DC_MOTOR_LINK_ERR_NONFINITE;
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
         }
     }
-    for (i = 0; i < count; i++) {
-        values[i] = get_real(&buf[HDR + RS * i]);
+    if (rc == DC_MOTOR_LINK_OK) {
+        for (i = 0; i < count; i++) {
+            values[i] = get_real(&buf[HDR + (RS * i)]);
+        }
+        header->kind = kind;
+        header->node = get16(&buf[16]);
+        header->step = get32(&buf[20]);
+        header->seq = get32(&buf[24]);
     }
-    header->kind = kind;
-    header->node = get16(&buf[16]);
-    header->step = get32(&buf[20]);
-    header->seq = get32(&buf[24]);
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 /* The packet's reals in wire order: centre, x, P, x_pred, P_pred. */
@@ -249,42 +271,47 @@ int dc_motor_link_packet_encode(const dc_motor_link_packet* packet, uint16_t nod
 {
     real values[DC_MOTOR_LINK_PACKET_REALS];
     dc_motor_link_frame_header h;
-    if (!packet) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if (packet != NULL) {
+        (void)memcpy(values, packet->centre, sizeof(packet->centre));
+        (void)memcpy(&values[NY], packet->x, sizeof(packet->x));
+        (void)memcpy(&values[NY + NX], packet->P, sizeof(packet->P));
+        (void)memcpy(&values[NY + NX + NXX], packet->x_pred, sizeof(packet->x_pred));
+        (void)memcpy(&values[NY + (2 * NX) + NXX], packet->P_pred, sizeof(packet->P_pred));
+        h.kind = DC_MOTOR_LINK_KIND_PACKET;
+        h.node = node;
+        h.step = packet->step;
+        h.seq = seq;
+        rc = dc_motor_link_frame_encode(&h, values, DC_MOTOR_LINK_PACKET_REALS, key, buf,
+                                        DC_MOTOR_LINK_PACKET_WIRE_SIZE);
     }
-    (void)memcpy(values, packet->centre, sizeof(packet->centre));
-    (void)memcpy(&values[NY], packet->x, sizeof(packet->x));
-    (void)memcpy(&values[NY + NX], packet->P, sizeof(packet->P));
-    (void)memcpy(&values[NY + NX + NXX], packet->x_pred, sizeof(packet->x_pred));
-    (void)memcpy(&values[NY + 2 * NX + NXX], packet->P_pred, sizeof(packet->P_pred));
-    h.kind = DC_MOTOR_LINK_KIND_PACKET;
-    h.node = node;
-    h.step = packet->step;
-    h.seq = seq;
-    return dc_motor_link_frame_encode(&h, values, DC_MOTOR_LINK_PACKET_REALS, key, buf,
-                                      DC_MOTOR_LINK_PACKET_WIRE_SIZE);
+    return rc;
+}
+
+static int packet_decode(const uint8_t* buf, size_t len, const uint8_t* key,
+                         dc_motor_link_packet* packet, dc_motor_link_frame_header* header)
+{
+    real values[DC_MOTOR_LINK_PACKET_REALS];
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if (packet != NULL) {
+        rc = dc_motor_link_frame_decode(buf, len, key, DC_MOTOR_LINK_KIND_PACKET, values,
+                                        DC_MOTOR_LINK_PACKET_REALS, header);
+    }
+    if (rc == DC_MOTOR_LINK_OK) {
+        packet->step = header->step;
+        (void)memcpy(packet->centre, values, sizeof(packet->centre));
+        (void)memcpy(packet->x, &values[NY], sizeof(packet->x));
+        (void)memcpy(packet->P, &values[NY + NX], sizeof(packet->P));
+        (void)memcpy(packet->x_pred, &values[NY + NX + NXX], sizeof(packet->x_pred));
+        (void)memcpy(packet->P_pred, &values[NY + (2 * NX) + NXX], sizeof(packet->P_pred));
+    }
+    return rc;
 }
 
 int dc_motor_link_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key,
                                 dc_motor_link_packet* packet, dc_motor_link_frame_header* header)
 {
-    real values[DC_MOTOR_LINK_PACKET_REALS];
-    int rc;
-    if (!packet) {
-        return DC_MOTOR_LINK_ERR_ARG;
-    }
-    rc = dc_motor_link_frame_decode(buf, len, key, DC_MOTOR_LINK_KIND_PACKET, values,
-                                    DC_MOTOR_LINK_PACKET_REALS, header);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
-    }
-    packet->step = header->step;
-    (void)memcpy(packet->centre, values, sizeof(packet->centre));
-    (void)memcpy(packet->x, &values[NY], sizeof(packet->x));
-    (void)memcpy(packet->P, &values[NY + NX], sizeof(packet->P));
-    (void)memcpy(packet->x_pred, &values[NY + NX + NXX], sizeof(packet->x_pred));
-    (void)memcpy(packet->P_pred, &values[NY + 2 * NX + NXX], sizeof(packet->P_pred));
-    return DC_MOTOR_LINK_OK;
+    return packet_decode(buf, len, key, packet, header);
 }
 
 int dc_motor_link_command_encode(uint32_t step, const real v[NY], const real u[DC_MOTOR_LINK_NU],
@@ -293,35 +320,40 @@ int dc_motor_link_command_encode(uint32_t step, const real v[NY], const real u[D
 {
     real values[DC_MOTOR_LINK_COMMAND_REALS];
     dc_motor_link_frame_header h;
-    if (!v || !u) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if ((v != NULL) && (u != NULL)) {
+        (void)memcpy(values, v, sizeof(real) * (size_t)NY);
+        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)DC_MOTOR_LINK_NU);
+        h.kind = DC_MOTOR_LINK_KIND_COMMAND;
+        h.node = DC_MOTOR_LINK_MASTER_ID;
+        h.step = step;
+        h.seq = seq;
+        rc = dc_motor_link_frame_encode(&h, values, DC_MOTOR_LINK_COMMAND_REALS, key, buf,
+                                        DC_MOTOR_LINK_COMMAND_WIRE_SIZE);
     }
-    (void)memcpy(values, v, sizeof(real) * (size_t)NY);
-    (void)memcpy(&values[NY], u, sizeof(real) * (size_t)DC_MOTOR_LINK_NU);
-    h.kind = DC_MOTOR_LINK_KIND_COMMAND;
-    h.node = DC_MOTOR_LINK_MASTER_ID;
-    h.step = step;
-    h.seq = seq;
-    return dc_motor_link_frame_encode(&h, values, DC_MOTOR_LINK_COMMAND_REALS, key, buf,
-                                      DC_MOTOR_LINK_COMMAND_WIRE_SIZE);
+    return rc;
+}
+
+static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
+                          real u[DC_MOTOR_LINK_NU], dc_motor_link_frame_header* header)
+{
+    real values[DC_MOTOR_LINK_COMMAND_REALS];
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if ((v != NULL) && (u != NULL)) {
+        rc = dc_motor_link_frame_decode(buf, len, key, DC_MOTOR_LINK_KIND_COMMAND, values,
+                                        DC_MOTOR_LINK_COMMAND_REALS, header);
+    }
+    if (rc == DC_MOTOR_LINK_OK) {
+        (void)memcpy(v, values, sizeof(real) * (size_t)NY);
+        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)DC_MOTOR_LINK_NU);
+    }
+    return rc;
 }
 
 int dc_motor_link_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
                                  real u[DC_MOTOR_LINK_NU], dc_motor_link_frame_header* header)
 {
-    real values[DC_MOTOR_LINK_COMMAND_REALS];
-    int rc;
-    if (!v || !u) {
-        return DC_MOTOR_LINK_ERR_ARG;
-    }
-    rc = dc_motor_link_frame_decode(buf, len, key, DC_MOTOR_LINK_KIND_COMMAND, values,
-                                    DC_MOTOR_LINK_COMMAND_REALS, header);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
-    }
-    (void)memcpy(v, values, sizeof(real) * (size_t)NY);
-    (void)memcpy(u, &values[NY], sizeof(real) * (size_t)DC_MOTOR_LINK_NU);
-    return DC_MOTOR_LINK_OK;
+    return command_decode(buf, len, key, v, u, header);
 }
 
 /* ---- checked receive paths ------------------------------------------------------------------ */
@@ -340,11 +372,12 @@ int dc_motor_link_wire_rejected(const dc_motor_link_inbox* inbox,
                                 const dc_motor_link_command_rx* rx,
                                 dc_motor_link_wire_counters* out)
 {
-    if ((inbox == NULL && rx == NULL) || out == NULL) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if (((inbox != NULL) || (rx != NULL)) && (out != NULL)) {
+        *out = (inbox != NULL) ? inbox->rejected : rx->rejected;
+        rc = DC_MOTOR_LINK_OK;
     }
-    *out = (inbox != NULL) ? inbox->rejected : rx->rejected;
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 static void count_reject(dc_motor_link_wire_counters* c, int rc)
@@ -397,16 +430,17 @@ static void count_reject(dc_motor_link_wire_counters* c, int rc)
 
 int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], uint32_t base)
 {
-    if (!inbox) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if (inbox != NULL) {
+        (void)memset(inbox, 0, sizeof(*inbox));
+        if (key != NULL) {
+            (void)memcpy(inbox->key, key, sizeof(inbox->key));
+            inbox->keyed = 1;
+        }
+        inbox->base = base;
+        rc = DC_MOTOR_LINK_OK;
     }
-    (void)memset(inbox, 0, sizeof(*inbox));
-    if (key != NULL) {
-        (void)memcpy(inbox->key, key, sizeof(inbox->key));
-        inbox->keyed = 1;
-    }
-    inbox->base = base;
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 static int check_packet(const dc_motor_link_master* master, const dc_motor_link_inbox* inbox,
@@ -414,31 +448,27 @@ static int check_packet(const dc_motor_link_master* master, const dc_motor_link_
                         dc_motor_link_frame_header* h)
 {
     const uint8_t* key = (inbox->keyed != 0u) ? inbox->key : NULL;
-    uint32_t now;
-    int rc = dc_motor_link_packet_decode(buf, len, key, pk, h);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
+    uint32_t now = inbox->base + master->k;
+    int rc = packet_decode(buf, len, key, pk, h);
+    if (rc == DC_MOTOR_LINK_OK) {
+        if (h->node >= (uint16_t)NNODES) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_NODE;
+        } else if ((inbox->keyed != 0u) && (inbox->seen[h->node] != 0u) &&
+                   (h->seq <= inbox->last_seq[h->node])) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_REPLAY;
+        } else if (h->step > now) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_FUTURE;
+        } else if ((h->step < inbox->base) || ((now - h->step) > (uint32_t)NMAX)) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_OLD;
+        } else if ((inbox->seen[h->node] != 0u) && (h->step == inbox->last_step[h->node])) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_DUPLICATE;
+        } else if ((inbox->seen[h->node] != 0u) && (h->step < inbox->last_step[h->node])) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_OUTDATED;
+        } else {
+            rc = DC_MOTOR_LINK_OK;
+        }
     }
-    if (h->node >= (uint16_t)NNODES) {
-        return DC_MOTOR_LINK_ERR_WIRE_NODE;
-    }
-    if (inbox->keyed != 0u && inbox->seen[h->node] != 0u && h->seq <= inbox->last_seq[h->node]) {
-        return DC_MOTOR_LINK_ERR_WIRE_REPLAY;
-    }
-    now = inbox->base + master->k;
-    if (h->step > now) {
-        return DC_MOTOR_LINK_ERR_WIRE_FUTURE;
-    }
-    if (h->step < inbox->base || now - h->step > (uint32_t)NMAX) {
-        return DC_MOTOR_LINK_ERR_WIRE_OLD;
-    }
-    if (inbox->seen[h->node] != 0u && h->step == inbox->last_step[h->node]) {
-        return DC_MOTOR_LINK_ERR_WIRE_DUPLICATE;
-    }
-    if (inbox->seen[h->node] != 0u && h->step < inbox->last_step[h->node]) {
-        return DC_MOTOR_LINK_ERR_WIRE_OUTDATED;
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_master_receive(const dc_motor_link_master* master, dc_motor_link_inbox* inbox,
@@ -446,78 +476,76 @@ int dc_motor_link_master_receive(const dc_motor_link_master* master, dc_motor_li
 {
     dc_motor_link_packet pk;
     dc_motor_link_frame_header h;
-    int rc;
-    if (!master || !inbox || !buf) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if ((master != NULL) && (inbox != NULL) && (buf != NULL)) {
+        rc = check_packet(master, inbox, buf, len, &pk, &h);
+        if (rc != DC_MOTOR_LINK_OK) {
+            count_reject(&inbox->rejected, rc);
+        } else {
+            pk.step = h.step - inbox->base; /* the master's own step count */
+            inbox->staged[h.node] = pk;
+            inbox->present[h.node] = 1;
+            inbox->seen[h.node] = 1;
+            inbox->last_step[h.node] = h.step;
+            inbox->last_seq[h.node] = h.seq;
+            inbox->accepted++;
+        }
     }
-    rc = check_packet(master, inbox, buf, len, &pk, &h);
-    if (rc != DC_MOTOR_LINK_OK) {
-        count_reject(&inbox->rejected, rc);
-        return rc;
-    }
-    pk.step = h.step - inbox->base; /* the master's own step count */
-    inbox->staged[h.node] = pk;
-    inbox->present[h.node] = 1;
-    inbox->seen[h.node] = 1;
-    inbox->last_step[h.node] = h.step;
-    inbox->last_seq[h.node] = h.seq;
-    inbox->accepted++;
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_master_fuse_inbox(dc_motor_link_master* master, dc_motor_link_inbox* inbox)
 {
-    int rc;
-    if (!master || !inbox) {
-        return DC_MOTOR_LINK_ERR_ARG;
-    }
-    rc = dc_motor_link_master_fuse(master, inbox->staged, inbox->present);
-    if (rc == DC_MOTOR_LINK_OK) {
-        (void)memset(inbox->present, 0, sizeof(inbox->present));
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if ((master != NULL) && (inbox != NULL)) {
+        rc = dc_motor_link_master_fuse(master, inbox->staged, inbox->present);
+        if (rc == DC_MOTOR_LINK_OK) {
+            (void)memset(inbox->present, 0, sizeof(inbox->present));
+        }
     }
     return rc;
 }
 
 int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t key[16])
 {
-    if (!rx) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if (rx != NULL) {
+        (void)memset(rx, 0, sizeof(*rx));
+        if (key != NULL) {
+            (void)memcpy(rx->key, key, sizeof(rx->key));
+            rx->keyed = 1;
+        }
+        rc = DC_MOTOR_LINK_OK;
     }
-    (void)memset(rx, 0, sizeof(*rx));
-    if (key != NULL) {
-        (void)memcpy(rx->key, key, sizeof(rx->key));
-        rx->keyed = 1;
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_command_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len,
                                   uint32_t* step, real v[NY], real u[DC_MOTOR_LINK_NU])
 {
     dc_motor_link_frame_header h;
-    real v1[NY], u1[DC_MOTOR_LINK_NU];
-    const uint8_t* key;
-    int rc;
-    if (!rx || !buf || !step || !v || !u) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    real v1[NY];
+    real u1[DC_MOTOR_LINK_NU];
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
+        rc = command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h);
+        if ((rc == DC_MOTOR_LINK_OK) && (h.node != DC_MOTOR_LINK_MASTER_ID)) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_NODE;
+        }
+        if ((rc == DC_MOTOR_LINK_OK) && (rx->keyed != 0u) && (rx->seen != 0u) &&
+            (h.seq <= rx->last_seq)) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_REPLAY;
+        }
+        if (rc != DC_MOTOR_LINK_OK) {
+            count_reject(&rx->rejected, rc);
+        } else {
+            rx->seen = 1;
+            rx->last_seq = h.seq;
+            rx->accepted++;
+            *step = h.step;
+            (void)memcpy(v, v1, sizeof(v1));
+            (void)memcpy(u, u1, sizeof(u1));
+        }
     }
-    key = (rx->keyed != 0u) ? rx->key : NULL;
-    rc = dc_motor_link_command_decode(buf, len, key, v1, u1, &h);
-    if (rc == DC_MOTOR_LINK_OK && h.node != DC_MOTOR_LINK_MASTER_ID) {
-        rc = DC_MOTOR_LINK_ERR_WIRE_NODE;
-    }
-    if (rc == DC_MOTOR_LINK_OK && rx->keyed != 0u && rx->seen != 0u && h.seq <= rx->last_seq) {
-        rc = DC_MOTOR_LINK_ERR_WIRE_REPLAY;
-    }
-    if (rc != DC_MOTOR_LINK_OK) {
-        count_reject(&rx->rejected, rc);
-        return rc;
-    }
-    rx->seen = 1;
-    rx->last_seq = h.seq;
-    rx->accepted++;
-    *step = h.step;
-    (void)memcpy(v, v1, sizeof(v1));
-    (void)memcpy(u, u1, sizeof(u1));
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }

@@ -56,6 +56,9 @@ extern "C" {
 #define TWO_LINK_ARM_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
 #define TWO_LINK_ARM_NRING (TWO_LINK_ARM_NMAX + 1)
+/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+#define TWO_LINK_ARM_NRING_NY (TWO_LINK_ARM_NRING * TWO_LINK_ARM_NY)
+#define TWO_LINK_ARM_NMAX_NY (TWO_LINK_ARM_NMAX * TWO_LINK_ARM_NY)
 /** camera nodes fused by the master */
 #define TWO_LINK_ARM_NNODES 2
 /** sampling period [s] */
@@ -79,7 +82,7 @@ extern "C" {
 #define TWO_LINK_ARM_CHAIN_ANGLE {1, 1}
 /* clang-format on */
 
-/* Index of each parameter in params[NP]. */
+/* Index of each parameter in params[NP] (the library's default table is laid out by them). */
 /** m1 [kg]: mass at the tip of link 1 (elbow motor included) */
 #define TWO_LINK_ARM_P_m1 0
 /** m2 [kg]: mass at the tip of link 2 */
@@ -104,6 +107,12 @@ extern "C" {
 #define TWO_LINK_ARM_P_g 10
 
 typedef double two_link_arm_real;
+
+/* The constants above that are not integers, as objects (for callers without this header, e.g.
+ * Python ctypes): TS, MODEL_HASH and CHAIN_ANGLE. */
+extern const two_link_arm_real two_link_arm_ts;
+extern const char two_link_arm_model_hash[65];
+extern const uint8_t two_link_arm_chain_angle[TWO_LINK_ARM_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define TWO_LINK_ARM_OK 0
@@ -155,8 +164,8 @@ typedef struct {
     two_link_arm_real q[TWO_LINK_ARM_NY];
     two_link_arm_real ring_x[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NX];
     two_link_arm_real ring_P[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NXX];
-    two_link_arm_real ring_z[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NY];
-    two_link_arm_real ring_v[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NY];
+    two_link_arm_real ring_z[TWO_LINK_ARM_NRING_NY];
+    two_link_arm_real ring_v[TWO_LINK_ARM_NRING_NY];
     /** current step */
     uint32_t k;
     two_link_arm_health health;
@@ -202,7 +211,7 @@ typedef struct {
     two_link_arm_real P_prior[TWO_LINK_ARM_NXX];
     two_link_arm_real q[TWO_LINK_ARM_NY];
     /** inputs of steps k-NMAX..k-1, step j in slot j % NMAX */
-    two_link_arm_real v[TWO_LINK_ARM_NMAX * TWO_LINK_ARM_NY];
+    two_link_arm_real v[TWO_LINK_ARM_NMAX_NY];
     uint32_t k;
     two_link_arm_master_health health;
 } two_link_arm_master;
@@ -274,10 +283,6 @@ int two_link_arm_master_estimate(const two_link_arm_master* master,
 #define TWO_LINK_ARM_KIND_PACKET 1u
 /** master -> nodes and actuator: (k, v, u) */
 #define TWO_LINK_ARM_KIND_COMMAND 2u
-/** camera -> node: z of a step (the example programs) */
-#define TWO_LINK_ARM_KIND_CAMERA 3u
-/** clock -> node or master: end of a step (the example programs) */
-#define TWO_LINK_ARM_KIND_TICK 4u
 /** node id field of the master's frames */
 #define TWO_LINK_ARM_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
@@ -322,8 +327,20 @@ typedef struct {
 
 /** Rejected frames per cause. */
 typedef struct {
-    uint32_t length, crc, format, version, model, tag, node;
-    uint32_t duplicate, old, future, replay, outdated, nonfinite, other;
+    uint32_t length;
+    uint32_t crc;
+    uint32_t format;
+    uint32_t version;
+    uint32_t model;
+    uint32_t tag;
+    uint32_t node;
+    uint32_t duplicate;
+    uint32_t old;
+    uint32_t future;
+    uint32_t replay;
+    uint32_t outdated;
+    uint32_t nonfinite;
+    uint32_t other;
 } two_link_arm_wire_counters;
 
 /** The master's receive side: checked packets staged for the next fuse, per-node last step and

@@ -13,76 +13,92 @@
 
 /* Nominal parameter values, in model order: m1, m2, l1, l2, Jm1, Jm2, k_e, k_d, R, L, g. */
 const real two_link_arm_params_default[TWO_LINK_ARM_NP] = {
-    0.4, /* m1 [kg] */
-    0.2, /* m2 [kg] */
-    0.25, /* l1 [m] */
-    0.2, /* l2 [m] */
-    0.01, /* Jm1 [kg*m^2] */
-    0.01, /* Jm2 [kg*m^2] */
-    0.5, /* k_e [N*m/A] */
-    0.05, /* k_d [N*m*s/rad] */
-    2.0, /* R [ohm] */
-    0.005, /* L [H] */
-    9.81 /* g [m/s^2] */
+    [TWO_LINK_ARM_P_m1] = 0.4, /* [kg] */
+    [TWO_LINK_ARM_P_m2] = 0.2, /* [kg] */
+    [TWO_LINK_ARM_P_l1] = 0.25, /* [m] */
+    [TWO_LINK_ARM_P_l2] = 0.2, /* [m] */
+    [TWO_LINK_ARM_P_Jm1] = 0.01, /* [kg*m^2] */
+    [TWO_LINK_ARM_P_Jm2] = 0.01, /* [kg*m^2] */
+    [TWO_LINK_ARM_P_k_e] = 0.5, /* [N*m/A] */
+    [TWO_LINK_ARM_P_k_d] = 0.05, /* [N*m*s/rad] */
+    [TWO_LINK_ARM_P_R] = 2.0, /* [ohm] */
+    [TWO_LINK_ARM_P_L] = 0.005, /* [H] */
+    [TWO_LINK_ARM_P_g] = 9.81 /* [m/s^2] */
 };
+
+/* The header's non-integer constants as objects, and the zeta index of each flat output
+ * (internal). */
+const real two_link_arm_ts = TWO_LINK_ARM_TS;
+const uint8_t two_link_arm_chain_angle[NY] = TWO_LINK_ARM_CHAIN_ANGLE;
+const uint8_t two_link_arm_heads[NY] = TWO_LINK_ARM_CHAIN_OFFSETS;
 
 int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS],
                          const real gains[NX], const real params[TWO_LINK_ARM_NP],
                          real u[TWO_LINK_ARM_NU], real v[NY], uint32_t* saturated)
 {
-    real ul[NY], vl[NY], det[1], nsat[1], mag;
+    real ul[NY];
+    real vl[NY];
+    real det[1];
+    real nsat[1];
     real w[TWO_LINK_ARM_KERN_CONTROL_SZ_W];
-    if (!x || !flags || !gains || !params || !u) {
-        return TWO_LINK_ARM_ERR_ARG;
+    int rc = TWO_LINK_ARM_OK;
+    if ((x == NULL) || (flags == NULL) || (gains == NULL) || (params == NULL) || (u == NULL)) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else if (!two_link_arm_finite(x, NX) || !two_link_arm_finite(flags, TWO_LINK_ARM_NFLAGS) ||
+               !two_link_arm_finite(gains, NX) || !two_link_arm_finite(params, TWO_LINK_ARM_NP)) {
+        rc = TWO_LINK_ARM_ERR_NONFINITE;
+    } else {
+        (void)two_link_arm_kern_control(x, flags, gains, params, ul, vl, det, nsat, w);
+        if (two_link_arm_finite(det, 1) == 0) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        }
     }
-    if (!two_link_arm_finite(x, NX) || !two_link_arm_finite(flags, TWO_LINK_ARM_NFLAGS) ||
-        !two_link_arm_finite(gains, NX) || !two_link_arm_finite(params, TWO_LINK_ARM_NP)) {
-        return TWO_LINK_ARM_ERR_NONFINITE;
+    if (rc == TWO_LINK_ARM_OK) {
+        real mag = (det[0] < (real)0) ? -det[0] : det[0];
+        if (!(mag >= ((TWO_LINK_ARM_SINGULAR_RTOL) * (TWO_LINK_ARM_DET_NOMINAL)))) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        } else if (!two_link_arm_finite(ul, NY) || !two_link_arm_finite(vl, NY)) {
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
+        } else {
+            (void)memcpy(u, ul, sizeof(ul));
+            if (v != NULL) {
+                (void)memcpy(v, vl, sizeof(vl));
+            }
+            if (saturated != NULL) {
+                *saturated += (uint32_t)nsat[0];
+            }
+        }
     }
-    (void)two_link_arm_kern_control(x, flags, gains, params, ul, vl, det, nsat, w);
-    if (!two_link_arm_finite(det, 1)) {
-        return TWO_LINK_ARM_ERR_SINGULAR;
-    }
-    mag = (det[0] < (real)0) ? -det[0] : det[0];
-    if (!(mag >= ((TWO_LINK_ARM_SINGULAR_RTOL) * (TWO_LINK_ARM_DET_NOMINAL)))) {
-        return TWO_LINK_ARM_ERR_SINGULAR;
-    }
-    if (!two_link_arm_finite(ul, NY) || !two_link_arm_finite(vl, NY)) {
-        return TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    (void)memcpy(u, ul, sizeof(ul));
-    if (v != NULL) {
-        (void)memcpy(v, vl, sizeof(vl));
-    }
-    if (saturated != NULL) {
-        *saturated += (uint32_t)nsat[0];
-    }
-    return TWO_LINK_ARM_OK;
+    return rc;
 }
 
 int two_link_arm_gains(const real lambda[NY], real gains[NX])
 {
     static const int degree[NY] = TWO_LINK_ARM_CHAIN_DEGREES;
     static const int offset[NY] = TWO_LINK_ARM_CHAIN_OFFSETS;
-    real out[NX];
-    int j, i;
-    if (!lambda || !gains) {
-        return TWO_LINK_ARM_ERR_ARG;
-    }
-    if (!two_link_arm_finite(lambda, NY)) {
-        return TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    for (j = 0; j < NY; j++) {
-        real binom = (real)1, power = (real)1;
-        for (i = 1; i <= degree[j]; i++) { /* k_i = C(r, i) lambda^i */
-            binom = binom * ((real)degree[j] - (real)i + (real)1) / (real)i;
-            power = power * lambda[j];
-            out[offset[j] + i - 1] = binom * power;
+    real out[NX] = {0};
+    int j;
+    int i;
+    int rc = TWO_LINK_ARM_OK;
+    if ((lambda == NULL) || (gains == NULL)) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else if (!two_link_arm_finite(lambda, NY)) {
+        rc = TWO_LINK_ARM_ERR_NONFINITE;
+    } else {
+        for (j = 0; j < NY; j++) {
+            real binom = (real)1;
+            real power = (real)1;
+            for (i = 1; i <= degree[j]; i++) { /* k_i = C(r, i) lambda^i */
+                binom = (binom * (((real)degree[j] - (real)i) + (real)1)) / (real)i;
+                power = power * lambda[j];
+                out[(offset[j] + i) - 1] = binom * power;
+            }
+        }
+        if (two_link_arm_finite(out, NX) != 0) {
+            (void)memcpy(gains, out, sizeof(out));
+        } else { /* lambda^r overflowed */
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
         }
     }
-    if (!two_link_arm_finite(out, NX)) { /* lambda^r overflowed */
-        return TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    (void)memcpy(gains, out, sizeof(out));
-    return TWO_LINK_ARM_OK;
+    return rc;
 }

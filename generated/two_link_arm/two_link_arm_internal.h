@@ -13,32 +13,52 @@
 /* The real type, under a short name for the library sources. */
 typedef two_link_arm_real real;
 
-/* Compile-time checks (C99: a negative array size fails the build). */
-typedef char two_link_arm_check_nmax_low[(TWO_LINK_ARM_NMAX >= 1) ? 1 : -1];
-typedef char two_link_arm_check_nmax_high[(TWO_LINK_ARM_NMAX < 65535) ? 1 : -1];
-typedef char two_link_arm_check_nodes[(TWO_LINK_ARM_NNODES >= 1) ? 1 : -1];
-typedef char two_link_arm_check_real[(sizeof(two_link_arm_real) == 8) ? 1 : -1];
+/* Compile-time checks: the window and node count are in range, and the public header was
+ * generated with the same build options as this library. */
+#if (TWO_LINK_ARM_NMAX < 1) || (TWO_LINK_ARM_NMAX >= 65535)
+#error "TWO_LINK_ARM_NMAX must be in 1..65534"
+#endif
+#if TWO_LINK_ARM_NNODES < 1
+#error "TWO_LINK_ARM_NNODES must be at least 1"
+#endif
+#if TWO_LINK_ARM_PRECISION_FLOAT != 0
+#error "two_link_arm.h comes from another build (TWO_LINK_ARM_PRECISION_FLOAT)"
+#endif
+#if TWO_LINK_ARM_OOSM_RETRODICT != 0
+#error "two_link_arm.h comes from another build (TWO_LINK_ARM_OOSM_RETRODICT)"
+#endif
+#if TWO_LINK_ARM_FUSION_PAPER != 0
+#error "two_link_arm.h comes from another build (TWO_LINK_ARM_FUSION_PAPER)"
+#endif
+#if TWO_LINK_ARM_FUSION_DIFFERENCE != 1
+#error "two_link_arm.h comes from another build (TWO_LINK_ARM_FUSION_DIFFERENCE)"
+#endif
+#if TWO_LINK_ARM_FUSION_CI != 0
+#error "two_link_arm.h comes from another build (TWO_LINK_ARM_FUSION_CI)"
+#endif
+#if TWO_LINK_ARM_CI_ITERATIONS != 12
+#error "two_link_arm.h comes from another build (TWO_LINK_ARM_CI_ITERATIONS)"
+#endif
 
 /* Centring (see the node struct in two_link_arm.h): flat outputs are stored relative to a
  * centre that moves in exact steps of 1/8, so that single precision resolves them to their own
  * size. */
 #define TWO_LINK_ARM_CENTRE_STEP ((real)0.125)
-/* zeta index of each flat output */
-static const uint8_t two_link_arm_heads[TWO_LINK_ARM_NY] = {0, 3};
+/* zeta index of each flat output (defined in control.c) */
+extern const uint8_t two_link_arm_heads[TWO_LINK_ARM_NY];
 
 /* The whole steps of 1/8 nearest to a stored flat output (0 when it is within 1/16, or so large
  * that centring no longer matters and (long) could overflow). Subtracting it is exact. */
 static inline real two_link_arm_centre_shift(real value)
 {
     real d = value / TWO_LINK_ARM_CENTRE_STEP;
-    real half;
-    real whole;
-    if (!(d < (real)1048576 && d > (real)-1048576)) {
-        return 0;
+    real shift = (real)0;
+    if ((d < (real)1048576) && (d > (real)-1048576)) {
+        real half = (d < (real)0) ? (real)-0.5 : (real)0.5;
+        real whole = d + half;
+        shift = TWO_LINK_ARM_CENTRE_STEP * (real)(long)whole;
     }
-    half = (d < (real)0) ? (real)-0.5 : (real)0.5;
-    whole = d + half;
-    return TWO_LINK_ARM_CENTRE_STEP * (real)(long)whole;
+    return shift;
 }
 
 /* x stored relative to centre `from`, rewritten relative to centre `to` (NULL: absolute). */
@@ -50,7 +70,7 @@ static inline void two_link_arm_move_origin(const real* x, const real* from, con
         out[i] = x[i];
     }
     for (i = 0; i < TWO_LINK_ARM_NY; i++) {
-        out[two_link_arm_heads[i]] += to ? from[i] - to[i] : from[i];
+        out[two_link_arm_heads[i]] += (to != NULL) ? (from[i] - to[i]) : from[i];
     }
 }
 
@@ -58,63 +78,69 @@ static inline void two_link_arm_move_origin(const real* x, const real* from, con
 static inline int two_link_arm_finite(const real* a, size_t n)
 {
     size_t i;
-    for (i = 0; i < n; i++) {
+    int ok = 1;
+    for (i = 0; (i < n) && (ok != 0); i++) {
         real d = a[i] - a[i];
         if (!(d == d)) {
-            return 0;
+            ok = 0;
         }
     }
-    return 1;
+    return ok;
 }
 
 /* 1 if all n pivots are strictly positive (and not NaN). */
 static inline int two_link_arm_positive(const real* piv, size_t n)
 {
     size_t i;
-    for (i = 0; i < n; i++) {
+    int ok = 1;
+    for (i = 0; (i < n) && (ok != 0); i++) {
         if (!(piv[i] > (real)0)) {
-            return 0;
+            ok = 0;
         }
     }
-    return 1;
+    return ok;
 }
 
 /* 1 if the n x n matrix is symmetric and positive definite (LDL' pivots, no square roots). */
 static inline int two_link_arm_spd_in(const real* A, int n, real* L, real* d)
 {
-    int i, j, k;
-    for (j = 0; j < n; j++) {
+    int i;
+    int j;
+    int k;
+    int ok = 1;
+    for (j = 0; (j < n) && (ok != 0); j++) {
         for (i = 0; i < j; i++) {
-            if (A[i * n + j] < A[j * n + i] || A[i * n + j] > A[j * n + i]) {
-                return 0;
+            if ((A[(i * n) + j] < A[(j * n) + i]) || (A[(i * n) + j] > A[(j * n) + i])) {
+                ok = 0;
             }
         }
-        d[j] = A[j * n + j];
+        d[j] = A[(j * n) + j];
         for (k = 0; k < j; k++) {
-            d[j] -= L[j * n + k] * L[j * n + k] * d[k];
+            d[j] -= L[(j * n) + k] * L[(j * n) + k] * d[k];
         }
         if (!(d[j] > (real)0)) {
-            return 0;
+            ok = 0;
         }
-        for (i = j + 1; i < n; i++) {
-            real s = A[i * n + j];
+        for (i = j + 1; (i < n) && (ok != 0); i++) {
+            real s = A[(i * n) + j];
             for (k = 0; k < j; k++) {
-                s -= L[i * n + k] * L[j * n + k] * d[k];
+                s -= L[(i * n) + k] * L[(j * n) + k] * d[k];
             }
-            L[i * n + j] = s / d[j];
+            L[(i * n) + j] = s / d[j];
         }
     }
-    return 1;
+    return ok;
 }
 
 static inline int two_link_arm_spd(const real* A, int n)
 {
     real L[TWO_LINK_ARM_NYY];
     real d[TWO_LINK_ARM_NY];
-    if (n > TWO_LINK_ARM_NY) {
-        return 0;
+    int ok = 0;
+    if (n <= TWO_LINK_ARM_NY) {
+        ok = two_link_arm_spd_in(A, n, L, d);
     }
-    return two_link_arm_spd_in(A, n, L, d);
+    return ok;
 }
 
 /* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */

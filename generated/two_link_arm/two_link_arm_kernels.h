@@ -14,7 +14,7 @@
 int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
                               const two_link_arm_real v[2], const two_link_arm_real q[2],
                               two_link_arm_real x1[6], two_link_arm_real P1[36],
-                              two_link_arm_real w[21]);
+                              two_link_arm_real w[TWO_LINK_ARM_KERN_PREDICT_SZ_W]);
 
 /* two_link_arm_kern_update:(xm[6],Pm[6x6],z[2],gamma,R[2x2])->(x[6],P[6x6],piv[2]) */
 #define TWO_LINK_ARM_KERN_UPDATE_SZ_W 49
@@ -22,21 +22,21 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
                              const two_link_arm_real z[2], const two_link_arm_real gamma[1],
                              const two_link_arm_real R[4], two_link_arm_real x[6],
                              two_link_arm_real P[36], two_link_arm_real piv[2],
-                             two_link_arm_real w[49]);
+                             two_link_arm_real w[TWO_LINK_ARM_KERN_UPDATE_SZ_W]);
 
 /* two_link_arm_kern_info:(x[6],P[6x6],c[6])->(Y[6x6],y[6],piv[6]) */
 #define TWO_LINK_ARM_KERN_INFO_SZ_W 45
 int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real P[36],
                            const two_link_arm_real c[6], two_link_arm_real Y[36],
                            two_link_arm_real y[6], two_link_arm_real piv[6],
-                           two_link_arm_real w[45]);
+                           two_link_arm_real w[TWO_LINK_ARM_KERN_INFO_SZ_W]);
 
 /* two_link_arm_kern_fuse_finish:(Y[6x6],y[6],c[6])->(x[6],P[6x6],piv[6]) */
 #define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W 51
 int two_link_arm_kern_fuse_finish(const two_link_arm_real Y[36], const two_link_arm_real y[6],
                                   const two_link_arm_real c[6], two_link_arm_real x[6],
                                   two_link_arm_real P[36], two_link_arm_real piv[6],
-                                  two_link_arm_real w[51]);
+                                  two_link_arm_real w[TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W]);
 
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_W 54
@@ -44,6 +44,6 @@ int two_link_arm_kern_control(const two_link_arm_real x[6], const two_link_arm_r
                               const two_link_arm_real gains[6], const two_link_arm_real params[11],
                               two_link_arm_real u[2], two_link_arm_real v[2],
                               two_link_arm_real det[1], two_link_arm_real nsat[1],
-                              two_link_arm_real w[54]);
+                              two_link_arm_real w[TWO_LINK_ARM_KERN_CONTROL_SZ_W]);
 
 #endif /* TWO_LINK_ARM_KERNELS_H */
