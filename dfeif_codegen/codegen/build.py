@@ -30,7 +30,7 @@ from dfeif_codegen.constants import CI_ITERATIONS
 from dfeif_codegen.codegen.options import BuildError, Options
 
 GROUP_DOCS = {
-    "filter": "Node filter kernels (the master reuses predict and info)",
+    "filter": "Node filter kernels (the master reuses predict)",
     "fusion": "Master fusion kernels",
     "control": "Flatness-based controller kernel: u and v = F + G u from the estimate, flags and gains",
 }
@@ -89,7 +89,8 @@ def context(flat, opts: Options) -> dict:
     real_c = "float" if opts.precision == "float" else "double"
     kernel_code, kernel_list = {}, []
     for group, functions in ks.groups.items():
-        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}")
+        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
+                                       local_work=group in ks.local_work)
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w,

@@ -31,12 +31,19 @@ int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real
                            two_link_arm_real y[6], two_link_arm_real piv[6],
                            two_link_arm_real w[45]);
 
-/* two_link_arm_kern_fuse_finish:(Y[6x6],y[6],c[6])->(x[6],P[6x6],piv[6]) */
-#define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W 51
-int two_link_arm_kern_fuse_finish(const two_link_arm_real Y[36], const two_link_arm_real y[6],
-                                  const two_link_arm_real c[6], two_link_arm_real x[6],
-                                  two_link_arm_real P[36], two_link_arm_real piv[6],
-                                  two_link_arm_real w[51]);
+/* two_link_arm_kern_master_gain:(x[6],P[6x6],xp[6],Pp[6x6],c[6])->(dY[21],dy[6],piv[12]) */
+#define TWO_LINK_ARM_KERN_MASTER_GAIN_SZ_W 67
+int two_link_arm_kern_master_gain(const two_link_arm_real x[6], const two_link_arm_real P[36],
+                                  const two_link_arm_real xp[6], const two_link_arm_real Pp[36],
+                                  const two_link_arm_real c[6], two_link_arm_real dY[21],
+                                  two_link_arm_real dy[6], two_link_arm_real piv[12]);
+
+/* two_link_arm_kern_fuse_finish:(Pc[6x6],dY[21],dy[6],c[6])->(x[6],P[6x6],piv[12]) */
+#define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W 43
+int two_link_arm_kern_fuse_finish(const two_link_arm_real Pc[36], const two_link_arm_real dY[21],
+                                  const two_link_arm_real dy[6], const two_link_arm_real c[6],
+                                  two_link_arm_real x[6], two_link_arm_real P[36],
+                                  two_link_arm_real piv[12]);
 
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_W 54
