@@ -26,7 +26,7 @@ import sympy as sp
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.codegen import kernels, layout, render
-from dfeif_codegen.constants import CI_ITERATIONS
+from dfeif_codegen.constants import ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
 
 GROUP_DOCS = {
@@ -106,7 +106,7 @@ def context(flat, opts: Options) -> dict:
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
-        "ci_iterations": CI_ITERATIONS, "model_hash": model_hash(m), "versions": versions(),
+        "ci_iterations": ci_iterations(opts.nodes), "model_hash": model_hash(m), "versions": versions(),
         "cmake_version": cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},

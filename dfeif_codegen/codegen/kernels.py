@@ -27,7 +27,7 @@ from dfeif_codegen.symbolic import discretize
 from dfeif_codegen.symbolic.numeric import to_casadi
 from dfeif_codegen.codegen import layout
 from dfeif_codegen.codegen.options import Options
-from dfeif_codegen.constants import CI_ITERATIONS, CI_REGULARISER
+from dfeif_codegen.constants import CI_REGULARISER
 
 # --- symbolic linear algebra on small matrices ------------------------------------------------
 
@@ -627,8 +627,9 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
             raise RuntimeError(f"kernel {name}: unexpected CasADi argument pattern")
         info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs, local_work)
         lines = [spaced(line.strip()) for line in body.splitlines() if line.strip()]
-        if local_work:
-            lines.insert(0, f"casadi_real w[{info.sz_w}];")
+        if local_work:   # one scalar per work entry: the compiler keeps them in registers
+            lines = [f"casadi_real w{i};" for i in range(info.sz_w)] + [re.sub(r"\bw\[(\d+)\]", r"w\1", line)
+                                                                     for line in lines]
         lines.append("return 0;")
         out.append(f"/* {wrap_comment(info.signature)} */\n"
                    + _function(f"int {name}", info.parameters(real), lines))

@@ -107,14 +107,17 @@ static inline int probe_ok(real probe)
     return (probe == (real)0) ? 1 : 0;
 }
 
-/* A packet's numbers are all finite. */
+/* A packet's numbers are all finite (as zero_sum, two arrays per pass). */
 static inline int packet_finite(const dc_motor_link_packet* pk)
 {
-    real probe = zero_sum(pk->x, NX, (real)0);
-    probe = zero_sum(pk->P, NXX, probe);
-    probe = zero_sum(pk->x_pred, NX, probe);
-    probe = zero_sum(pk->P_pred, NXX, probe);
-    probe = zero_sum(pk->centre, NY, probe);
+    real probe = zero_sum(pk->centre, NY, (real)0);
+    int i;
+    for (i = 0; i < NXX; i++) {
+        probe += (pk->P[i] * (real)0) + (pk->P_pred[i] * (real)0);
+    }
+    for (i = 0; i < NX; i++) {
+        probe += (pk->x[i] * (real)0) + (pk->x_pred[i] * (real)0);
+    }
     return probe_ok(probe);
 }
 
