@@ -27,7 +27,7 @@ size_t two_link_arm_master_size(void)
 static size_t input_at(uint32_t step)
 {
     uint32_t slot = step % (uint32_t)NMAX;
-    return (size_t)slot * NY;
+    return (size_t)slot * (size_t)NY;
 }
 
 static int master_step(const real* x, const real* P, const real* v, const real* q, real* x1,
