@@ -93,7 +93,7 @@ def context(flat, opts: Options) -> dict:
                                        local_work=group in ks.local_work)
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
-        kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w,
+        kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w, "local_work": k.local_work,
                          "signature": kernels.wrap_comment(_comment(k.signature)),
                          "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real"), ");")}
                         for k in infos]

@@ -95,13 +95,6 @@ def _trace_of_product(A: ca.SX, B: ca.SX) -> ca.SX:
     return out
 
 
-def _trace(A: ca.SX) -> ca.SX:
-    out = A[0, 0]
-    for i in range(1, A.shape[0]):
-        out = out + A[i, i]
-    return out
-
-
 def _lower_inverse(L: ca.SX) -> ca.SX:
     """L^-1 of a lower-triangular L by forward substitution, column by column (lower again)."""
     n = L.shape[0]

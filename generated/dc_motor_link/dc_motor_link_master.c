@@ -78,7 +78,8 @@ static inline int bring(const dc_motor_link_master* master, const dc_motor_link_
                         const real** P_out)
 {
     int rc = DC_MOTOR_LINK_OK;
-    dc_motor_link_move_origin(x_in, pk->centre, master->centre, x); /* the centres differ by whole steps */
+    /* the centres differ by whole steps */
+    dc_motor_link_move_origin(x_in, pk->centre, master->centre, x);
     if (pk->step < master->k) {
         (void)memcpy(P_buf, P_in, sizeof(real[NXX]));
         rc = catch_up(master, pk->step, x, P_buf);
@@ -89,8 +90,9 @@ static inline int bring(const dc_motor_link_master* master, const dc_motor_link_
     return rc;
 }
 
-/* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN (v * 0
- * is NaN for those, and a NaN stays in the sum). One test at the end instead of a branch per value. */
+/* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN
+ * (v * 0 is NaN for those, and a NaN stays in the sum). One test at the end instead of a
+ * branch per value. */
 static inline real zero_sum(const real* a, int n, real acc)
 {
     real sum = acc;
@@ -156,7 +158,8 @@ int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], c
                 rc = DC_MOTOR_LINK_ERR_ARG;
             }
         }
-        if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_cov_ok(P0) == 0)) { /* P0 must be symmetric positive definite */
+        /* P0 must be symmetric positive definite */
+        if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_cov_ok(P0) == 0)) {
             rc = DC_MOTOR_LINK_ERR_ARG;
         }
     }

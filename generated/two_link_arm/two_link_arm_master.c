@@ -78,7 +78,8 @@ static inline int bring(const two_link_arm_master* master, const two_link_arm_pa
                         const real** P_out)
 {
     int rc = TWO_LINK_ARM_OK;
-    two_link_arm_move_origin(x_in, pk->centre, master->centre, x); /* the centres differ by whole steps */
+    /* the centres differ by whole steps */
+    two_link_arm_move_origin(x_in, pk->centre, master->centre, x);
     if (pk->step < master->k) {
         (void)memcpy(P_buf, P_in, sizeof(real[NXX]));
         rc = catch_up(master, pk->step, x, P_buf);
@@ -89,8 +90,9 @@ static inline int bring(const two_link_arm_master* master, const two_link_arm_pa
     return rc;
 }
 
-/* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN (v * 0
- * is NaN for those, and a NaN stays in the sum). One test at the end instead of a branch per value. */
+/* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN
+ * (v * 0 is NaN for those, and a NaN stays in the sum). One test at the end instead of a
+ * branch per value. */
 static inline real zero_sum(const real* a, int n, real acc)
 {
     real sum = acc;
@@ -156,7 +158,8 @@ int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], con
                 rc = TWO_LINK_ARM_ERR_ARG;
             }
         }
-        if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_cov_ok(P0) == 0)) { /* P0 must be symmetric positive definite */
+        /* P0 must be symmetric positive definite */
+        if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_cov_ok(P0) == 0)) {
             rc = TWO_LINK_ARM_ERR_ARG;
         }
     }
