@@ -9,4 +9,13 @@ CI_REGULARISER = 1e-2
 the quadratic term makes the optimum unique when nodes carry the same information."""
 
 CI_ITERATIONS = 12
-"""Newton steps of the covariance-intersection weights: fixed, so the C's run time is bounded."""
+"""The fewest Newton steps of the covariance-intersection weights (see ci_iterations)."""
+
+
+def ci_iterations(nodes: int) -> int:
+    """Newton steps of the covariance-intersection weights for a master of `nodes` nodes: fixed,
+    so the C's run time is bounded. The active-set search sets at most one weight to 0 per step,
+    so a sparse optimum (most of 16 nodes at weight 0) needs about one step per node plus a few
+    for Newton's convergence: measured, M + 8 steps reach the optimum to 1e-10 on random node
+    sets where 12 steps left tr P 30% above it at M = 16 (tests/test_ci_weights.py)."""
+    return max(CI_ITERATIONS, nodes + 8)

@@ -34,6 +34,7 @@ VARIANTS = {
     "dc-float": ("dc_motor_link", {"precision": "float"}),
     "dc-retro-ci": ("dc_motor_link", {"oosm": "retrodict", "fusion": "ci"}),
     "dc-ci3": ("dc_motor_link", {"fusion": "ci", "nodes": 3}),
+    "dc-ci16": ("dc_motor_link", {"fusion": "ci", "nodes": 16}),
     "dc-float-retro-ci3": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci", "nodes": 3}),
     "dc-float-paper": ("dc_motor_link", {"precision": "float", "fusion": "paper", "max_lag": 5}),
     "dc-float-retro-ci": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
@@ -555,35 +556,48 @@ def test_ci_weights_on_simplex(built, tmp_path):
     np.testing.assert_allclose(x, node_x, rtol=1e-9)
 
 
-def test_ci_weights_match_reference_active_set(built, tmp_path):
-    """Three nodes, random informations (some far worse, so weights hit 0 and the active set
-    works): the C's weights, read back as w = Y x from packets with y_i = e_i, equal the
-    reference's covariance_intersection_weights."""
+@pytest.mark.parametrize("variant, nodes, trials", [("dc-ci3", 3, 40), ("dc-ci16", 16, 8)])
+def test_ci_weights_match_reference_active_set(built, tmp_path, variant, nodes, trials):
+    """M nodes (3 of them, or 16 with 3 packets absent), random informations (some far worse,
+    so weights hit 0 and the active set works): the C's weights, read back as w = Y x from
+    packets with y_i = e_i (one entry per present node; 16 nodes > n = 3, so x is a sum), equal
+    the reference's covariance_intersection_weights with the master's iteration count."""
+    from dfeif_codegen.constants import ci_iterations
     from dfeif_codegen.reference.fusion import covariance_intersection_weights
-    lib = Lib(shared_library(built("dc-ci3"), tmp_path), "dc_motor_link")
+    lib = Lib(shared_library(built(variant), tmp_path), "dc_motor_link")
     psize = lib.c.dc_motor_link_packet_size()
     rng = np.random.default_rng(11)
-    for trial in range(40):
+    for trial in range(trials):
+        present = np.ones(nodes, dtype=np.uint8)
+        if nodes > 3:
+            present[rng.choice(nodes, 3, replace=False)] = 0
         Ys = []
-        for i in range(3):
+        for i in range(nodes):
             a = rng.normal(size=(3, 3))
             Ys.append((a @ a.T + 0.1 * np.eye(3)) * (10.0 ** rng.uniform(-2, 2)))
-        w_ref = covariance_intersection_weights(Ys)
+        used = [i for i in range(nodes) if present[i]]
+        w_ref = covariance_intersection_weights([Ys[i] for i in used], ci_iterations(nodes))
+        probes = rng.normal(size=(nodes, 3))   # y_i of node i: fused y = sum_i w_i y_i
         master = lib.new("master")
         assert lib("master_init", master, np.zeros(3), np.eye(3).ravel().copy(), np.array([1.0])) == 0
-        packets = (ctypes.c_char * (3 * psize))()
+        packets = (ctypes.c_char * (nodes * psize))()
         for i, Y in enumerate(Ys):
             P = np.linalg.inv(Y)
             P = (P + P.T) / 2  # node_init takes only an exactly symmetric P0 (inv leaves ulp asymmetry)
             pk = lib.new("packet")
-            assert lib("node_packet", _fake_node(lib, P @ np.eye(3)[i], P), pk) == 0
+            assert lib("node_packet", _fake_node(lib, P @ probes[i], P), pk) == 0
             ctypes.memmove(ctypes.addressof(packets) + i * psize, pk, psize)
-        assert lib("master_fuse", master, packets, np.ones(3, dtype=np.uint8)) == 0
+        assert lib("master_fuse", master, packets, present) == 0
         x, P = np.zeros(3), np.zeros(9)
         lib("master_estimate", master, x, P)
-        # the C's CI weights come from a few Newton steps on a convex 1-D problem stopped at
-        # gradient 1e-10-ish; 1e-8 absolute on y = P^-1 x (entries O(1)) is that stopping rule
-        np.testing.assert_allclose(np.linalg.solve(P.reshape(3, 3), x), w_ref, atol=1e-8, err_msg=str(trial))
+        y = np.linalg.solve(P.reshape(3, 3), x)
+        Yf = sum(w * Ys[i] for w, i in zip(w_ref, used))
+        # the fused information and vector with the reference's weights: both sides take the same
+        # Newton steps, the C with the Hessian in Gram form (docs/algorithms.md), so they differ by
+        # rounding amplified by the steps' conditioning (|dw| <= |dg| / rho): 1e-8 relative
+        np.testing.assert_allclose(P.reshape(3, 3), np.linalg.inv(Yf), rtol=1e-8, err_msg=str(trial))
+        np.testing.assert_allclose(y, sum(w * probes[i] for w, i in zip(w_ref, used)), rtol=1e-8,
+                                   atol=1e-8 * np.abs(probes).max(), err_msg=str(trial))
 
 
 def _fake_node(lib: Lib, x: np.ndarray, P: np.ndarray):

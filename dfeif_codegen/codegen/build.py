@@ -26,11 +26,11 @@ import sympy as sp
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.codegen import kernels, layout, render
-from dfeif_codegen.constants import CI_ITERATIONS
+from dfeif_codegen.constants import ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
 
 GROUP_DOCS = {
-    "filter": "Node filter kernels (the master reuses predict and info)",
+    "filter": "Node filter kernels (the master reuses predict)",
     "fusion": "Master fusion kernels",
     "control": "Flatness-based controller kernel: u and v = F + G u from the estimate, flags and gains",
 }
@@ -89,10 +89,11 @@ def context(flat, opts: Options) -> dict:
     real_c = "float" if opts.precision == "float" else "double"
     kernel_code, kernel_list = {}, []
     for group, functions in ks.groups.items():
-        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}")
+        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
+                                       local_work=group in ks.local_work)
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
-        kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w,
+        kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w, "local_work": k.local_work,
                          "signature": kernels.wrap_comment(_comment(k.signature)),
                          "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real", k.name.upper() + "_SZ_W"),
                                                  ");")}
@@ -106,7 +107,7 @@ def context(flat, opts: Options) -> dict:
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
-        "ci_iterations": CI_ITERATIONS, "model_hash": model_hash(m), "versions": versions(),
+        "ci_iterations": ci_iterations(opts.nodes), "model_hash": model_hash(m), "versions": versions(),
         "cmake_version": cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},

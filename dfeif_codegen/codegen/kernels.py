@@ -27,7 +27,7 @@ from dfeif_codegen.symbolic import discretize
 from dfeif_codegen.symbolic.numeric import to_casadi
 from dfeif_codegen.codegen import layout
 from dfeif_codegen.codegen.options import Options
-from dfeif_codegen.constants import CI_ITERATIONS, CI_REGULARISER
+from dfeif_codegen.constants import CI_REGULARISER
 
 # --- symbolic linear algebra on small matrices ------------------------------------------------
 
@@ -73,14 +73,7 @@ def spd_inverse(S: ca.SX) -> tuple[ca.SX, ca.SX]:
     if n == 1:
         return 1 / S, S
     L, piv = _chol(S)
-    Li = ca.SX(n, n)          # L^-1 by forward substitution, column by column
-    for j in range(n):
-        Li[j, j] = 1 / L[j, j]
-        for i in range(j + 1, n):
-            s = ca.SX(0)
-            for k in range(j, i):
-                s = s - L[i, k] * Li[k, j]
-            Li[i, j] = s / L[i, i]
+    Li = _lower_inverse(L)
     return ca.mtimes(Li.T, Li), piv
 
 
@@ -102,11 +95,36 @@ def _trace_of_product(A: ca.SX, B: ca.SX) -> ca.SX:
     return out
 
 
-def _trace(A: ca.SX) -> ca.SX:
-    out = A[0, 0]
-    for i in range(1, A.shape[0]):
-        out = out + A[i, i]
-    return out
+def _lower_inverse(L: ca.SX) -> ca.SX:
+    """L^-1 of a lower-triangular L by forward substitution, column by column (lower again)."""
+    n = L.shape[0]
+    Li = ca.SX(n, n)
+    for j in range(n):
+        Li[j, j] = 1 / L[j, j]
+        for i in range(j + 1, n):
+            s = ca.SX(0)
+            for k in range(j, i):
+                s = s - L[i, k] * Li[k, j]
+            Li[i, j] = s / L[i, i]
+    return Li
+
+
+def _chol_solve(L: ca.SX, b: ca.SX) -> ca.SX:
+    """(L L')^-1 b by a forward and a backward substitution."""
+    n = L.shape[0]
+    z = [None] * n
+    for i in range(n):
+        s = b[i]
+        for k in range(i):
+            s = s - L[i, k] * z[k]
+        z[i] = s / L[i, i]
+    out = [None] * n
+    for i in reversed(range(n)):
+        s = z[i]
+        for k in range(i + 1, n):
+            s = s - L[k, i] * out[k]
+        out[i] = s / L[i, i]
+    return ca.vertcat(*out)
 
 
 # --- the kernels ------------------------------------------------------------------------------
@@ -116,6 +134,7 @@ class KernelSet:
     """The CasADi functions of one model, grouped by the C file they go into."""
 
     groups: dict[str, list[ca.Function]] = field(default_factory=dict)
+    local_work: set[str] = field(default_factory=set)   # groups whose kernels keep work locally
 
     def all(self) -> list[ca.Function]:
         return [f for fs in self.groups.values() for f in fs]
@@ -229,12 +248,6 @@ class _Builder:
         Y, piv = spd_inverse(P)
         return ca.Function(name, [x, P, c], [Y, ca.mtimes(Y, x - c), piv], ["x", "P", "c"], ["Y", "y", "piv"])
 
-    def fuse_finish(self, name: str) -> ca.Function:
-        n = self.n
-        Y, y, c = _sym("Y", n, n), _sym("y", n), _sym("c", n)
-        P, piv = spd_inverse(Y)
-        return ca.Function(name, [Y, y, c], [c + ca.mtimes(P, y), P, piv], ["Y", "y", "c"], ["x", "P", "piv"])
-
     def retro_step(self, name: str) -> ca.Function:
         """One step n (slot k-n) of the backward recursion of the retrodiction (algorithms.md):
         adds slot k-n's terms to the sums and carries T(n)(A L_n)' and E(n-1) = L_n A E(n)."""
@@ -292,24 +305,93 @@ class _Builder:
                            ["N", "x", "P", "PmN", "usedN", "z", "R", "q", "sw", "sQ", "sX", "su"],
                            ["xs", "Ps", "piv", "pivP"])
 
+    # master kernels (fusion group: local work, symmetric results computed once, packed) -------
+    def packed(self, Y: ca.SX) -> ca.SX:
+        """The upper triangle of a symmetric matrix, row by row: n(n+1)/2 numbers."""
+        n = Y.shape[0]
+        return ca.vertcat(*[Y[i, j] for i in range(n) for j in range(i, n)])
+
+    def unpacked(self, v: ca.SX) -> ca.SX:
+        """The symmetric matrix whose packed upper triangle is v."""
+        n = self.n
+        out, at = ca.SX(n, n), 0
+        for i in range(n):
+            for j in range(i, n):
+                out[i, j] = v[at]
+                out[j, i] = v[at]
+                at += 1
+        return out
+
+    def info_of(self, x: ca.SX, P: ca.SX, c: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """Y = P^-1 (its upper triangle only: the lower reuses it) and y = Y (x - c), about the
+        master's prior c: the same fused x in exact arithmetic, without the cancellation of Y x
+        terms that |x| / sigma of several hundred causes in single precision."""
+        Yi, piv = spd_inverse(P)
+        Y = self.symmetric(Yi)
+        return Y, ca.mtimes(Y, x - c), piv
+
+    def master_info(self, name: str) -> ca.Function:
+        """One packet's information (paper and ci rules), Y packed."""
+        n = self.n
+        x, P, c = _sym("x", n), _sym("P", n, n), _sym("c", n)
+        Y, y, piv = self.info_of(x, P, c)
+        return ca.Function(name, [x, P, c], [self.packed(Y), y, piv], ["x", "P", "c"], ["Y", "y", "piv"])
+
+    def master_gain(self, name: str) -> ca.Function:
+        """One packet's information gain (difference rule): its update's information less its
+        prediction's, packed, with both factorisations' pivots."""
+        n = self.n
+        x, P, xp, Pp, c = _sym("x", n), _sym("P", n, n), _sym("xp", n), _sym("Pp", n, n), _sym("c", n)
+        Y, y, piv = self.info_of(x, P, c)
+        Yp, yp, pivp = self.info_of(xp, Pp, c)
+        return ca.Function(name, [x, P, xp, Pp, c], [self.packed(Y - Yp), y - yp, ca.vertcat(piv, pivp)],
+                           ["x", "P", "xp", "Pp", "c"], ["dY", "dy", "piv"])
+
+    def finish_of(self, Y: ca.SX, y: ca.SX, c: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        Pi, piv = spd_inverse(Y)
+        P = self.symmetric(Pi)
+        return c + ca.mtimes(P, y), P, piv
+
+    def fuse_finish(self, name: str) -> ca.Function:
+        """x = c + P y, P = Y^-1 from the fused information (Y packed)."""
+        n = self.n
+        Y, y, c = _sym("Y", n * (n + 1) // 2), _sym("y", n), _sym("c", n)
+        x, P, piv = self.finish_of(self.unpacked(Y), y, c)
+        return ca.Function(name, [Y, y, c], [x, P, piv], ["Y", "y", "c"], ["x", "P", "piv"])
+
+    def fuse_finish_difference(self, name: str) -> ca.Function:
+        """The difference rule's end: Y = P_prior^-1 + sum of gains (packed), y = 0 + sum of gains
+        (the prior's information about itself is 0); then x = c + P y, P = Y^-1."""
+        n = self.n
+        Pc, dY, dy, c = _sym("Pc", n, n), _sym("dY", n * (n + 1) // 2), _sym("dy", n), _sym("c", n)
+        Yc, pivc = spd_inverse(Pc)
+        x, P, piv = self.finish_of(self.symmetric(Yc) + self.unpacked(dY), dy, c)
+        return ca.Function(name, [Pc, dY, dy, c], [x, P, ca.vertcat(pivc, piv)], ["Pc", "dY", "dy", "c"],
+                           ["x", "P", "piv"])
+
     def ci_grad(self, name: str) -> ca.Function:
         """Covariance intersection, first half of a Newton step (algorithms.md, master "ci"):
-        gradient and Hessian of tr((sum w_i Y_i)^-1). Absent nodes have w_i = 0 and Y_i = 0."""
+        gradient and Hessian of tr((sum w_i Y_i)^-1), each Y_i packed; absent nodes have w_i = 0
+        and Y_i = 0. With S = sum w_i Y_i = L L', P = S^-1 = L^-T L^-1 and W_i = L^-1 Y_i P:
+        g_i = -tr(P Y_i P) = -<L^-1, W_i> and H_ij = 2 tr(P Y_i P Y_j P) = 2 <W_i, W_j> (Frobenius),
+        so the Hessian is a Gram matrix: n^2 products per pair instead of forming P Y_i P Y_j P."""
         n, M = self.n, self.opts.nodes
+        d = n * (n + 1) // 2
         w = _sym("w", M)
-        Y = _sym("Y", M * n * n)     # node i's Y_i at entries i n^2 .. (i + 1) n^2 - 1
-        Ys = [ca.reshape(Y[i * n * n:(i + 1) * n * n], n, n) for i in range(M)]
-        Ysum = w[0] * Ys[0]
+        Y = _sym("Y", M * d)     # node i's packed Y_i at entries i d .. (i + 1) d - 1
+        Ys = [self.unpacked(Y[i * d:(i + 1) * d]) for i in range(M)]
+        Sp = w[0] * Y[0:d]
         for i in range(1, M):
-            Ysum = Ysum + w[i] * Ys[i]
-        P, piv = spd_inverse(Ysum)
-        Z = [ca.mtimes(P, Y) for Y in Ys]
-        ZP = [ca.mtimes(Zi, P) for Zi in Z]
-        g = ca.vertcat(*[-_trace(ZPi) for ZPi in ZP])
+            Sp = Sp + w[i] * Y[i * d:(i + 1) * d]
+        L, piv = _chol(self.unpacked(Sp))
+        Li = _lower_inverse(L)
+        P = self.symmetric(ca.mtimes(Li.T, Li))
+        W = [ca.mtimes(ca.mtimes(Li, Yi), P) for Yi in Ys]
+        g = ca.vertcat(*[-_trace_of_product(Li, Wi.T) for Wi in W])
         H = ca.SX(M, M)
-        for i in range(M):           # symmetric by construction; tr(A B) without forming A B
+        for i in range(M):
             for j in range(i, M):
-                H[i, j] = 2 * _trace_of_product(Z[i], ZP[j])
+                H[i, j] = 2 * _trace_of_product(W[i], W[j].T)
                 H[j, i] = H[i, j]
         rho = H[0, 0]                # the regulariser rho/2 |w|^2 (reference/fusion.py)
         for i in range(1, M):
@@ -321,8 +403,9 @@ class _Builder:
 
     def ci_dir(self, name: str) -> ca.Function:
         """Second half: the step d_F of `[H_FF, 1; 1', 0] [d; mu] = [-g_F; 0]`
-        over the free set F (mask f), d_i = 0 off F, by the Schur complement of a Cholesky solve.
-        Off F the matrix is the identity and the right-hand side 0, so d_i is exactly 0."""
+        over the free set F (mask f), d_i = 0 off F, by the Schur complement of a Cholesky solve
+        (two triangular solves each, no inverse formed). Off F the matrix is the identity and the
+        right-hand side 0, so d_i is exactly 0."""
         M = self.opts.nodes
         g, H, f = _sym("g", M), _sym("H", M, M), _sym("free", M)
         Hf = ca.SX(M, M)
@@ -330,8 +413,8 @@ class _Builder:
             for j in range(M):
                 Hf[i, j] = f[i] * f[j] * H[i, j]
             Hf[i, i] = Hf[i, i] + (1 - f[i])
-        Hi, piv = spd_inverse(Hf)
-        u1, u2 = ca.mtimes(Hi, f * g), ca.mtimes(Hi, f)
+        L, piv = _chol(Hf)
+        u1, u2 = _chol_solve(L, f * g), _chol_solve(L, f)
         mu = -ca.dot(f, u1) / ca.dot(f, u2)
         return ca.Function(name, [g, H, f], [-(u1 + mu * u2), piv], ["g", "H", "fmask"], ["d", "piv"])
 
@@ -394,10 +477,14 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     filt = [b.predict(name("predict")), b.update(name("update")), b.info(name("info"))]
     if opts.oosm == "retrodict":
         filt += [b.retro_step(name("retro_step")), b.retro_finish(name("retro_finish"))]
-    fusion = [b.fuse_finish(name("fuse_finish"))]
+    if opts.fusion == "difference":
+        fusion = [b.master_gain(name("master_gain")), b.fuse_finish_difference(name("fuse_finish"))]
+    else:
+        fusion = [b.master_info(name("master_info")), b.fuse_finish(name("fuse_finish"))]
     if opts.fusion == "ci":
         fusion += [b.ci_grad(name("ci_grad")), b.ci_dir(name("ci_dir"))]
-    return KernelSet({"filter": filt, "fusion": fusion, "control": [b.control(name("control"))]})
+    return KernelSet({"filter": filt, "fusion": fusion, "control": [b.control(name("control"))]},
+                     local_work={"fusion"})
 
 
 # --- C source ---------------------------------------------------------------------------------
@@ -434,12 +521,15 @@ class KernelC:
     inputs: list[tuple[str, int]]
     outputs: list[tuple[str, int]]
 
+    local_work: bool = False
+
     def parameters(self, real: str, work: str | None = None) -> list[str]:
         """The C parameter list: inputs const, outputs writable, every array sized, then the work
         (its size is also <NAME>_SZ_W in the kernels header, for the callers; `work` names that
-        macro in the prototype, so the header uses every size it defines)."""
+        macro in the prototype, so the header uses every size it defines), unless the kernel
+        keeps its work in locals."""
         return ([f"const {real} {n}[{k}]" for n, k in self.inputs] + [f"{real} {n}[{k}]" for n, k in self.outputs]
-                + [f"{real} w[{work or self.sz_w}]"])
+                + ([] if self.local_work else [f"{real} w[{work or self.sz_w}]"]))
 
 
 def _float_text(text: str) -> str:
@@ -475,13 +565,15 @@ def _function(head: str, params: list[str], body: list[str]) -> str:
 
 
 def c_source(functions: list[ca.Function], real: str, precision: str,
-             helpers: str = "casadi") -> tuple[str, list[KernelC]]:
+             helpers: str = "casadi", local_work: bool = False) -> tuple[str, list[KernelC]]:
     """C for a group of kernels: helpers `static`, one typed entry point per kernel
     `int name(const real in1[k1], ..., real out1[j1], ..., real w[SZ_W])`, spaced like clang-format;
     CasADi's helpers (`casadi_sq`, ...) renamed `<helpers>_sq`.
 
     Why typed: callers name each argument and the compiler checks its type, instead of filling
-    `arg[]`/`res[]` by position; and no array of pointers is left to get wrong."""
+    `arg[]`/`res[]` by position; and no array of pointers is left to get wrong.
+    `local_work`: the work is a local array instead of the last parameter; it cannot alias the
+    arguments, so the compiler keeps it in registers (the master's kernels use this)."""
     cg = ca.CodeGenerator("kernels", {"casadi_int": "int", "casadi_real": "double", "avoid_stack": True,
                                       "main": False, "mex": False, "with_header": False,
                                       "with_export": False, "verbose": False, "include_math": True})
@@ -527,8 +619,11 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
         body = re.sub(r"\bres\[(\d+)\]\[", lambda mt: outs[int(mt.group(1))][0] + "[", body)
         if re.search(r"\b(arg|res)\b", body):
             raise RuntimeError(f"kernel {name}: unexpected CasADi argument pattern")
-        info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs)
+        info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs, local_work)
         lines = [spaced(line.strip()) for line in body.splitlines() if line.strip()]
+        if local_work:   # one scalar per work entry: the compiler keeps them in registers
+            lines = [f"casadi_real w{i};" for i in range(info.sz_w)] + [re.sub(r"\bw\[(\d+)\]", r"w\1", line)
+                                                                     for line in lines]
         lines.append("return 0;")
         out.append(f"/* {wrap_comment(info.signature)} */\n"
                    + _function(f"int {name}", info.parameters(real), lines))

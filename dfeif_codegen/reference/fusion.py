@@ -11,21 +11,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from dfeif_codegen.constants import CI_REGULARISER
+from dfeif_codegen.constants import CI_REGULARISER, ci_iterations
 from dfeif_codegen.reference.linalg import spd_inv
 from dfeif_codegen.reference.node import Packet
 
 RULES = ("paper", "difference", "ci")
 
 
-def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int = 12) -> np.ndarray:
-    """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"):
+def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None = None) -> np.ndarray:
+    """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"), in
+    `iterations` steps (default ci_iterations(len(Ys)); the master passes its node count, as the C):
     Newton steps on the free weights; a weight the step would make negative stops the step at
     zero and is fixed there, and is freed again once its gradient is the smallest. A small
     regulariser (rho/2)|w|^2 keeps the optimum unique when two Y_i are equal, so the split of
     weight between equal nodes is not decided by round-off, and makes the weights a Lipschitz
     function of the Y_i, so that single precision reproduces them (docs/algorithms.md)."""
     count = len(Ys)
+    iterations = ci_iterations(count) if iterations is None else iterations
     w = np.full(count, 1.0 / count)
     free = np.ones(count, dtype=bool)
     for _ in range(iterations):
@@ -89,7 +91,7 @@ class Master:
                 Y_pred = spd_inv(Pp)
                 Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
         else:
-            w = covariance_intersection_weights(Ys)
+            w = covariance_intersection_weights(Ys, ci_iterations(self.n_nodes))
             Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
             y = sum(wi * yi for wi, yi in zip(w, ys))
         self.P = spd_inv(Y)

@@ -1,7 +1,8 @@
 /* DO NOT EDIT: dc_motor_link module, generated from template kernels.h.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* Internal to the dc_motor_link library: the typed entry points of the CasADi kernels,
- * generated from each kernel's signature, and the work size each needs. Inputs are const,
+ * generated from each kernel's signature, and the work size each needs (none for the master's
+ * kernels, which keep their work in locals). Inputs are const,
  * outputs writable, arrays row-major with the sizes given; none may be NULL and no output may
  * overlap an input. */
 #ifndef DC_MOTOR_LINK_KERNELS_H
@@ -31,12 +32,17 @@ int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_r
                             dc_motor_link_real y[3], dc_motor_link_real piv[3],
                             dc_motor_link_real w[DC_MOTOR_LINK_KERN_INFO_SZ_W]);
 
-/* dc_motor_link_kern_fuse_finish:(Y[3x3],y[3],c[3])->(x[3],P[3x3],piv[3]) */
-#define DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W 18
-int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Y[9], const dc_motor_link_real y[3],
-                                   const dc_motor_link_real c[3], dc_motor_link_real x[3],
-                                   dc_motor_link_real P[9], dc_motor_link_real piv[3],
-                                   dc_motor_link_real w[DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W]);
+/* dc_motor_link_kern_master_gain:(x[3],P[3x3],xp[3],Pp[3x3],c[3])->(dY[6],dy[3],piv[6]) */
+int dc_motor_link_kern_master_gain(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
+                                   const dc_motor_link_real xp[3], const dc_motor_link_real Pp[9],
+                                   const dc_motor_link_real c[3], dc_motor_link_real dY[6],
+                                   dc_motor_link_real dy[3], dc_motor_link_real piv[6]);
+
+/* dc_motor_link_kern_fuse_finish:(Pc[3x3],dY[6],dy[3],c[3])->(x[3],P[3x3],piv[6]) */
+int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Pc[9], const dc_motor_link_real dY[6],
+                                   const dc_motor_link_real dy[3], const dc_motor_link_real c[3],
+                                   dc_motor_link_real x[3], dc_motor_link_real P[9],
+                                   dc_motor_link_real piv[6]);
 
 /* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det,nsat) */
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 13

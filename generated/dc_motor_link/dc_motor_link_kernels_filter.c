@@ -1,6 +1,6 @@
 /* DO NOT EDIT: dc_motor_link module, generated from template kernels.c.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
-/* Node filter kernels (the master reuses predict and info): predict, update, info.
+/* Node filter kernels (the master reuses predict): predict, update, info.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only). */
 #include <math.h>

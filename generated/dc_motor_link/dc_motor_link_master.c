@@ -2,52 +2,44 @@
  * dfeif-codegen 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* The master: predicts stale packets to the current step, fuses the nodes' estimates in
  * information form (difference rule) and keeps its own prediction, following
- * docs/algorithms.md. Computes into locals; writes the master only when nothing can fail. */
+ * docs/algorithms.md. Computes into locals; writes the master only when nothing can fail.
+ * Finiteness is checked on the inputs, on the information gathered and on the results; the
+ * kernels' pivots after each factorisation. */
 #include <string.h>
 #include "dc_motor_link_internal.h"
 
 #define NX DC_MOTOR_LINK_NX
 #define NY DC_MOTOR_LINK_NY
 #define NXX (DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
+/* a symmetric matrix's upper triangle, packed row by row */
+#define NXP ((DC_MOTOR_LINK_NX * (DC_MOTOR_LINK_NX + 1)) / 2)
 #define NNODES DC_MOTOR_LINK_NNODES
 #define NMAX DC_MOTOR_LINK_NMAX
+/* pivots of two factorisations per kernel */
+#define NPIV (2 * NX)
 
 size_t dc_motor_link_master_size(void)
 {
     return sizeof(dc_motor_link_master);
 }
 
-/* Slot of step j's input in master->v. */
-static int input_slot(uint32_t step)
+/* Where step j's input starts in master->v. */
+static size_t input_at(uint32_t step)
 {
     uint32_t slot = step % (uint32_t)NMAX;
-    return (int)slot;
+    return (size_t)slot;
 }
 
 static int master_step(const real* x, const real* P, const real* v, const real* q, real* x1,
                        real* P1)
 {
     real w[DC_MOTOR_LINK_KERN_PREDICT_SZ_W];
+    int rc = DC_MOTOR_LINK_OK;
     (void)dc_motor_link_kern_predict(x, P, v, q, x1, P1, w);
-    if (!dc_motor_link_finite(x1, NX) || !dc_motor_link_finite(P1, NXX)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if ((dc_motor_link_finite(x1, NX) == 0) || (dc_motor_link_finite(P1, NXX) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    return DC_MOTOR_LINK_OK;
-}
-
-/* Y = P^-1, y = Y (x - c) by Cholesky: information about the centre c (the master's prior). */
-static int info(const real* x, const real* P, const real* c, real* Y, real* y)
-{
-    real piv[NX];
-    real w[DC_MOTOR_LINK_KERN_INFO_SZ_W];
-    (void)dc_motor_link_kern_info(x, P, c, Y, y, piv, w);
-    if (!dc_motor_link_positive(piv, NX)) {
-        return DC_MOTOR_LINK_ERR_SINGULAR;
-    }
-    if (!dc_motor_link_finite(Y, NXX) || !dc_motor_link_finite(y, NX)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 /* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
@@ -65,168 +57,254 @@ static void master_recentre(dc_motor_link_master* master)
 /* Predict (x, P) from step j to step k with the stored inputs (in place, through a copy). */
 static int catch_up(const dc_motor_link_master* master, uint32_t j, real* x, real* P)
 {
-    real x1[NX], P1[NXX];
+    real x1[NX];
+    real P1[NXX];
     uint32_t s;
-    int rc;
-    for (s = j; s < master->k; s++) {
-        rc = master_step(x, P, &master->v[input_slot(s) * NY], master->q, x1, P1);
-        if (rc != DC_MOTOR_LINK_OK) {
-            return rc;
+    int rc = DC_MOTOR_LINK_OK;
+    for (s = j; (s < master->k) && (rc == DC_MOTOR_LINK_OK); s++) {
+        rc = master_step(x, P, &master->v[input_at(s)], master->q, x1, P1);
+        if (rc == DC_MOTOR_LINK_OK) {
+            (void)memcpy(x, x1, sizeof(x1));
+            (void)memcpy(P, P1, sizeof(P1));
         }
-        (void)memcpy(x, x1, sizeof(x1));
-        (void)memcpy(P, P1, sizeof(P1));
     }
-    return DC_MOTOR_LINK_OK;
+    return rc;
+}
+
+/* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
+ * P_in itself when the packet is from this step, else predicted into P_buf; *P_out says which. */
+static inline int bring(const dc_motor_link_master* master, const dc_motor_link_packet* pk,
+                        const real* x_in, const real* P_in, real* x, real* P_buf,
+                        const real** P_out)
+{
+    int rc = DC_MOTOR_LINK_OK;
+    /* the centres differ by whole steps */
+    dc_motor_link_move_origin(x_in, pk->centre, master->centre, x);
+    if (pk->step < master->k) {
+        (void)memcpy(P_buf, P_in, sizeof(real[NXX]));
+        rc = catch_up(master, pk->step, x, P_buf);
+        *P_out = P_buf;
+    } else {
+        *P_out = P_in;
+    }
+    return rc;
+}
+
+/* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN
+ * (v * 0 is NaN for those, and a NaN stays in the sum). One test at the end instead of a
+ * branch per value. */
+static inline real zero_sum(const real* a, int n, real acc)
+{
+    real sum = acc;
+    int i;
+    for (i = 0; i < n; i++) {
+        sum += a[i] * (real)0;
+    }
+    return sum;
+}
+
+/* 1 if the probe of zero_sum is 0 (all values finite). */
+static inline int probe_ok(real probe)
+{
+    return (probe == (real)0) ? 1 : 0;
+}
+
+/* A packet's numbers are all finite (as zero_sum, two arrays per pass). */
+static inline int packet_finite(const dc_motor_link_packet* pk)
+{
+    real probe = zero_sum(pk->centre, NY, (real)0);
+    int i;
+    for (i = 0; i < NXX; i++) {
+        probe += (pk->P[i] * (real)0) + (pk->P_pred[i] * (real)0);
+    }
+    for (i = 0; i < NX; i++) {
+        probe += (pk->x[i] * (real)0) + (pk->x_pred[i] * (real)0);
+    }
+    return probe_ok(probe);
+}
+
+/* Both arrays finite. */
+static inline int pair_finite(const real* a, int na, const real* b, int nb)
+{
+    return probe_ok(zero_sum(b, nb, zero_sum(a, na, (real)0)));
+}
+
+/* present[] holds 0 or 1 only. */
+static int present_ok(const uint8_t present[NNODES])
+{
+    int i;
+    int ok = 1;
+    for (i = 0; i < NNODES; i++) {
+        if (present[i] > 1u) {
+            ok = 0;
+        }
+    }
+    return ok;
 }
 
 int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], const real P0[NXX],
                               const real q[NY])
 {
     int i;
-    if (!master || !x0 || !P0 || !q) {
-        return DC_MOTOR_LINK_ERR_ARG;
-    }
-    if (!dc_motor_link_finite(x0, NX) || !dc_motor_link_finite(P0, NXX) ||
-        !dc_motor_link_finite(q, NY)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    for (i = 0; i < NY; i++) {
-        if (q[i] < (real)0) {
-            return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((master == NULL) || (x0 == NULL) || (P0 == NULL) || (q == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else if ((dc_motor_link_finite(x0, NX) == 0) || (dc_motor_link_finite(P0, NXX) == 0) ||
+               (dc_motor_link_finite(q, NY) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
+    } else {
+        for (i = 0; i < NY; i++) {
+            if (q[i] < (real)0) {
+                rc = DC_MOTOR_LINK_ERR_ARG;
+            }
+        }
+        /* P0 must be symmetric positive definite */
+        if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_cov_ok(P0) == 0)) {
+            rc = DC_MOTOR_LINK_ERR_ARG;
         }
     }
-    if (dc_motor_link_cov_ok(P0) == 0) { /* P0 must be symmetric positive definite */
-        return DC_MOTOR_LINK_ERR_ARG;
+    if (rc == DC_MOTOR_LINK_OK) {
+        (void)memset(master, 0, sizeof(*master));
+        (void)memcpy(master->x, x0, sizeof(master->x));
+        (void)memcpy(master->P, P0, sizeof(master->P));
+        (void)memcpy(master->x_prior, x0, sizeof(master->x_prior));
+        (void)memcpy(master->P_prior, P0, sizeof(master->P_prior));
+        (void)memcpy(master->q, q, sizeof(master->q));
+        master_recentre(master);
     }
-    (void)memset(master, 0, sizeof(*master));
-    (void)memcpy(master->x, x0, sizeof(master->x));
-    (void)memcpy(master->P, P0, sizeof(master->P));
-    (void)memcpy(master->x_prior, x0, sizeof(master->x_prior));
-    (void)memcpy(master->P_prior, P0, sizeof(master->P_prior));
-    (void)memcpy(master->q, q, sizeof(master->q));
-    master_recentre(master);
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_master_fuse(dc_motor_link_master* master,
                               const dc_motor_link_packet packets[NNODES],
                               const uint8_t present[NNODES])
 {
-    real Yacc[NXX], yacc[NX], x[NX], P[NXX], Yi[NXX], yi[NX];
-    real xp[NX], Pp[NXX], Ypi[NXX], ypi[NX];
-    real piv[NX];
-    real w[DC_MOTOR_LINK_KERN_FUSE_FINISH_SZ_W];
-    uint32_t used = 0, stale = 0, ignored = 0;
-    int i, d, rc;
-    if (!master || !packets || !present) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    real x[NX];
+    real P[NXX];
+    real Yacc[NXP];
+    real yacc[NX];
+    real piv[NPIV];
+    const real* Pk = P;
+    real xp[NX];
+    real Pp[NXX];
+    const real* Ppk = Pp;
+    real dY[NXP];
+    real dy[NX];
+    int d;
+    uint32_t used = 0u;
+    uint32_t stale = 0u;
+    uint32_t ignored = 0u;
+    int i;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((master == NULL) || (packets == NULL) || (present == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else if (present_ok(present) == 0) { /* the master is changed only after the packets */
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        (void)memset(Yacc, 0, sizeof(Yacc));
+        (void)memset(yacc, 0, sizeof(yacc));
     }
-    rc = info(master->x_prior, master->P_prior, master->x_prior, Yacc, yacc);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
-    }
-    for (i = 0; i < NNODES; i++) {
+    for (i = 0; (i < NNODES) && (rc == DC_MOTOR_LINK_OK); i++) {
         const dc_motor_link_packet* pk = &packets[i];
-        if (present[i] > 1u) { /* 0 or 1 only; the master is changed only after this loop */
-            return DC_MOTOR_LINK_ERR_ARG;
-        }
-        if (!present[i]) {
-            continue;
-        }
-        if (pk->step > master->k || master->k - pk->step > (uint32_t)NMAX) {
+        if (present[i] == 0u) {
+            /* absent: left out */
+        } else if ((pk->step > master->k) || ((master->k - pk->step) > (uint32_t)NMAX)) {
             ignored++;
-            continue;
-        }
-        if (!dc_motor_link_finite(pk->x, NX) || !dc_motor_link_finite(pk->P, NXX) ||
-            !dc_motor_link_finite(pk->x_pred, NX) || !dc_motor_link_finite(pk->P_pred, NXX) ||
-            !dc_motor_link_finite(pk->centre, NY)) {
-            return DC_MOTOR_LINK_ERR_NONFINITE;
-        }
-        /* the centres differ by whole steps */
-        dc_motor_link_move_origin(pk->x, pk->centre, master->centre, x);
-        (void)memcpy(P, pk->P, sizeof(P));
-        rc = catch_up(master, pk->step, x, P);
-        if (rc == DC_MOTOR_LINK_OK) {
-            rc = info(x, P, master->x_prior, Yi, yi);
-        }
-        if (rc != DC_MOTOR_LINK_OK) {
-            return rc;
-        }
-        dc_motor_link_move_origin(pk->x_pred, pk->centre, master->centre, xp);
-        (void)memcpy(Pp, pk->P_pred, sizeof(Pp));
-        rc = catch_up(master, pk->step, xp, Pp);
-        if (rc == DC_MOTOR_LINK_OK) {
-            rc = info(xp, Pp, master->x_prior, Ypi, ypi);
-        }
-        if (rc != DC_MOTOR_LINK_OK) {
-            return rc;
-        }
-        for (d = 0; d < NXX; d++) {
-            Yacc[d] += Yi[d] - Ypi[d];
-        }
-        for (d = 0; d < NX; d++) {
-            yacc[d] += yi[d] - ypi[d];
-        }
-        used++;
-        if (pk->step < master->k) {
-            stale++;
+        } else if (packet_finite(pk) == 0) {
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
+        } else {
+            rc = bring(master, pk, pk->x, pk->P, x, P, &Pk);
+            if (rc == DC_MOTOR_LINK_OK) {
+                rc = bring(master, pk, pk->x_pred, pk->P_pred, xp, Pp, &Ppk);
+            }
+            if (rc == DC_MOTOR_LINK_OK) {
+                (void)dc_motor_link_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
+                if (dc_motor_link_positive(piv, NPIV) == 0) {
+                    rc = DC_MOTOR_LINK_ERR_SINGULAR;
+                }
+            }
+            if (rc == DC_MOTOR_LINK_OK) {
+                for (d = 0; d < NXP; d++) {
+                    Yacc[d] += dY[d];
+                }
+                for (d = 0; d < NX; d++) {
+                    yacc[d] += dy[d];
+                }
+            }
+            if (rc == DC_MOTOR_LINK_OK) {
+                used++;
+                if (pk->step < master->k) {
+                    stale++;
+                }
+            }
         }
     }
-    if (used == 0u) {
+    if (rc != DC_MOTOR_LINK_OK) {
+        /* refused: the master is left as it was */
+    } else if (used == 0u) {
         (void)memcpy(x, master->x_prior, sizeof(x));
         (void)memcpy(P, master->P_prior, sizeof(P));
     } else {
-        (void)dc_motor_link_kern_fuse_finish(Yacc, yacc, master->x_prior, x, P, piv, w);
-        if (!dc_motor_link_positive(piv, NX)) {
-            return DC_MOTOR_LINK_ERR_SINGULAR;
+        if (pair_finite(Yacc, NXP, yacc, NX) == 0) {
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
+        } else {
+            (void)dc_motor_link_kern_fuse_finish(master->P_prior, Yacc, yacc, master->x_prior, x, P,
+                                                 piv);
         }
-        if (!dc_motor_link_finite(x, NX) || !dc_motor_link_finite(P, NXX)) {
-            return DC_MOTOR_LINK_ERR_NONFINITE;
+        if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_positive(piv, NPIV) == 0)) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        }
+        if ((rc == DC_MOTOR_LINK_OK) && (pair_finite(x, NX, P, NXX) == 0)) {
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
         }
     }
-    (void)memcpy(master->x, x, sizeof(x));
-    (void)memcpy(master->P, P, sizeof(P));
-    master->health.fusions++;
-    master->health.packets_used += used;
-    master->health.packets_stale += stale;
-    master->health.packets_ignored += ignored;
-    return DC_MOTOR_LINK_OK;
+    if (rc == DC_MOTOR_LINK_OK) {
+        (void)memcpy(master->x, x, sizeof(x));
+        (void)memcpy(master->P, P, sizeof(P));
+        master->health.fusions++;
+        master->health.packets_used += used;
+        master->health.packets_stale += stale;
+        master->health.packets_ignored += ignored;
+    }
+    return rc;
 }
 
 int dc_motor_link_master_predict(dc_motor_link_master* master, const real v[NY])
 {
-    real x1[NX], P1[NXX];
-    int rc;
-    if (!master || !v) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    real x1[NX];
+    real P1[NXX];
+    int rc = DC_MOTOR_LINK_OK;
+    if ((master == NULL) || (v == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else if (dc_motor_link_finite(v, NY) == 0) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
+    } else {
+        rc = master_step(master->x, master->P, v, master->q, x1, P1);
     }
-    if (!dc_motor_link_finite(v, NY)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if (rc == DC_MOTOR_LINK_OK) {
+        (void)memcpy(&master->v[input_at(master->k)], v, sizeof(real[NY]));
+        master->k++;
+        (void)memcpy(master->x_prior, x1, sizeof(x1));
+        (void)memcpy(master->P_prior, P1, sizeof(P1));
+        (void)memcpy(master->x, x1, sizeof(x1));
+        (void)memcpy(master->P, P1, sizeof(P1));
+        master_recentre(master);
     }
-    rc = master_step(master->x, master->P, v, master->q, x1, P1);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
-    }
-    (void)memcpy(&master->v[input_slot(master->k) * NY], v, sizeof(real) * (size_t)NY);
-    master->k++;
-    (void)memcpy(master->x_prior, x1, sizeof(x1));
-    (void)memcpy(master->P_prior, P1, sizeof(P1));
-    (void)memcpy(master->x, x1, sizeof(x1));
-    (void)memcpy(master->P, P1, sizeof(P1));
-    master_recentre(master);
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_master_estimate(const dc_motor_link_master* master, real x[NX], real P[NXX])
 {
-    if (!master) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if (master == NULL) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        if (x != NULL) {
+            dc_motor_link_move_origin(master->x, master->centre, NULL, x);
+        }
+        if (P != NULL) {
+            (void)memcpy(P, master->P, sizeof(master->P));
+        }
     }
-    if (x != NULL) {
-        dc_motor_link_move_origin(master->x, master->centre, NULL, x);
-    }
-    if (P != NULL) {
-        (void)memcpy(P, master->P, sizeof(master->P));
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }

@@ -1,7 +1,8 @@
 /* DO NOT EDIT: two_link_arm module, generated from template kernels.h.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build two_link_arm`. */
 /* Internal to the two_link_arm library: the typed entry points of the CasADi kernels,
- * generated from each kernel's signature, and the work size each needs. Inputs are const,
+ * generated from each kernel's signature, and the work size each needs (none for the master's
+ * kernels, which keep their work in locals). Inputs are const,
  * outputs writable, arrays row-major with the sizes given; none may be NULL and no output may
  * overlap an input. */
 #ifndef TWO_LINK_ARM_KERNELS_H
@@ -31,12 +32,17 @@ int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real
                            two_link_arm_real y[6], two_link_arm_real piv[6],
                            two_link_arm_real w[TWO_LINK_ARM_KERN_INFO_SZ_W]);
 
-/* two_link_arm_kern_fuse_finish:(Y[6x6],y[6],c[6])->(x[6],P[6x6],piv[6]) */
-#define TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W 51
-int two_link_arm_kern_fuse_finish(const two_link_arm_real Y[36], const two_link_arm_real y[6],
-                                  const two_link_arm_real c[6], two_link_arm_real x[6],
-                                  two_link_arm_real P[36], two_link_arm_real piv[6],
-                                  two_link_arm_real w[TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W]);
+/* two_link_arm_kern_master_gain:(x[6],P[6x6],xp[6],Pp[6x6],c[6])->(dY[21],dy[6],piv[12]) */
+int two_link_arm_kern_master_gain(const two_link_arm_real x[6], const two_link_arm_real P[36],
+                                  const two_link_arm_real xp[6], const two_link_arm_real Pp[36],
+                                  const two_link_arm_real c[6], two_link_arm_real dY[21],
+                                  two_link_arm_real dy[6], two_link_arm_real piv[12]);
+
+/* two_link_arm_kern_fuse_finish:(Pc[6x6],dY[21],dy[6],c[6])->(x[6],P[6x6],piv[12]) */
+int two_link_arm_kern_fuse_finish(const two_link_arm_real Pc[36], const two_link_arm_real dY[21],
+                                  const two_link_arm_real dy[6], const two_link_arm_real c[6],
+                                  two_link_arm_real x[6], two_link_arm_real P[36],
+                                  two_link_arm_real piv[12]);
 
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_W 54

@@ -1,6 +1,6 @@
 /* DO NOT EDIT: two_link_arm module, generated from template kernels.c.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build two_link_arm`. */
-/* Node filter kernels (the master reuses predict and info): predict, update, info.
+/* Node filter kernels (the master reuses predict): predict, update, info.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only). */
 #include <math.h>

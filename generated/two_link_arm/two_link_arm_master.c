@@ -2,52 +2,44 @@
  * dfeif-codegen 0.1.0; regenerate with `codegen build two_link_arm`. */
 /* The master: predicts stale packets to the current step, fuses the nodes' estimates in
  * information form (difference rule) and keeps its own prediction, following
- * docs/algorithms.md. Computes into locals; writes the master only when nothing can fail. */
+ * docs/algorithms.md. Computes into locals; writes the master only when nothing can fail.
+ * Finiteness is checked on the inputs, on the information gathered and on the results; the
+ * kernels' pivots after each factorisation. */
 #include <string.h>
 #include "two_link_arm_internal.h"
 
 #define NX TWO_LINK_ARM_NX
 #define NY TWO_LINK_ARM_NY
 #define NXX (TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
+/* a symmetric matrix's upper triangle, packed row by row */
+#define NXP ((TWO_LINK_ARM_NX * (TWO_LINK_ARM_NX + 1)) / 2)
 #define NNODES TWO_LINK_ARM_NNODES
 #define NMAX TWO_LINK_ARM_NMAX
+/* pivots of two factorisations per kernel */
+#define NPIV (2 * NX)
 
 size_t two_link_arm_master_size(void)
 {
     return sizeof(two_link_arm_master);
 }
 
-/* Slot of step j's input in master->v. */
-static int input_slot(uint32_t step)
+/* Where step j's input starts in master->v. */
+static size_t input_at(uint32_t step)
 {
     uint32_t slot = step % (uint32_t)NMAX;
-    return (int)slot;
+    return (size_t)slot * (size_t)NY;
 }
 
 static int master_step(const real* x, const real* P, const real* v, const real* q, real* x1,
                        real* P1)
 {
     real w[TWO_LINK_ARM_KERN_PREDICT_SZ_W];
+    int rc = TWO_LINK_ARM_OK;
     (void)two_link_arm_kern_predict(x, P, v, q, x1, P1, w);
-    if (!two_link_arm_finite(x1, NX) || !two_link_arm_finite(P1, NXX)) {
-        return TWO_LINK_ARM_ERR_NONFINITE;
+    if ((two_link_arm_finite(x1, NX) == 0) || (two_link_arm_finite(P1, NXX) == 0)) {
+        rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
-    return TWO_LINK_ARM_OK;
-}
-
-/* Y = P^-1, y = Y (x - c) by Cholesky: information about the centre c (the master's prior). */
-static int info(const real* x, const real* P, const real* c, real* Y, real* y)
-{
-    real piv[NX];
-    real w[TWO_LINK_ARM_KERN_INFO_SZ_W];
-    (void)two_link_arm_kern_info(x, P, c, Y, y, piv, w);
-    if (!two_link_arm_positive(piv, NX)) {
-        return TWO_LINK_ARM_ERR_SINGULAR;
-    }
-    if (!two_link_arm_finite(Y, NXX) || !two_link_arm_finite(y, NX)) {
-        return TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    return TWO_LINK_ARM_OK;
+    return rc;
 }
 
 /* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
@@ -65,167 +57,253 @@ static void master_recentre(two_link_arm_master* master)
 /* Predict (x, P) from step j to step k with the stored inputs (in place, through a copy). */
 static int catch_up(const two_link_arm_master* master, uint32_t j, real* x, real* P)
 {
-    real x1[NX], P1[NXX];
+    real x1[NX];
+    real P1[NXX];
     uint32_t s;
-    int rc;
-    for (s = j; s < master->k; s++) {
-        rc = master_step(x, P, &master->v[input_slot(s) * NY], master->q, x1, P1);
-        if (rc != TWO_LINK_ARM_OK) {
-            return rc;
+    int rc = TWO_LINK_ARM_OK;
+    for (s = j; (s < master->k) && (rc == TWO_LINK_ARM_OK); s++) {
+        rc = master_step(x, P, &master->v[input_at(s)], master->q, x1, P1);
+        if (rc == TWO_LINK_ARM_OK) {
+            (void)memcpy(x, x1, sizeof(x1));
+            (void)memcpy(P, P1, sizeof(P1));
         }
-        (void)memcpy(x, x1, sizeof(x1));
-        (void)memcpy(P, P1, sizeof(P1));
     }
-    return TWO_LINK_ARM_OK;
+    return rc;
+}
+
+/* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
+ * P_in itself when the packet is from this step, else predicted into P_buf; *P_out says which. */
+static inline int bring(const two_link_arm_master* master, const two_link_arm_packet* pk,
+                        const real* x_in, const real* P_in, real* x, real* P_buf,
+                        const real** P_out)
+{
+    int rc = TWO_LINK_ARM_OK;
+    /* the centres differ by whole steps */
+    two_link_arm_move_origin(x_in, pk->centre, master->centre, x);
+    if (pk->step < master->k) {
+        (void)memcpy(P_buf, P_in, sizeof(real[NXX]));
+        rc = catch_up(master, pk->step, x, P_buf);
+        *P_out = P_buf;
+    } else {
+        *P_out = P_in;
+    }
+    return rc;
+}
+
+/* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN
+ * (v * 0 is NaN for those, and a NaN stays in the sum). One test at the end instead of a
+ * branch per value. */
+static inline real zero_sum(const real* a, int n, real acc)
+{
+    real sum = acc;
+    int i;
+    for (i = 0; i < n; i++) {
+        sum += a[i] * (real)0;
+    }
+    return sum;
+}
+
+/* 1 if the probe of zero_sum is 0 (all values finite). */
+static inline int probe_ok(real probe)
+{
+    return (probe == (real)0) ? 1 : 0;
+}
+
+/* A packet's numbers are all finite (as zero_sum, two arrays per pass). */
+static inline int packet_finite(const two_link_arm_packet* pk)
+{
+    real probe = zero_sum(pk->centre, NY, (real)0);
+    int i;
+    for (i = 0; i < NXX; i++) {
+        probe += (pk->P[i] * (real)0) + (pk->P_pred[i] * (real)0);
+    }
+    for (i = 0; i < NX; i++) {
+        probe += (pk->x[i] * (real)0) + (pk->x_pred[i] * (real)0);
+    }
+    return probe_ok(probe);
+}
+
+/* Both arrays finite. */
+static inline int pair_finite(const real* a, int na, const real* b, int nb)
+{
+    return probe_ok(zero_sum(b, nb, zero_sum(a, na, (real)0)));
+}
+
+/* present[] holds 0 or 1 only. */
+static int present_ok(const uint8_t present[NNODES])
+{
+    int i;
+    int ok = 1;
+    for (i = 0; i < NNODES; i++) {
+        if (present[i] > 1u) {
+            ok = 0;
+        }
+    }
+    return ok;
 }
 
 int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], const real P0[NXX],
                              const real q[NY])
 {
     int i;
-    if (!master || !x0 || !P0 || !q) {
-        return TWO_LINK_ARM_ERR_ARG;
-    }
-    if (!two_link_arm_finite(x0, NX) || !two_link_arm_finite(P0, NXX) ||
-        !two_link_arm_finite(q, NY)) {
-        return TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    for (i = 0; i < NY; i++) {
-        if (q[i] < (real)0) {
-            return TWO_LINK_ARM_ERR_ARG;
+    int rc = TWO_LINK_ARM_OK;
+    if ((master == NULL) || (x0 == NULL) || (P0 == NULL) || (q == NULL)) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else if ((two_link_arm_finite(x0, NX) == 0) || (two_link_arm_finite(P0, NXX) == 0) ||
+               (two_link_arm_finite(q, NY) == 0)) {
+        rc = TWO_LINK_ARM_ERR_NONFINITE;
+    } else {
+        for (i = 0; i < NY; i++) {
+            if (q[i] < (real)0) {
+                rc = TWO_LINK_ARM_ERR_ARG;
+            }
+        }
+        /* P0 must be symmetric positive definite */
+        if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_cov_ok(P0) == 0)) {
+            rc = TWO_LINK_ARM_ERR_ARG;
         }
     }
-    if (two_link_arm_cov_ok(P0) == 0) { /* P0 must be symmetric positive definite */
-        return TWO_LINK_ARM_ERR_ARG;
+    if (rc == TWO_LINK_ARM_OK) {
+        (void)memset(master, 0, sizeof(*master));
+        (void)memcpy(master->x, x0, sizeof(master->x));
+        (void)memcpy(master->P, P0, sizeof(master->P));
+        (void)memcpy(master->x_prior, x0, sizeof(master->x_prior));
+        (void)memcpy(master->P_prior, P0, sizeof(master->P_prior));
+        (void)memcpy(master->q, q, sizeof(master->q));
+        master_recentre(master);
     }
-    (void)memset(master, 0, sizeof(*master));
-    (void)memcpy(master->x, x0, sizeof(master->x));
-    (void)memcpy(master->P, P0, sizeof(master->P));
-    (void)memcpy(master->x_prior, x0, sizeof(master->x_prior));
-    (void)memcpy(master->P_prior, P0, sizeof(master->P_prior));
-    (void)memcpy(master->q, q, sizeof(master->q));
-    master_recentre(master);
-    return TWO_LINK_ARM_OK;
+    return rc;
 }
 
 int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_packet packets[NNODES],
                              const uint8_t present[NNODES])
 {
-    real Yacc[NXX], yacc[NX], x[NX], P[NXX], Yi[NXX], yi[NX];
-    real xp[NX], Pp[NXX], Ypi[NXX], ypi[NX];
-    real piv[NX];
-    real w[TWO_LINK_ARM_KERN_FUSE_FINISH_SZ_W];
-    uint32_t used = 0, stale = 0, ignored = 0;
-    int i, d, rc;
-    if (!master || !packets || !present) {
-        return TWO_LINK_ARM_ERR_ARG;
+    real x[NX];
+    real P[NXX];
+    real Yacc[NXP];
+    real yacc[NX];
+    real piv[NPIV];
+    const real* Pk = P;
+    real xp[NX];
+    real Pp[NXX];
+    const real* Ppk = Pp;
+    real dY[NXP];
+    real dy[NX];
+    int d;
+    uint32_t used = 0u;
+    uint32_t stale = 0u;
+    uint32_t ignored = 0u;
+    int i;
+    int rc = TWO_LINK_ARM_OK;
+    if ((master == NULL) || (packets == NULL) || (present == NULL)) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else if (present_ok(present) == 0) { /* the master is changed only after the packets */
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else {
+        (void)memset(Yacc, 0, sizeof(Yacc));
+        (void)memset(yacc, 0, sizeof(yacc));
     }
-    rc = info(master->x_prior, master->P_prior, master->x_prior, Yacc, yacc);
-    if (rc != TWO_LINK_ARM_OK) {
-        return rc;
-    }
-    for (i = 0; i < NNODES; i++) {
+    for (i = 0; (i < NNODES) && (rc == TWO_LINK_ARM_OK); i++) {
         const two_link_arm_packet* pk = &packets[i];
-        if (present[i] > 1u) { /* 0 or 1 only; the master is changed only after this loop */
-            return TWO_LINK_ARM_ERR_ARG;
-        }
-        if (!present[i]) {
-            continue;
-        }
-        if (pk->step > master->k || master->k - pk->step > (uint32_t)NMAX) {
+        if (present[i] == 0u) {
+            /* absent: left out */
+        } else if ((pk->step > master->k) || ((master->k - pk->step) > (uint32_t)NMAX)) {
             ignored++;
-            continue;
-        }
-        if (!two_link_arm_finite(pk->x, NX) || !two_link_arm_finite(pk->P, NXX) ||
-            !two_link_arm_finite(pk->x_pred, NX) || !two_link_arm_finite(pk->P_pred, NXX) ||
-            !two_link_arm_finite(pk->centre, NY)) {
-            return TWO_LINK_ARM_ERR_NONFINITE;
-        }
-        /* the centres differ by whole steps */
-        two_link_arm_move_origin(pk->x, pk->centre, master->centre, x);
-        (void)memcpy(P, pk->P, sizeof(P));
-        rc = catch_up(master, pk->step, x, P);
-        if (rc == TWO_LINK_ARM_OK) {
-            rc = info(x, P, master->x_prior, Yi, yi);
-        }
-        if (rc != TWO_LINK_ARM_OK) {
-            return rc;
-        }
-        two_link_arm_move_origin(pk->x_pred, pk->centre, master->centre, xp);
-        (void)memcpy(Pp, pk->P_pred, sizeof(Pp));
-        rc = catch_up(master, pk->step, xp, Pp);
-        if (rc == TWO_LINK_ARM_OK) {
-            rc = info(xp, Pp, master->x_prior, Ypi, ypi);
-        }
-        if (rc != TWO_LINK_ARM_OK) {
-            return rc;
-        }
-        for (d = 0; d < NXX; d++) {
-            Yacc[d] += Yi[d] - Ypi[d];
-        }
-        for (d = 0; d < NX; d++) {
-            yacc[d] += yi[d] - ypi[d];
-        }
-        used++;
-        if (pk->step < master->k) {
-            stale++;
+        } else if (packet_finite(pk) == 0) {
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
+        } else {
+            rc = bring(master, pk, pk->x, pk->P, x, P, &Pk);
+            if (rc == TWO_LINK_ARM_OK) {
+                rc = bring(master, pk, pk->x_pred, pk->P_pred, xp, Pp, &Ppk);
+            }
+            if (rc == TWO_LINK_ARM_OK) {
+                (void)two_link_arm_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
+                if (two_link_arm_positive(piv, NPIV) == 0) {
+                    rc = TWO_LINK_ARM_ERR_SINGULAR;
+                }
+            }
+            if (rc == TWO_LINK_ARM_OK) {
+                for (d = 0; d < NXP; d++) {
+                    Yacc[d] += dY[d];
+                }
+                for (d = 0; d < NX; d++) {
+                    yacc[d] += dy[d];
+                }
+            }
+            if (rc == TWO_LINK_ARM_OK) {
+                used++;
+                if (pk->step < master->k) {
+                    stale++;
+                }
+            }
         }
     }
-    if (used == 0u) {
+    if (rc != TWO_LINK_ARM_OK) {
+        /* refused: the master is left as it was */
+    } else if (used == 0u) {
         (void)memcpy(x, master->x_prior, sizeof(x));
         (void)memcpy(P, master->P_prior, sizeof(P));
     } else {
-        (void)two_link_arm_kern_fuse_finish(Yacc, yacc, master->x_prior, x, P, piv, w);
-        if (!two_link_arm_positive(piv, NX)) {
-            return TWO_LINK_ARM_ERR_SINGULAR;
+        if (pair_finite(Yacc, NXP, yacc, NX) == 0) {
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
+        } else {
+            (void)two_link_arm_kern_fuse_finish(master->P_prior, Yacc, yacc, master->x_prior, x, P,
+                                                piv);
         }
-        if (!two_link_arm_finite(x, NX) || !two_link_arm_finite(P, NXX)) {
-            return TWO_LINK_ARM_ERR_NONFINITE;
+        if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_positive(piv, NPIV) == 0)) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        }
+        if ((rc == TWO_LINK_ARM_OK) && (pair_finite(x, NX, P, NXX) == 0)) {
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
         }
     }
-    (void)memcpy(master->x, x, sizeof(x));
-    (void)memcpy(master->P, P, sizeof(P));
-    master->health.fusions++;
-    master->health.packets_used += used;
-    master->health.packets_stale += stale;
-    master->health.packets_ignored += ignored;
-    return TWO_LINK_ARM_OK;
+    if (rc == TWO_LINK_ARM_OK) {
+        (void)memcpy(master->x, x, sizeof(x));
+        (void)memcpy(master->P, P, sizeof(P));
+        master->health.fusions++;
+        master->health.packets_used += used;
+        master->health.packets_stale += stale;
+        master->health.packets_ignored += ignored;
+    }
+    return rc;
 }
 
 int two_link_arm_master_predict(two_link_arm_master* master, const real v[NY])
 {
-    real x1[NX], P1[NXX];
-    int rc;
-    if (!master || !v) {
-        return TWO_LINK_ARM_ERR_ARG;
+    real x1[NX];
+    real P1[NXX];
+    int rc = TWO_LINK_ARM_OK;
+    if ((master == NULL) || (v == NULL)) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else if (two_link_arm_finite(v, NY) == 0) {
+        rc = TWO_LINK_ARM_ERR_NONFINITE;
+    } else {
+        rc = master_step(master->x, master->P, v, master->q, x1, P1);
     }
-    if (!two_link_arm_finite(v, NY)) {
-        return TWO_LINK_ARM_ERR_NONFINITE;
+    if (rc == TWO_LINK_ARM_OK) {
+        (void)memcpy(&master->v[input_at(master->k)], v, sizeof(real[NY]));
+        master->k++;
+        (void)memcpy(master->x_prior, x1, sizeof(x1));
+        (void)memcpy(master->P_prior, P1, sizeof(P1));
+        (void)memcpy(master->x, x1, sizeof(x1));
+        (void)memcpy(master->P, P1, sizeof(P1));
+        master_recentre(master);
     }
-    rc = master_step(master->x, master->P, v, master->q, x1, P1);
-    if (rc != TWO_LINK_ARM_OK) {
-        return rc;
-    }
-    (void)memcpy(&master->v[input_slot(master->k) * NY], v, sizeof(real) * (size_t)NY);
-    master->k++;
-    (void)memcpy(master->x_prior, x1, sizeof(x1));
-    (void)memcpy(master->P_prior, P1, sizeof(P1));
-    (void)memcpy(master->x, x1, sizeof(x1));
-    (void)memcpy(master->P, P1, sizeof(P1));
-    master_recentre(master);
-    return TWO_LINK_ARM_OK;
+    return rc;
 }
 
 int two_link_arm_master_estimate(const two_link_arm_master* master, real x[NX], real P[NXX])
 {
-    if (!master) {
-        return TWO_LINK_ARM_ERR_ARG;
+    int rc = TWO_LINK_ARM_OK;
+    if (master == NULL) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else {
+        if (x != NULL) {
+            two_link_arm_move_origin(master->x, master->centre, NULL, x);
+        }
+        if (P != NULL) {
+            (void)memcpy(P, master->P, sizeof(master->P));
+        }
     }
-    if (x != NULL) {
-        two_link_arm_move_origin(master->x, master->centre, NULL, x);
-    }
-    if (P != NULL) {
-        (void)memcpy(P, master->P, sizeof(master->P));
-    }
-    return TWO_LINK_ARM_OK;
+    return rc;
 }

@@ -1,0 +1,118 @@
+"""Covariance-intersection weights against independent oracles: a general-purpose solver
+(scipy's SLSQP) on the same regularised criterion, and closed forms for two nodes.
+
+The criterion (docs/algorithms.md, master "ci") is f(w) = tr((sum w_i Y_i)^-1) + rho/2 |w|^2 on
+the simplex, rho = CI_REGULARISER * max_i H_ii at the weights found. For that rho, f is strongly
+convex with modulus >= rho, so the weights w found are the minimiser exactly when every other
+point w' of the simplex has f(w') - f(w) >= rho/2 |w' - w|^2; the tests check that against the
+solver's answer (a point the solver could not improve on) and against random points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from dfeif_codegen.constants import CI_REGULARISER, ci_iterations
+from dfeif_codegen.reference.fusion import covariance_intersection_weights
+
+
+def random_spd(rng, n, scale):
+    a = rng.standard_normal((n, n))
+    return scale * (a @ a.T / n + 0.1 * np.eye(n))
+
+
+def node_set(rng, M, n):
+    """M nodes' informations as a master sees them: a common prior's information plus each
+    node's own, of sizes spread over two decades (so some weights go to 0)."""
+    common = np.linalg.inv(random_spd(rng, n, 1.0))
+    return [common + np.linalg.inv(random_spd(rng, n, 10 ** rng.uniform(-1, 1))) for _ in range(M)]
+
+
+def rho_at(Ys, w):
+    P = np.linalg.inv(sum(a * Y for a, Y in zip(w, Ys)))
+    return CI_REGULARISER * max(2 * np.trace(P @ Y @ P @ Y @ P) for Y in Ys)
+
+
+def criterion(Ys, rho):
+    def f(w):
+        return np.trace(np.linalg.inv(sum(a * Y for a, Y in zip(w, Ys)))) + rho / 2 * (w @ w)
+
+    def grad(w):
+        P = np.linalg.inv(sum(a * Y for a, Y in zip(w, Ys)))
+        return np.array([-np.trace(P @ Y @ P) for Y in Ys]) + rho * w
+    return f, grad
+
+
+def slsqp(Ys, rho):
+    M = len(Ys)
+    f, grad = criterion(Ys, rho)
+    res = minimize(f, np.full(M, 1 / M), jac=grad, method="SLSQP", bounds=[(0, 1)] * M,
+                   constraints=[{"type": "eq", "fun": lambda w: w.sum() - 1, "jac": lambda w: np.ones(M)}],
+                   options={"ftol": 1e-15, "maxiter": 2000})
+    return np.clip(res.x, 0, None) / np.clip(res.x, 0, None).sum()
+
+
+@pytest.mark.parametrize("M", [1, 2, 8, 16])
+def test_weights_minimise_the_criterion_like_a_general_solver(M):
+    rng = np.random.default_rng(100 + M)
+    for trial in range(12):
+        n = 3 + trial % 2
+        Ys = node_set(rng, M, n)
+        w = covariance_intersection_weights(Ys, ci_iterations(M))
+        assert np.all(w >= 0) and abs(w.sum() - 1) < 1e-12
+        rho = rho_at(Ys, w)
+        f, _ = criterion(Ys, rho)
+        ws = slsqp(Ys, rho)
+        others = np.vstack([ws, rng.dirichlet(np.ones(M), 200)])
+        # strong convexity: f(w') - f(w) >= rho/2 |w' - w|^2 at the minimiser w; the slack is the
+        # rounding of f (a 3x3 or 4x4 inverse, cond < 1e4: ~1e-12 relative on any IEEE machine)
+        for other in others:
+            gap = f(other) - f(w)
+            assert gap >= rho / 2 * np.sum((other - w) ** 2) - 1e-12 * f(w), (trial, other, w)
+        # and the solver's answer is the same point (the bound above with its gap, which SLSQP's
+        # ftol of 1e-15 keeps below 1e-12 f): |ws - w| <= sqrt(2 gap / rho)
+        assert np.sum((ws - w) ** 2) <= 2 * (max(f(ws) - f(w), 0) + 1e-12 * f(w)) / rho
+
+
+def test_twelve_steps_are_not_enough_for_sixteen_nodes():
+    """Why the step count grows with M: with 12 steps a sparse 16-node optimum is not reached
+    (the search drops one weight per step), with ci_iterations(16) it is."""
+    rng = np.random.default_rng(7)
+    worst12, worst = 0.0, 0.0
+    for _ in range(6):
+        Ys = node_set(rng, 16, 3)
+        w = covariance_intersection_weights(Ys, ci_iterations(16))
+        f, _ = criterion(Ys, rho_at(Ys, w))
+        worst = max(worst, f(w) / f(slsqp(Ys, rho_at(Ys, w))) - 1)
+        worst12 = max(worst12, f(covariance_intersection_weights(Ys, 12)) / f(w) - 1)
+    assert worst12 > 1e-2 and worst < 1e-12
+
+
+def test_two_scalar_nodes_match_the_stationary_point():
+    """n = 1, M = 2: f(w) = 1/(w a + (1 - w) b) + rho/2 (w^2 + (1 - w)^2), f'(w) = 0 is the cubic
+    rho (2w - 1)(b + w (a - b))^2 = a - b, whose root in [0, 1] is the weight (or a vertex)."""
+    for a, b in [(1.0, 2.0), (3.0, 2.9), (10.0, 9.0), (1e3, 999.0), (5.0, 5.0)]:
+        Ys = [np.array([[a]]), np.array([[b]])]
+        w = covariance_intersection_weights(Ys, ci_iterations(2))
+        rho = rho_at(Ys, w)
+        c = a - b
+        # rho (2w - 1)(c^2 w^2 + 2 b c w + b^2) - c: coefficients of w^3 .. w^0
+        poly = rho * np.array([2 * c * c, 4 * b * c - c * c, 2 * b * b - 2 * b * c, -b * b]) - np.array([0, 0, 0, c])
+        roots = [r.real for r in np.roots(poly) if abs(r.imag) < 1e-12 and -1e-12 <= r.real <= 1 + 1e-12]
+        expected = roots[0] if roots else (1.0 if a > b else 0.0)
+        # a cubic's root on O(1) coefficients: 1e-10 is ~1e6 ulps of margin for the Newton steps
+        assert w[0] == pytest.approx(expected, abs=1e-10), (a, b)
+
+
+def test_two_diagonal_nodes_closed_forms():
+    """Mirror images (diag(a, b, d), diag(b, a, d)) get 1/2 each by symmetry. Y_1 = c Y, Y_2 = Y:
+    tr S^-1 = t / (1 + w (c - 1)) with t = tr Y^-1, and at w = (1, 0) the Hessian's diagonal is
+    2t/c and 2t/c^3, so rho = 2 CI_REGULARISER t / c and f'(1) = -t (c - 1)/c^2 + rho < 0 once
+    c > 1 / (1 - 2 CI_REGULARISER): the vertex w = (1, 0) is the minimiser (c = 2 here)."""
+    w = covariance_intersection_weights([np.diag([4.0, 1.0, 2.0]), np.diag([1.0, 4.0, 2.0])])
+    assert w == pytest.approx([0.5, 0.5], abs=1e-15)
+    Y = np.diag([2.0, 0.5, 1.0])
+    w = covariance_intersection_weights([2.0 * Y, Y])
+    assert w[0] == 1.0 and w[1] == 0.0
