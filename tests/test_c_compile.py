@@ -301,7 +301,9 @@ int main(void)
 
     /* information of a non-positive-definite covariance */
     tmp = a;
-    for (i = 0; i < NX * NX; i++) tmp.P[i] = (i % (NX + 1) == 0) ? -1 : 0;
+    /* P = -I in the node's packed upper triangle (column j holds entries 0..j, the diagonal last) */
+    for (i = 0; i < K(NPP); i++) tmp.P[i] = 0;
+    for (i = 0; i < NX; i++) tmp.P[(i * (i + 1)) / 2 + i] = -1;
     snap = tmp;
     for (i = 0; i < NX * NX; i++) Y[i] = 7;
     CHECK(F(node_information)(&tmp, Y, x) == K(ERR_SINGULAR) && SAME(tmp, snap) && Y[0] == 7);
@@ -624,3 +626,41 @@ def test_discrete_constants_match_discretize():
         if N > 0:
             np.testing.assert_allclose(Q_got, discretize.process_noise(flat.degrees, N * 0.01, [2.0, 3.0]),
                                        rtol=1e-13)
+
+
+def test_replay_from_checkpoints_equals_reference(tmp_path):
+    """A replay node keeps P priors at checkpoints (every 4th step) and recomputes the others
+    (docs/algorithms.md, node storage). Window 6: the lag-6 frames start from the slot furthest
+    from its checkpoint at every offset mod 4, and need the flags of steps before the window.
+    Each dropped step's frame comes back late (lag 6 or 2), over 60 steps: the C equals the numpy
+    reference filter. The same Joseph-form operations on a 3x3 in both: rounding differs by a
+    few ulps per step and the filter is contracting, so 1e-11 relative holds on any IEEE machine."""
+    from dfeif_codegen.check import harness
+    from dfeif_codegen.reference.node import NodeFilter
+
+    md = harness.build_model("dc_motor_link", tmp_path / "b", "double", "replay", "difference", 2, 6)
+    lib = Lib(shared_library(md.path, tmp_path), "dc_motor_link")
+    flat = _flat("dc_motor_link")
+    x0, P0, R, q = np.array([0.1, 0.0, 0.0]), np.diag([1e-2, 1e-1, 1.0]), np.array([[1e-4]]), np.array([5.0])
+    ref = NodeFilter(flat, flat.model.ts, q, R, x0, P0, max_lag=6, oosm="replay")
+    node = lib.new("node")
+    assert lib("node_init", node, x0.copy(), P0.ravel().copy(), R.ravel().copy(), q.copy()) == 0
+    z = {k: np.array([0.1 + 0.2 * np.sin(0.07 * k) + 0.003 * np.cos(2.3 * k)]) for k in range(60)}
+    dropped, late = lambda k: k % 3 != 0 or k % 7 == 0, 0
+    for k in range(60):
+        gamma = int(not dropped(k))
+        ref.update(z[k], bool(gamma))
+        assert lib("node_update", node, z[k], gamma) == 0
+        for lag in (6, 2):   # the even dropped steps come back 6 steps late, the odd ones 2
+            if k >= lag and dropped(k - lag) and (k - lag) % 2 == int(lag == 2):
+                assert ref.update_delayed(z[k - lag], lag)
+                assert lib("node_update_delayed", node, z[k - lag], ctypes.c_int32(lag)) == 0
+                late += 1
+        x, P = np.zeros(3), np.zeros(9)
+        assert lib("node_estimate", node, x, P) == 0
+        np.testing.assert_allclose(x, ref.x, rtol=1e-11, atol=1e-14)
+        np.testing.assert_allclose(P.reshape(3, 3), ref.P, rtol=1e-11, atol=1e-18)
+        v = np.array([np.cos(0.1 * k)])
+        ref.predict(v)
+        assert lib("node_predict", node, v) == 0
+    assert late > 20

@@ -218,7 +218,8 @@ def test_failed_replay_leaves_the_node_unchanged(host_cc, tmp_path):
     then sees twice its innovation), after the replay rewrote the slots in between: the node is
     rolled back byte for byte, and later calls match a twin node that never saw the frame. A
     position output (an angle's innovation is wrapped, so bounded). Both halves of the rollback
-    (the priors' x copy, the priors' P recomputed) are needed to pass: checked by removing each."""
+    (the priors' x copy, the copy of the P checkpoints the replay passed: window 8, a checkpoint
+    every 4th step, so steps 8 and 12 are rewritten) are needed to pass: checked by removing each."""
     import ctypes
 
     from dfeif_codegen.check import harness

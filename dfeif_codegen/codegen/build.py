@@ -110,6 +110,9 @@ def context(flat, opts: Options) -> dict:
         "ci_iterations": ci_iterations(opts.nodes), "model_hash": model_hash(m), "versions": versions(),
         "cmake_version": cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
+        # the node stores P priors every `check_every` steps (replay recomputes the ones between
+        # with the P recursion); a retrodiction restarts that recursion, so it keeps every one
+        "check_every": kernels.CHECK_EVERY if opts.oosm == "replay" else 1,
         "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
     }

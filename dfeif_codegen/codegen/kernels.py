@@ -205,6 +205,24 @@ class _Builder:
         return S, scale * K, piv
 
     @staticmethod
+    def unpack(p: ca.SX, n: int) -> ca.SX:
+        """The symmetric n x n matrix of a packed upper triangle (packed_index order): each
+        distinct entry of the node's P stored, read and computed once."""
+        out = ca.SX(n, n)
+        for j in range(n):
+            for i in range(j + 1):
+                out[i, j] = p[packed_index(i, j)]
+                out[j, i] = p[packed_index(i, j)]
+        return out
+
+    @staticmethod
+    def pack(P: ca.SX) -> ca.SX:
+        """The upper triangle of a symmetric result, column by column: only these entries are
+        computed (CasADi drops the expressions of the lower triangle)."""
+        n = P.shape[0]
+        return ca.vertcat(*[P[i, j] for j in range(n) for i in range(j + 1)])
+
+    @staticmethod
     def symmetric(P: ca.SX) -> ca.SX:
         """P from its upper triangle: each distinct entry of a symmetric result computed once (the
         lower triangle reuses the same expressions), and of an input read once."""
@@ -230,14 +248,29 @@ class _Builder:
         return ca.Function(name, [x, P, v, q], [x1, P1], ["x", "P", "v", "q"], ["x1", "P1"])
 
     def update(self, name: str) -> ca.Function:
-        n, m = self.n, self.m
-        xm, Pm, z, gamma, R = _sym("xm", n), _sym("Pm", n, n), _sym("z", m), _sym("gamma"), _sym("R", m, m)
+        """The node's update on its packed prior (npp = n (n + 1) / 2 reals), posterior packed."""
+        n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
+        xm, Pm, z, gamma, R = _sym("xm", n), _sym("Pm", npp), _sym("z", m), _sym("gamma"), _sym("R", m, m)
+        x, P, piv = self._update(xm, self.unpack(Pm, n), z, gamma, R)
+        return ca.Function(name, [xm, Pm, z, gamma, R], [x, self.pack(P), piv],
+                           ["xm", "Pm", "z", "gamma", "R"], ["x", "P", "piv"])
+
+    def _update(self, xm, Pm, z, gamma, R):
         e = self.wrap(z - self.head_rows(xm))
         _, K, piv = self.gain(Pm, R, gamma)
-        x = xm + ca.mtimes(K, e)
-        P = self.joseph(Pm, K, R)
-        return ca.Function(name, [xm, Pm, z, gamma, R], [x, P, piv],
-                           ["xm", "Pm", "z", "gamma", "R"], ["x", "P", "piv"])
+        return xm + ca.mtimes(K, e), self.joseph(Pm, K, R), piv
+
+    def _propagate_P(self, P: ca.SX, q: ca.SX) -> ca.SX:
+        """A P A' + Q from the upper triangle of P (the posterior as the node stores it)."""
+        return ca.mtimes(ca.mtimes(self.A, self.symmetric(P)), self.A.T) + self.Q_of(q)
+
+    def node_predict(self, name: str) -> ca.Function:
+        """The node's prediction on its packed covariance."""
+        n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
+        x, P, v, q = _sym("x", n), _sym("P", npp), _sym("v", m), _sym("q", m)
+        x1 = ca.mtimes(self.A, x) + ca.mtimes(self.B, v)
+        P1 = self._propagate_P(self.unpack(P, n), q)
+        return ca.Function(name, [x, P, v, q], [x1, self.pack(P1)], ["x", "P", "v", "q"], ["x1", "P1"])
 
     def info(self, name: str) -> ca.Function:
         """Information form about a centre c: Y = P^-1, y = Y (x - c). The master centres on its
@@ -253,7 +286,9 @@ class _Builder:
         adds slot k-n's terms to the sums and carries T(n)(A L_n)' and E(n-1) = L_n A E(n)."""
         n, m = self.n, self.m
         nn, Tp, E = _sym("n"), _sym("Tp", n, n), _sym("E", n, n)
-        xm, Pm, z, used, R = _sym("xm", n), _sym("Pm", n, n), _sym("z", m), _sym("used"), _sym("R", m, m)
+        npp = n * (n + 1) // 2
+        xm, Pp, z, used, R = _sym("xm", n), _sym("Pm", npp), _sym("z", m), _sym("used"), _sym("R", m, m)
+        Pm = self.unpack(Pp, n)
         v, q = _sym("v", m), _sym("q", m)
         sw, sQ, sX, su = _sym("sw", n), _sym("sQ", n, n), _sym("sX", n, n), _sym("su", n)
         t = nn * self.opts.ts
@@ -273,7 +308,7 @@ class _Builder:
         AL = ca.mtimes(self.A, L)
         Tp1 = ca.mtimes(T, AL.T)
         E1 = ca.mtimes(ca.mtimes(L, self.A), E)
-        return ca.Function(name, [nn, Tp, E, xm, Pm, z, used, R, v, q, sw, sQ, sX, su],
+        return ca.Function(name, [nn, Tp, E, xm, Pp, z, used, R, v, q, sw, sQ, sX, su],
                            [Tp1, E1, sw1, sQ1, sX1, su1, piv],
                            ["n", "Tp", "E", "xm", "Pm", "z", "used", "R", "v", "q", "sw", "sQ", "sX", "su"],
                            ["Tp1", "E1", "sw1", "sQ1", "sX1", "su1", "piv"])
@@ -281,7 +316,9 @@ class _Builder:
     def retro_finish(self, name: str) -> ca.Function:
         """Xia et al.'s correction (docs/mathematics.md section 4) from the sums of the recursion."""
         n, m = self.n, self.m
-        N, x, P, PmN, usedN = _sym("N"), _sym("x", n), _sym("P", n, n), _sym("PmN", n, n), _sym("usedN")
+        npp = n * (n + 1) // 2
+        N, x, Pp, PmNp, usedN = _sym("N"), _sym("x", n), _sym("P", npp), _sym("PmN", npp), _sym("usedN")
+        P, PmN = self.unpack(Pp, n), self.unpack(PmNp, n)
         z, R, q = _sym("z", m), _sym("R", m, m), _sym("q", m)
         sw, sQ, sX, su = _sym("sw", n), _sym("sQ", n, n), _sym("sX", n, n), _sym("su", n)
         Phi1 = self.A_of(-N * self.opts.ts)
@@ -289,8 +326,11 @@ class _Builder:
         _, KN, _ = self.gain(PmN, R, usedN)
         PN = self.joseph(PmN, KN, R)                  # P(k-N|k-N)
         wa = -ca.mtimes(Phi1, sw)
-        Qs = ca.mtimes(ca.mtimes(Phi1, self.Q_of(q, N * self.opts.ts)), Phi1.T) \
-            - ca.mtimes(ca.mtimes(Phi1, sQ), Phi1.T)
+        # Q* = Phi1 (Q_d(N Ts) - sum) Phi1': the two nearly cancel, so subtract before Phi1
+        # amplifies them (as the reference does), and keep both symmetric (the upper triangle
+        # mirrored): in single precision the other order lost digits
+        Dq = self.Q_of(q, N * self.opts.ts) - sQ
+        Qs = self.symmetric(ca.mtimes(ca.mtimes(Phi1, self.symmetric(Dq)), Phi1.T))
         Pxw = ca.mtimes(ca.mtimes(ca.mtimes(AN, PN), sX), Phi1.T) - ca.mtimes(AN, Qs)
         xr = ca.mtimes(Phi1, x - su) + wa
         PhiPxw = ca.mtimes(Phi1, Pxw)
@@ -301,7 +341,7 @@ class _Builder:
         Ps = P - ca.mtimes(ca.mtimes(Mg, W), Mg.T)
         Ps = (Ps + Ps.T) / 2          # symmetric again: see algorithms.md, retrodict
         _, pivP = spd_inverse(Ps)     # with a stale history P* can lose definiteness: reject then
-        return ca.Function(name, [N, x, P, PmN, usedN, z, R, q, sw, sQ, sX, su], [xs, Ps, piv, pivP],
+        return ca.Function(name, [N, x, Pp, PmNp, usedN, z, R, q, sw, sQ, sX, su], [xs, self.pack(Ps), piv, pivP],
                            ["N", "x", "P", "PmN", "usedN", "z", "R", "q", "sw", "sQ", "sX", "su"],
                            ["xs", "Ps", "piv", "pivP"])
 
@@ -470,11 +510,29 @@ class _Builder:
         return e - 2 * math.pi * ca.ceil((e - math.pi) / (2 * math.pi))
 
 
+# Kernels whose work array is a local of the kernel, not a parameter: then no store into it can
+# alias an argument, and the compiler keeps the intermediates in registers (the node's kernels,
+# called once per step on the hot path; measured: about half their instructions).
+LOCAL_WORK = ("_kern_update", "_kern_node_predict", "_kern_retro_step", "_kern_retro_finish")
+
+# A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
+# canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
+# quarter (and packing halves it) for at most 3 extra P steps per late measurement.
+CHECK_EVERY = 4
+
+
+def packed_index(i: int, j: int) -> int:
+    """Where entry (i, j), i <= j, of a symmetric matrix sits in the node's packed storage: the
+    upper triangle column by column (LAPACK's "U" packed layout)."""
+    return j * (j + 1) // 2 + i
+
+
 def build(flat, opts: Options, prefix: str) -> KernelSet:
     """All kernels the chosen options need, named `<prefix>_kern_<name>`."""
     b = _Builder(flat, opts)
     name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
-    filt = [b.predict(name("predict")), b.update(name("update")), b.info(name("info"))]
+    filt = [b.predict(name("predict")), b.node_predict(name("node_predict")), b.update(name("update")),
+            b.info(name("info"))]
     if opts.oosm == "retrodict":
         filt += [b.retro_step(name("retro_step")), b.retro_finish(name("retro_finish"))]
     if opts.fusion == "difference":
@@ -520,7 +578,6 @@ class KernelC:
     sz_w: int
     inputs: list[tuple[str, int]]
     outputs: list[tuple[str, int]]
-
     local_work: bool = False
 
     def parameters(self, real: str, work: str | None = None) -> list[str]:
@@ -619,11 +676,14 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
         body = re.sub(r"\bres\[(\d+)\]\[", lambda mt: outs[int(mt.group(1))][0] + "[", body)
         if re.search(r"\b(arg|res)\b", body):
             raise RuntimeError(f"kernel {name}: unexpected CasADi argument pattern")
-        info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs, local_work)
+        node_local = name.endswith(LOCAL_WORK)   # the node's kernels: one local work array
+        info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs, local_work or node_local)
         lines = [spaced(line.strip()) for line in body.splitlines() if line.strip()]
         if local_work:   # one scalar per work entry: the compiler keeps them in registers
             lines = [f"casadi_real w{i};" for i in range(info.sz_w)] + [re.sub(r"\bw\[(\d+)\]", r"w\1", line)
                                                                      for line in lines]
+        elif node_local:
+            lines.insert(0, f"casadi_real w[{info.sz_w}];")
         lines.append("return 0;")
         out.append(f"/* {wrap_comment(info.signature)} */\n"
                    + _function(f"int {name}", info.parameters(real), lines))

@@ -135,6 +135,18 @@ typedef struct {
     uint32_t late_rejected;
 } dc_motor_link_health;
 
+/** reals of a packed symmetric NX x NX matrix: its upper triangle, column by column */
+#define DC_MOTOR_LINK_NPP ((DC_MOTOR_LINK_NX * (DC_MOTOR_LINK_NX + 1)) / 2)
+/** a node keeps the P prior of every CHECK_EVERY-th step and recomputes the ones between */
+#define DC_MOTOR_LINK_NODE_CHECK_EVERY 4u
+/** checkpoints, (NMAX + CHECK_EVERY - 1) / CHECK_EVERY + 1: enough to hold the one at or before
+ * the oldest step of the window */
+#define DC_MOTOR_LINK_NODE_NCHECK 9u
+/** flags kept, NMAX + CHECK_EVERY: the window and the steps back to the checkpoint it needs */
+#define DC_MOTOR_LINK_NODE_NHIST 36u
+/** reals of the checkpoints, NCHECK * NPP */
+#define DC_MOTOR_LINK_NODE_NCHECK_REALS 54
+
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
@@ -146,27 +158,31 @@ typedef struct {
 typedef struct {
     /** flat outputs' origin for the fields below */
     dc_motor_link_real centre[DC_MOTOR_LINK_NY];
-    /** estimate at step k (posterior once updated) */
+    /** estimate at step k (posterior once updated), P packed */
     dc_motor_link_real x[DC_MOTOR_LINK_NX];
-    dc_motor_link_real P[DC_MOTOR_LINK_NXX];
-    /** prediction into step k, before any update */
+    dc_motor_link_real P[DC_MOTOR_LINK_NPP];
+    /** prediction into step k, before any update (the prior of step k) */
     dc_motor_link_real x_pred[DC_MOTOR_LINK_NX];
-    dc_motor_link_real P_pred[DC_MOTOR_LINK_NXX];
+    dc_motor_link_real P_pred[DC_MOTOR_LINK_NPP];
     /** measurement covariance */
     dc_motor_link_real R[DC_MOTOR_LINK_NYY];
     /** process-noise density per chain */
     dc_motor_link_real q[DC_MOTOR_LINK_NY];
     dc_motor_link_real ring_x[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NX];
-    dc_motor_link_real ring_P[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NXX];
     dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING_NY];
     dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING_NY];
-    /** current step */
+    /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), step s at entry
+     * (s / CHECK_EVERY) % NCHECK */
+    dc_motor_link_real ring_P[DC_MOTOR_LINK_NODE_NCHECK_REALS];
+    /** current step, and its slot (k % NRING) and flags' entry (k % NHIST) */
     uint32_t k;
+    uint16_t slot;
+    uint16_t hist;
     dc_motor_link_health health;
     /** update() done for step k */
     uint8_t updated;
-    /** bit 0: has a measurement, bit 1: used by the filter */
-    uint8_t ring_flags[DC_MOTOR_LINK_NRING];
+    /** per step, at step % NHIST: bit 0 has a measurement, bit 1 used by the filter */
+    uint8_t ring_flags[DC_MOTOR_LINK_NODE_NHIST];
 } dc_motor_link_node;
 
 /** What a node sends to the master after the updates of its step: its estimate and its

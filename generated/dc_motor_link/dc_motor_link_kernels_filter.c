@@ -1,6 +1,6 @@
 /* DO NOT EDIT: dc_motor_link module, generated from template kernels.c.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
-/* Node filter kernels (the master reuses predict): predict, update, info.
+/* Node filter kernels (the master reuses predict): predict, node_predict, update, info.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only). */
 #include <math.h>
@@ -98,13 +98,97 @@ int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_lin
     return 0;
 }
 
-/* dc_motor_link_kern_update:(xm[3],Pm[3x3],z,gamma,R)->(x[3],P[3x3],piv) */
-int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_link_real Pm[9],
+/* dc_motor_link_kern_node_predict:(x[3],P[6],v,q)->(x1[3],P1[6]) */
+int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[6],
+                                    const dc_motor_link_real v[1], const dc_motor_link_real q[1],
+                                    dc_motor_link_real x1[3], dc_motor_link_real P1[6])
+{
+    dc_motor_link_real w[11];
+    w[0] = x[0];
+    w[1] = 1.0000000000000000e-02;
+    w[2] = x[1];
+    w[3] = (w[1] * w[2]);
+    w[0] = (w[0] + w[3]);
+    w[3] = 5.0000000000000002e-05;
+    w[4] = x[2];
+    w[5] = (w[3] * w[4]);
+    w[0] = (w[0] + w[5]);
+    w[5] = 1.6666666666666670e-07;
+    w[6] = v[0];
+    w[7] = (w[5] * w[6]);
+    w[0] = (w[0] + w[7]);
+    x1[0] = w[0];
+    w[0] = (w[1] * w[4]);
+    w[2] = (w[2] + w[0]);
+    w[0] = (w[3] * w[6]);
+    w[2] = (w[2] + w[0]);
+    x1[1] = w[2];
+    w[6] = (w[1] * w[6]);
+    w[4] = (w[4] + w[6]);
+    x1[2] = w[4];
+    w[4] = P[0];
+    w[6] = P[1];
+    w[2] = (w[1] * w[6]);
+    w[4] = (w[4] + w[2]);
+    w[2] = P[3];
+    w[0] = (w[3] * w[2]);
+    w[4] = (w[4] + w[0]);
+    w[0] = P[2];
+    w[7] = (w[1] * w[0]);
+    w[6] = (w[6] + w[7]);
+    w[7] = P[4];
+    w[8] = (w[3] * w[7]);
+    w[6] = (w[6] + w[8]);
+    w[8] = (w[1] * w[6]);
+    w[4] = (w[4] + w[8]);
+    w[8] = (w[1] * w[7]);
+    w[2] = (w[2] + w[8]);
+    w[8] = P[5];
+    w[9] = (w[3] * w[8]);
+    w[2] = (w[2] + w[9]);
+    w[9] = (w[3] * w[2]);
+    w[4] = (w[4] + w[9]);
+    w[9] = 5.0000000000000005e-12;
+    w[10] = q[0];
+    w[9] = (w[9] * w[10]);
+    w[4] = (w[4] + w[9]);
+    P1[0] = w[4];
+    w[4] = (w[1] * w[2]);
+    w[6] = (w[6] + w[4]);
+    w[4] = 1.2500000000000000e-09;
+    w[4] = (w[4] * w[10]);
+    w[6] = (w[6] + w[4]);
+    P1[1] = w[6];
+    w[6] = (w[1] * w[7]);
+    w[0] = (w[0] + w[6]);
+    w[6] = (w[1] * w[8]);
+    w[7] = (w[7] + w[6]);
+    w[6] = (w[1] * w[7]);
+    w[0] = (w[0] + w[6]);
+    w[6] = 3.3333333333333341e-07;
+    w[6] = (w[6] * w[10]);
+    w[0] = (w[0] + w[6]);
+    P1[2] = w[0];
+    w[5] = (w[5] * w[10]);
+    w[2] = (w[2] + w[5]);
+    P1[3] = w[2];
+    w[3] = (w[3] * w[10]);
+    w[7] = (w[7] + w[3]);
+    P1[4] = w[7];
+    w[1] = (w[1] * w[10]);
+    w[8] = (w[8] + w[1]);
+    P1[5] = w[8];
+    return 0;
+    return 0;
+}
+
+/* dc_motor_link_kern_update:(xm[3],Pm[6],z,gamma,R)->(x[3],P[6],piv) */
+int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_link_real Pm[6],
                               const dc_motor_link_real z[1], const dc_motor_link_real gamma[1],
                               const dc_motor_link_real R[1], dc_motor_link_real x[3],
-                              dc_motor_link_real P[9], dc_motor_link_real piv[1],
-                              dc_motor_link_real w[14])
+                              dc_motor_link_real P[6], dc_motor_link_real piv[1])
 {
+    dc_motor_link_real w[13];
     w[0] = xm[0];
     w[1] = gamma[0];
     w[2] = Pm[0];
@@ -132,7 +216,7 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
     w[0] = (w[0] + w[9]);
     x[1] = w[0];
     w[0] = xm[2];
-    w[9] = Pm[2];
+    w[9] = Pm[3];
     w[10] = (w[9] / w[4]);
     w[1] = (w[1] * w[10]);
     w[6] = (w[1] * w[6]);
@@ -143,69 +227,51 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
     w[6] = (w[0] * w[2]);
     w[10] = (w[6] * w[0]);
     w[11] = (w[5] * w[3]);
-    w[12] = (w[11] * w[5]);
-    w[10] = (w[10] + w[12]);
+    w[5] = (w[11] * w[5]);
+    w[10] = (w[10] + w[5]);
     P[0] = w[10];
-    w[10] = (w[8] * w[2]);
-    w[7] = (w[7] - w[10]);
-    w[10] = (w[7] * w[0]);
-    w[12] = (w[8] * w[3]);
-    w[13] = (w[12] * w[5]);
-    w[10] = (w[10] + w[13]);
+    w[10] = (w[0] * w[7]);
+    w[5] = (w[6] * w[8]);
+    w[10] = (w[10] - w[5]);
+    w[5] = (w[11] * w[8]);
+    w[10] = (w[10] + w[5]);
     P[1] = w[10];
-    w[2] = (w[1] * w[2]);
-    w[9] = (w[9] - w[2]);
-    w[2] = (w[9] * w[0]);
-    w[3] = (w[1] * w[3]);
-    w[5] = (w[3] * w[5]);
-    w[2] = (w[2] + w[5]);
-    P[2] = w[2];
-    w[2] = Pm[3];
-    w[5] = (w[0] * w[2]);
-    w[10] = (w[6] * w[8]);
-    w[5] = (w[5] - w[10]);
-    w[10] = (w[11] * w[8]);
-    w[5] = (w[5] + w[10]);
-    P[3] = w[5];
-    w[5] = Pm[4];
-    w[10] = (w[8] * w[2]);
-    w[5] = (w[5] - w[10]);
-    w[10] = (w[7] * w[8]);
-    w[5] = (w[5] - w[10]);
-    w[10] = (w[12] * w[8]);
-    w[5] = (w[5] + w[10]);
-    P[4] = w[5];
-    w[5] = Pm[5];
-    w[2] = (w[1] * w[2]);
-    w[5] = (w[5] - w[2]);
-    w[2] = (w[9] * w[8]);
-    w[5] = (w[5] - w[2]);
-    w[2] = (w[3] * w[8]);
-    w[5] = (w[5] + w[2]);
-    P[5] = w[5];
-    w[5] = Pm[6];
-    w[0] = (w[0] * w[5]);
+    w[10] = Pm[2];
+    w[5] = (w[8] * w[7]);
+    w[10] = (w[10] - w[5]);
+    w[5] = (w[8] * w[2]);
+    w[7] = (w[7] - w[5]);
+    w[5] = (w[7] * w[8]);
+    w[10] = (w[10] - w[5]);
+    w[5] = (w[8] * w[3]);
+    w[12] = (w[5] * w[8]);
+    w[10] = (w[10] + w[12]);
+    P[2] = w[10];
+    w[0] = (w[0] * w[9]);
     w[6] = (w[6] * w[1]);
     w[0] = (w[0] - w[6]);
     w[11] = (w[11] * w[1]);
     w[0] = (w[0] + w[11]);
-    P[6] = w[0];
-    w[0] = Pm[7];
-    w[8] = (w[8] * w[5]);
+    P[3] = w[0];
+    w[0] = Pm[4];
+    w[8] = (w[8] * w[9]);
     w[0] = (w[0] - w[8]);
     w[7] = (w[7] * w[1]);
     w[0] = (w[0] - w[7]);
-    w[12] = (w[12] * w[1]);
-    w[0] = (w[0] + w[12]);
-    P[7] = w[0];
-    w[0] = Pm[8];
-    w[5] = (w[1] * w[5]);
+    w[5] = (w[5] * w[1]);
+    w[0] = (w[0] + w[5]);
+    P[4] = w[0];
+    w[0] = Pm[5];
+    w[5] = (w[1] * w[9]);
     w[0] = (w[0] - w[5]);
+    w[2] = (w[1] * w[2]);
+    w[9] = (w[9] - w[2]);
     w[9] = (w[9] * w[1]);
     w[0] = (w[0] - w[9]);
+    w[3] = (w[1] * w[3]);
     w[3] = (w[3] * w[1]);
     w[0] = (w[0] + w[3]);
-    P[8] = w[0];
+    P[5] = w[0];
     piv[0] = w[4];
     return 0;
     return 0;

@@ -2,13 +2,15 @@
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* One camera node: the local derivative-free Kalman filter with packet drops and late
  * measurements (replay), following docs/algorithms.md. Every public function validates and
- * computes into locals first and writes the node only once nothing can fail. */
+ * computes into locals first and writes the node only once nothing can fail; each has one exit.
+ * The node stores P as its packed upper triangle (NPP reals) and unpacks it only at the API. */
 #include <string.h>
 #include "dc_motor_link_internal.h"
 
 #define NX DC_MOTOR_LINK_NX
 #define NY DC_MOTOR_LINK_NY
 #define NXX (DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
+#define NPP DC_MOTOR_LINK_NPP
 #define SLOTS (DC_MOTOR_LINK_NMAX + 1)
 #define HAS 1u /* the step has a measurement (on time or late) */
 #define USED 2u /* the filter history used it (its gain is not zero) */
@@ -23,10 +25,67 @@ size_t dc_motor_link_packet_size(void)
     return sizeof(dc_motor_link_packet);
 }
 
+/* Ring slot of a step for x, z and v (NMAX + 1 slots). */
 static int slot_of(uint32_t step)
 {
     uint32_t slot = step % ((uint32_t)DC_MOTOR_LINK_NMAX + 1u);
     return (int)slot;
+}
+
+/* Entry of a step in the flags' history, which reaches CHECK_EVERY - 1 steps further back than
+ * the ring so that the P recursion can start from the checkpoint before the oldest slot. */
+static int hist_of(uint32_t step)
+{
+    uint32_t at = step % DC_MOTOR_LINK_NODE_NHIST;
+    return (int)at;
+}
+
+/* Entry of a checkpoint step (a multiple of CHECK_EVERY) in ring_P. */
+static int check_of(uint32_t step)
+{
+    uint32_t at = (step / DC_MOTOR_LINK_NODE_CHECK_EVERY) % DC_MOTOR_LINK_NODE_NCHECK;
+    return (int)at;
+}
+
+/* The full symmetric matrix of a packed upper triangle (column by column). */
+static void unpack(const real* Pp, real* P)
+{
+    int i;
+    int j;
+    for (j = 0; j < NX; j++) {
+        for (i = 0; i <= j; i++) {
+            real a = Pp[((j * (j + 1)) / 2) + i];
+            P[(i * NX) + j] = a;
+            P[(j * NX) + i] = a;
+        }
+    }
+}
+
+/* The packed upper triangle of a symmetric matrix. */
+static void pack(const real* P, real* Pp)
+{
+    int i;
+    int j;
+    for (j = 0; j < NX; j++) {
+        for (i = 0; i <= j; i++) {
+            Pp[((j * (j + 1)) / 2) + i] = P[(i * NX) + j];
+        }
+    }
+}
+
+/* 1 if x and the packed P are all finite: x - x is 0 for a finite x and NaN otherwise, summed so
+ * that one comparison decides (the results' one check; the inputs were checked on entry). */
+static int finite_state(const real* x, const real* Pp)
+{
+    real acc = (real)0;
+    int i;
+    for (i = 0; i < NX; i++) {
+        acc += x[i] - x[i];
+    }
+    for (i = 0; i < NPP; i++) {
+        acc += Pp[i] - Pp[i];
+    }
+    return (acc == acc) ? 1 : 0;
 }
 
 /* Measurement relative to the node's centre. */
@@ -40,307 +99,396 @@ static void centred(const dc_motor_link_node* node, const real* z, real* zc)
 
 /* Move each output's centre by whole steps to within half a step of the estimate, and every
  * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
- * heads, and A maps a head-only vector to itself. */
+ * heads, and A maps a head-only vector to itself. P does not depend on the centre. */
 static void recentre(dc_motor_link_node* node)
 {
-    int j, s;
+    int j;
+    int s;
+    const real half = DC_MOTOR_LINK_CENTRE_STEP / (real)2;
     for (j = 0; j < NY; j++) {
-        real shift = dc_motor_link_centre_shift(node->x[dc_motor_link_heads[j]]);
-        if (shift == (real)0) {
-            continue;
+        int h = (int)dc_motor_link_heads[j];
+        real shift = (real)0;
+        if ((node->x[h] >= half) || (node->x[h] <= -half)) { /* else within half a step: no shift */
+            shift = dc_motor_link_centre_shift(node->x[h]);
         }
-        node->centre[j] += shift;
-        node->x[dc_motor_link_heads[j]] -= shift;
-        node->x_pred[dc_motor_link_heads[j]] -= shift;
-        for (s = 0; s < SLOTS; s++) {
-            node->ring_x[s * NX + (int)dc_motor_link_heads[j]] -= shift;
-            node->ring_z[s * NY + j] -= shift;
+        if (shift != (real)0) {
+            node->centre[j] += shift;
+            node->x[h] -= shift;
+            node->x_pred[h] -= shift;
+            for (s = 0; s < SLOTS; s++) {
+                node->ring_x[(s * NX) + h] -= shift;
+                node->ring_z[(s) + j] -= shift;
+            }
         }
     }
 }
 
-/* Filter update of one step from a prior; 0 or an error code. */
-static int update_step(const real* xm, const real* Pm, const real* z, real gamma, const real* R,
-                       real* x, real* P)
+/* Filter update of one step from a prior (P packed); 0 or an error code. */
+static inline int update_step(const real* xm, const real* Pm, const real* z, real gamma,
+                              const real* R, real* x, real* P)
 {
     real piv[NY];
-    real w[DC_MOTOR_LINK_KERN_UPDATE_SZ_W];
-    (void)dc_motor_link_kern_update(xm, Pm, z, &gamma, R, x, P, piv, w);
-    if (gamma > (real)0 && !dc_motor_link_positive(piv, NY)) {
-        return DC_MOTOR_LINK_ERR_SINGULAR;
+    int rc = DC_MOTOR_LINK_OK;
+    (void)dc_motor_link_kern_update(xm, Pm, z, &gamma, R, x, P, piv);
+    if ((gamma > (real)0) && (dc_motor_link_positive(piv, NY) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_SINGULAR;
     }
-    if (!dc_motor_link_finite(x, NX) || !dc_motor_link_finite(P, NXX)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if ((rc == DC_MOTOR_LINK_OK) && (finite_state(x, P) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
-/* Prediction x1 = A x + B v, P1 = A P A' + Q; 0 or an error code. */
-static int predict_step(const real* x, const real* P, const real* v, const real* q, real* x1,
-                        real* P1)
+/* Prediction x1 = A x + B v, P1 = A P A' + Q (P packed); 0 or an error code. */
+static inline int predict_step(const real* x, const real* P, const real* v, const real* q, real* x1,
+                               real* P1)
 {
-    real w[DC_MOTOR_LINK_KERN_PREDICT_SZ_W];
-    (void)dc_motor_link_kern_predict(x, P, v, q, x1, P1, w);
-    if (!dc_motor_link_finite(x1, NX) || !dc_motor_link_finite(P1, NXX)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    int rc = DC_MOTOR_LINK_OK;
+    (void)dc_motor_link_kern_node_predict(x, P, v, q, x1, P1);
+    if (finite_state(x1, P1) == 0) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_cov_ok(const real* A)
 {
-    real L[NXX], d[NX];
+    real L[NXX];
+    real d[NX];
     return dc_motor_link_spd_in(A, NX, L, d);
 }
 
 int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const real P0[NXX],
-                            const real R[NY * NY], const real q[NY])
+                            const real R[DC_MOTOR_LINK_NYY], const real q[NY])
 {
+    real Pp[NPP];
     int i;
-    if (!node || !x0 || !P0 || !R || !q) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((node == NULL) || (x0 == NULL) || (P0 == NULL) || (R == NULL) || (q == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
     }
-    if (!dc_motor_link_finite(x0, NX) || !dc_motor_link_finite(P0, NXX) ||
-        !dc_motor_link_finite(R, NY * NY) || !dc_motor_link_finite(q, NY)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if ((rc == DC_MOTOR_LINK_OK) &&
+        ((dc_motor_link_finite(x0, NX) == 0) || (dc_motor_link_finite(P0, NXX) == 0))) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    for (i = 0; i < NY; i++) {
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(R, DC_MOTOR_LINK_NYY) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
+    }
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(q, NY) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
+    }
+    for (i = 0; (rc == DC_MOTOR_LINK_OK) && (i < NY); i++) {
         if (q[i] < (real)0) {
-            return DC_MOTOR_LINK_ERR_ARG;
+            rc = DC_MOTOR_LINK_ERR_ARG;
         }
     }
-    for (i = 0; i < NY * NY; i++) {
-        if (R[i] < R[(i % NY) * NY + i / NY] || R[i] > R[(i % NY) * NY + i / NY]) {
-            return DC_MOTOR_LINK_ERR_ARG;
-        }
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_spd(R, NY) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_SINGULAR;
     }
-    if (!dc_motor_link_spd(R, NY)) {
-        return DC_MOTOR_LINK_ERR_SINGULAR;
+    /* P0 must be symmetric positive definite */
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_cov_ok(P0) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
     }
-    if (dc_motor_link_cov_ok(P0) == 0) { /* P0 must be symmetric positive definite */
-        return DC_MOTOR_LINK_ERR_ARG;
+    if (rc == DC_MOTOR_LINK_OK) {
+        pack(P0, Pp);
+        (void)memset(node, 0, sizeof(*node));
+        (void)memcpy(node->x, x0, sizeof(node->x));
+        (void)memcpy(node->P, Pp, sizeof(node->P));
+        (void)memcpy(node->x_pred, x0, sizeof(node->x_pred));
+        (void)memcpy(node->P_pred, Pp, sizeof(node->P_pred));
+        (void)memcpy(node->ring_x, x0, sizeof(node->x));
+        (void)memcpy(node->ring_P, Pp, sizeof(Pp)); /* the checkpoint of step 0 */
+        (void)memcpy(node->R, R, sizeof(node->R));
+        (void)memcpy(node->q, q, sizeof(node->q));
+        recentre(node);
     }
-    (void)memset(node, 0, sizeof(*node));
-    (void)memcpy(node->x, x0, sizeof(node->x));
-    (void)memcpy(node->P, P0, sizeof(node->P));
-    (void)memcpy(node->x_pred, x0, sizeof(node->x_pred));
-    (void)memcpy(node->P_pred, P0, sizeof(node->P_pred));
-    (void)memcpy(node->ring_x, x0, sizeof(node->x));
-    (void)memcpy(node->ring_P, P0, sizeof(node->P));
-    (void)memcpy(node->R, R, sizeof(node->R));
-    (void)memcpy(node->q, q, sizeof(node->q));
-    recentre(node);
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int gamma)
 {
-    real zz[NY], x[NX], P[NXX];
+    real zz[NY];
+    real x[NX];
+    real P[NPP];
     int slot;
-    int rc;
-    if (!node || (gamma != 0 && gamma != 1) || (gamma == 1 && !z)) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((node == NULL) || ((gamma != 0) && (gamma != 1)) || ((gamma == 1) && (z == NULL))) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
     }
-    if (node->updated != 0u) {
-        return DC_MOTOR_LINK_ERR_SEQUENCE;
+    if ((rc == DC_MOTOR_LINK_OK) && (node->updated != 0u)) {
+        rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
     (void)memset(zz, 0, sizeof(zz));
-    if (gamma == 1) {
-        if (!dc_motor_link_finite(z, NY)) {
-            return DC_MOTOR_LINK_ERR_NONFINITE;
+    if ((rc == DC_MOTOR_LINK_OK) && (gamma == 1)) {
+        if (dc_motor_link_finite(z, NY) == 0) {
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
+        } else {
+            centred(node, z, zz);
         }
-        centred(node, z, zz);
     }
-    slot = slot_of(node->k);
-    rc = update_step(&node->ring_x[slot * NX], &node->ring_P[slot * NXX], zz, (real)gamma, node->R,
-                     x, P);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
+    if (rc == DC_MOTOR_LINK_OK) { /* the prior of step k: ring_x of its slot and P_pred */
+        slot = (int)node->slot;
+        rc = update_step(&node->ring_x[slot * NX], node->P_pred, zz, (real)gamma, node->R, x, P);
+        if (rc == DC_MOTOR_LINK_OK) {
+            (void)memcpy(node->x, x, sizeof(x));
+            (void)memcpy(node->P, P, sizeof(P));
+            (void)memcpy(&node->ring_z[slot], zz, sizeof(zz));
+            node->ring_flags[node->hist] = (uint8_t)((gamma == 1) ? (HAS | USED) : 0u);
+            node->updated = 1;
+            if (gamma == 1) {
+                node->health.updates++;
+            } else {
+                node->health.drops++;
+            }
+        }
     }
-    (void)memcpy(node->x, x, sizeof(x));
-    (void)memcpy(node->P, P, sizeof(P));
-    (void)memcpy(&node->ring_z[slot * NY], zz, sizeof(zz));
-    node->ring_flags[slot] = (uint8_t)(gamma == 1 ? (HAS | USED) : 0u);
-    node->updated = 1;
-    if (gamma == 1) {
-        node->health.updates++;
-    } else {
-        node->health.drops++;
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
-/* Re-run steps j0..k in one pass: the update of each step from its prior (slot j0 with the late
- * z), then the prediction into the next slot, written in place; returns the posterior of step k.
- * On a failure the slots are put back as they were: the priors' x from a copy, the priors' P by
- * recomputing the old history from slot j0 (the P recursion reads neither x nor z, so it gives
- * the old values bit for bit, and it succeeded before). */
+/* The P prior of step j (k - NMAX <= j <= k): the checkpoint of the last multiple of
+ * CHECK_EVERY at or before j, carried forward by the filter's own kernels with the flags of the
+ * steps between (on x = 0 and z = v = 0: P reads neither, so these are the values the filter had,
+ * bit for bit). */
+static int prior_P(const dc_motor_link_node* node, uint32_t j, real* Pm)
+{
+    real x0[NX];
+    real x[NX];
+    real P[NPP];
+    real zero[NY];
+    uint32_t s = j - (j % DC_MOTOR_LINK_NODE_CHECK_EVERY);
+    int rc = DC_MOTOR_LINK_OK;
+    (void)memset(x0, 0, sizeof(x0));
+    (void)memset(zero, 0, sizeof(zero));
+    (void)memcpy(Pm, &node->ring_P[check_of(s) * NPP], sizeof(P));
+    while ((rc == DC_MOTOR_LINK_OK) && (s < j)) {
+        real gamma = ((node->ring_flags[hist_of(s)] & USED) != 0u) ? (real)1 : (real)0;
+        rc = update_step(x0, Pm, zero, gamma, node->R, x, P);
+        if (rc == DC_MOTOR_LINK_OK) {
+            rc = predict_step(x, P, zero, node->q, x0, Pm);
+        }
+        s++;
+    }
+    return rc;
+}
+
+/* Re-run steps j0..k in one pass: the update of each step from its prior (step j0 with the late
+ * z), then the prediction into the next slot, written in place, and each checkpoint passed
+ * rewritten; returns the posterior of step k. On a failure the slots' x and the checkpoints are
+ * put back from the copies taken on the way. */
 static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, real* x, real* P)
 {
     real old_x[DC_MOTOR_LINK_NMAX * NX];
-    real xd[NX], Pd[NXX], xe[NX];
+    real old_P[DC_MOTOR_LINK_NODE_NCHECK_REALS];
+    real Pm[NPP];
     uint32_t j = j0;
-    uint32_t written = 0u; /* priors rewritten so far: slots j0 + 1 .. j0 + written */
+    uint32_t written = 0u; /* priors' x rewritten so far: slots j0 + 1 .. j0 + written */
+    int checks = 0; /* checkpoints rewritten so far, from the first multiple after j0 */
+    uint32_t first;
     uint32_t i;
-    int rc;
-    do {
+    int c;
+    int rc = prior_P(node, j0, Pm);
+    while ((rc == DC_MOTOR_LINK_OK) && (j <= node->k)) {
         int slot = slot_of(j);
-        int next = slot_of(j + 1u);
-        const real* z = (j == j0) ? zlate : &node->ring_z[slot * NY];
-        real gamma = (j == j0 || (node->ring_flags[slot] & USED) != 0u) ? (real)1 : (real)0;
-        rc = update_step(&node->ring_x[slot * NX], &node->ring_P[slot * NXX], z, gamma, node->R, x,
-                         P);
-        if (rc == DC_MOTOR_LINK_OK && j != node->k) {
-            (void)memcpy(&old_x[(int)written * NX], &node->ring_x[next * NX],
-                         sizeof(real) * (size_t)NX);
+        real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
+        const real* z = (j == j0) ? zlate : &node->ring_z[slot];
+        real gamma = (real)1; /* the late step, and the steps the history used */
+        if ((j != j0) && ((node->ring_flags[hist_of(j)] & USED) == 0u)) {
+            gamma = (real)0;
+        }
+        rc = update_step(&node->ring_x[slot * NX], Pm, z, gamma, node->R, x, P);
+        if ((rc == DC_MOTOR_LINK_OK) && (j != node->k)) {
+            (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(x, P, &node->ring_v[slot * NY], node->q, &node->ring_x[next * NX],
-                              &node->ring_P[next * NXX]);
+            rc = predict_step(x, P, &node->ring_v[slot], node->q, xnext, Pm);
+            if ((rc == DC_MOTOR_LINK_OK) && (((j + 1u) % DC_MOTOR_LINK_NODE_CHECK_EVERY) == 0u)) {
+                real* cp = &node->ring_P[check_of(j + 1u) * NPP];
+                (void)memcpy(&old_P[checks * NPP], cp, sizeof(Pm));
+                checks++;
+                (void)memcpy(cp, Pm, sizeof(Pm));
+            }
         }
         j++;
-    } while (rc == DC_MOTOR_LINK_OK && j <= node->k);
-    for (i = 0u; rc != DC_MOTOR_LINK_OK && i < written; i++) {
-        int s = slot_of(j0 + i);
-        int after = slot_of(j0 + i + 1u);
-        real g = ((node->ring_flags[s] & USED) != 0u) ? (real)1 : (real)0;
-        (void)memcpy(&node->ring_x[after * NX], &old_x[(int)i * NX], sizeof(real) * (size_t)NX);
-        (void)update_step(&node->ring_x[s * NX], &node->ring_P[s * NXX], &node->ring_z[s * NY], g,
-                          node->R, xd, Pd);
-        (void)predict_step(xd, Pd, &node->ring_v[s * NY], node->q, xe, &node->ring_P[after * NXX]);
+    }
+    if (rc != DC_MOTOR_LINK_OK) {
+        first = j0 - (j0 % DC_MOTOR_LINK_NODE_CHECK_EVERY); /* the first checkpoint after j0 */
+        first += DC_MOTOR_LINK_NODE_CHECK_EVERY;
+        for (i = 0u; i < written; i++) {
+            (void)memcpy(&node->ring_x[slot_of(j0 + 1u + i) * NX], &old_x[i * (uint32_t)NX],
+                         sizeof(real) * (size_t)NX);
+        }
+        for (c = 0; c < checks; c++) {
+            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP], sizeof(Pm));
+            first += DC_MOTOR_LINK_NODE_CHECK_EVERY;
+        }
     }
     return rc;
 }
 
 int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs[NY], int32_t lag)
 {
-    real x[NX], P[NXX], z[NY];
-    uint32_t N;
-    int slot;
-    int rc;
-    if (!node || !z_abs) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    real x[NX];
+    real P[NPP];
+    real z[NY];
+    uint32_t N = 0u;
+    int hist = 0;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((node == NULL) || (z_abs == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
     }
-    if (!node->updated) {
-        return DC_MOTOR_LINK_ERR_SEQUENCE;
+    if ((rc == DC_MOTOR_LINK_OK) && (node->updated == 0u)) {
+        rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
-    if (!dc_motor_link_finite(z_abs, NY)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(z_abs, NY) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    centred(node, z_abs, z);
-    if (lag < 1 || lag > DC_MOTOR_LINK_NMAX || (uint32_t)lag > node->k) {
+    if ((rc == DC_MOTOR_LINK_OK) &&
+        ((lag < 1) || (lag > DC_MOTOR_LINK_NMAX) || ((uint32_t)lag > node->k))) {
         node->health.late_rejected++;
-        return DC_MOTOR_LINK_ERR_LAG;
+        rc = DC_MOTOR_LINK_ERR_LAG;
     }
-    N = (uint32_t)lag;
-    slot = slot_of(node->k - N);
-    if ((node->ring_flags[slot] & HAS) != 0u) {
-        node->health.late_rejected++;
-        return DC_MOTOR_LINK_ERR_DUPLICATE;
+    if (rc == DC_MOTOR_LINK_OK) {
+        centred(node, z_abs, z);
+        N = (uint32_t)lag;
+        hist = hist_of(node->k - N);
+        if ((node->ring_flags[hist] & HAS) != 0u) {
+            node->health.late_rejected++;
+            rc = DC_MOTOR_LINK_ERR_DUPLICATE;
+        }
     }
-    rc = replay(node, node->k - N, z, x, P);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
+    if (rc == DC_MOTOR_LINK_OK) {
+        rc = replay(node, node->k - N, z, x, P);
     }
-    (void)memcpy(&node->ring_z[slot * NY], z, sizeof(real) * (size_t)NY);
-    node->ring_flags[slot] = (uint8_t)(HAS | USED);
-    (void)memcpy(node->x, x, sizeof(x));
-    (void)memcpy(node->P, P, sizeof(P));
-    node->health.late_applied++;
-    return DC_MOTOR_LINK_OK;
+    if (rc == DC_MOTOR_LINK_OK) {
+        (void)memcpy(&node->ring_z[slot_of(node->k - N)], z, sizeof(real) * (size_t)NY);
+        node->ring_flags[hist] = (uint8_t)(HAS | USED);
+    }
+    if (rc == DC_MOTOR_LINK_OK) {
+        (void)memcpy(node->x, x, sizeof(x));
+        (void)memcpy(node->P, P, sizeof(P));
+        node->health.late_applied++;
+    }
+    return rc;
 }
 
 int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
 {
-    real x1[NX], P1[NXX];
+    real x1[NX];
+    real P1[NPP];
     int slot;
-    int rc;
-    if (!node || !v) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    uint32_t hist;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((node == NULL) || (v == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
     }
-    if (!node->updated) {
-        return DC_MOTOR_LINK_ERR_SEQUENCE;
+    if ((rc == DC_MOTOR_LINK_OK) && (node->updated == 0u)) {
+        rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
-    if (!dc_motor_link_finite(v, NY)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(v, NY) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    rc = predict_step(node->x, node->P, v, node->q, x1, P1);
-    if (rc != DC_MOTOR_LINK_OK) {
-        return rc;
+    if (rc == DC_MOTOR_LINK_OK) {
+        rc = predict_step(node->x, node->P, v, node->q, x1, P1);
     }
-    (void)memcpy(&node->ring_v[slot_of(node->k) * NY], v, sizeof(real) * (size_t)NY);
-    node->k++;
-    slot = slot_of(node->k);
-    (void)memcpy(&node->ring_x[slot * NX], x1, sizeof(x1));
-    (void)memcpy(&node->ring_P[slot * NXX], P1, sizeof(P1));
-    (void)memset(&node->ring_z[slot * NY], 0, sizeof(real) * (size_t)NY);
-    node->ring_flags[slot] = 0;
-    (void)memcpy(node->x, x1, sizeof(x1));
-    (void)memcpy(node->P, P1, sizeof(P1));
-    (void)memcpy(node->x_pred, x1, sizeof(x1));
-    (void)memcpy(node->P_pred, P1, sizeof(P1));
-    node->updated = 0;
-    recentre(node);
-    return DC_MOTOR_LINK_OK;
+    if (rc == DC_MOTOR_LINK_OK) {
+        slot = (int)node->slot;
+        (void)memcpy(&node->ring_v[slot], v, sizeof(real) * (size_t)NY);
+        node->k++;
+        slot = (slot == DC_MOTOR_LINK_NMAX) ? 0 : (slot + 1);
+        node->slot = (uint16_t)slot;
+        hist = (uint32_t)node->hist + 1u;
+        node->hist = (uint16_t)((hist == DC_MOTOR_LINK_NODE_NHIST) ? 0u : hist);
+        (void)memcpy(&node->ring_x[slot * NX], x1, sizeof(x1));
+        if ((node->k % DC_MOTOR_LINK_NODE_CHECK_EVERY) == 0u) {
+            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], P1, sizeof(P1));
+        }
+        (void)memset(&node->ring_z[slot], 0, sizeof(real) * (size_t)NY);
+        node->ring_flags[node->hist] = 0;
+        (void)memcpy(node->x, x1, sizeof(x1));
+        (void)memcpy(node->P, P1, sizeof(P1));
+        (void)memcpy(node->x_pred, x1, sizeof(x1));
+        (void)memcpy(node->P_pred, P1, sizeof(P1));
+        node->updated = 0;
+        recentre(node);
+    }
+    return rc;
 }
 
 int dc_motor_link_node_estimate(const dc_motor_link_node* node, real x[NX], real P[NXX])
 {
-    if (!node) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if (node == NULL) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        if (x != NULL) {
+            dc_motor_link_move_origin(node->x, node->centre, NULL, x);
+        }
+        if (P != NULL) {
+            unpack(node->P, P);
+        }
     }
-    if (x != NULL) {
-        dc_motor_link_move_origin(node->x, node->centre, NULL, x);
-    }
-    if (P != NULL) {
-        (void)memcpy(P, node->P, sizeof(node->P));
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], real y[NX])
 {
-    real Yl[NXX], yl[NX], piv[NX], origin[NX], x[NX];
+    real Yl[NXX];
+    real yl[NX];
+    real piv[NX];
+    real origin[NX];
+    real x[NX];
+    real P[NXX];
     real w[DC_MOTOR_LINK_KERN_INFO_SZ_W];
-    if (!node) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if (node == NULL) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
     }
-    (void)memset(origin, 0, sizeof(origin));
-    dc_motor_link_move_origin(node->x, node->centre, NULL, x);
-    (void)dc_motor_link_kern_info(x, node->P, origin, Yl, yl, piv, w);
-    if (!dc_motor_link_positive(piv, NX)) {
-        return DC_MOTOR_LINK_ERR_SINGULAR;
+    if (rc == DC_MOTOR_LINK_OK) {
+        (void)memset(origin, 0, sizeof(origin));
+        dc_motor_link_move_origin(node->x, node->centre, NULL, x);
+        unpack(node->P, P);
+        (void)dc_motor_link_kern_info(x, P, origin, Yl, yl, piv, w);
+        if (dc_motor_link_positive(piv, NX) == 0) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        }
     }
-    if (!dc_motor_link_finite(Yl, NXX) || !dc_motor_link_finite(yl, NX)) {
-        return DC_MOTOR_LINK_ERR_NONFINITE;
+    if ((rc == DC_MOTOR_LINK_OK) &&
+        ((dc_motor_link_finite(Yl, NXX) == 0) || (dc_motor_link_finite(yl, NX) == 0))) {
+        rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    if (Y != NULL) {
-        (void)memcpy(Y, Yl, sizeof(Yl));
+    if (rc == DC_MOTOR_LINK_OK) {
+        if (Y != NULL) {
+            (void)memcpy(Y, Yl, sizeof(Yl));
+        }
+        if (y != NULL) {
+            (void)memcpy(y, yl, sizeof(yl));
+        }
     }
-    if (y != NULL) {
-        (void)memcpy(y, yl, sizeof(yl));
-    }
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_node_packet(const dc_motor_link_node* node, dc_motor_link_packet* packet)
 {
-    if (!node || !packet) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((node == NULL) || (packet == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        packet->step = node->k;
+        (void)memcpy(packet->centre, node->centre, sizeof(packet->centre));
+        (void)memcpy(packet->x, node->x, sizeof(packet->x));
+        unpack(node->P, packet->P);
+        (void)memcpy(packet->x_pred, node->x_pred, sizeof(packet->x_pred));
+        unpack(node->P_pred, packet->P_pred);
     }
-    packet->step = node->k;
-    (void)memcpy(packet->centre, node->centre, sizeof(packet->centre));
-    (void)memcpy(packet->x, node->x, sizeof(packet->x));
-    (void)memcpy(packet->P, node->P, sizeof(packet->P));
-    (void)memcpy(packet->x_pred, node->x_pred, sizeof(packet->x_pred));
-    (void)memcpy(packet->P_pred, node->P_pred, sizeof(packet->P_pred));
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }
 
 int dc_motor_link_node_health(const dc_motor_link_node* node, dc_motor_link_health* health)
 {
-    if (!node || !health) {
-        return DC_MOTOR_LINK_ERR_ARG;
+    int rc = DC_MOTOR_LINK_OK;
+    if ((node == NULL) || (health == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        *health = node->health;
     }
-    *health = node->health;
-    return DC_MOTOR_LINK_OK;
+    return rc;
 }

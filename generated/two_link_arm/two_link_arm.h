@@ -141,6 +141,18 @@ typedef struct {
     uint32_t late_rejected;
 } two_link_arm_health;
 
+/** reals of a packed symmetric NX x NX matrix: its upper triangle, column by column */
+#define TWO_LINK_ARM_NPP ((TWO_LINK_ARM_NX * (TWO_LINK_ARM_NX + 1)) / 2)
+/** a node keeps the P prior of every CHECK_EVERY-th step and recomputes the ones between */
+#define TWO_LINK_ARM_NODE_CHECK_EVERY 4u
+/** checkpoints, (NMAX + CHECK_EVERY - 1) / CHECK_EVERY + 1: enough to hold the one at or before
+ * the oldest step of the window */
+#define TWO_LINK_ARM_NODE_NCHECK 9u
+/** flags kept, NMAX + CHECK_EVERY: the window and the steps back to the checkpoint it needs */
+#define TWO_LINK_ARM_NODE_NHIST 36u
+/** reals of the checkpoints, NCHECK * NPP */
+#define TWO_LINK_ARM_NODE_NCHECK_REALS 189
+
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
@@ -152,27 +164,31 @@ typedef struct {
 typedef struct {
     /** flat outputs' origin for the fields below */
     two_link_arm_real centre[TWO_LINK_ARM_NY];
-    /** estimate at step k (posterior once updated) */
+    /** estimate at step k (posterior once updated), P packed */
     two_link_arm_real x[TWO_LINK_ARM_NX];
-    two_link_arm_real P[TWO_LINK_ARM_NXX];
-    /** prediction into step k, before any update */
+    two_link_arm_real P[TWO_LINK_ARM_NPP];
+    /** prediction into step k, before any update (the prior of step k) */
     two_link_arm_real x_pred[TWO_LINK_ARM_NX];
-    two_link_arm_real P_pred[TWO_LINK_ARM_NXX];
+    two_link_arm_real P_pred[TWO_LINK_ARM_NPP];
     /** measurement covariance */
     two_link_arm_real R[TWO_LINK_ARM_NYY];
     /** process-noise density per chain */
     two_link_arm_real q[TWO_LINK_ARM_NY];
     two_link_arm_real ring_x[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NX];
-    two_link_arm_real ring_P[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NXX];
     two_link_arm_real ring_z[TWO_LINK_ARM_NRING_NY];
     two_link_arm_real ring_v[TWO_LINK_ARM_NRING_NY];
-    /** current step */
+    /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), step s at entry
+     * (s / CHECK_EVERY) % NCHECK */
+    two_link_arm_real ring_P[TWO_LINK_ARM_NODE_NCHECK_REALS];
+    /** current step, and its slot (k % NRING) and flags' entry (k % NHIST) */
     uint32_t k;
+    uint16_t slot;
+    uint16_t hist;
     two_link_arm_health health;
     /** update() done for step k */
     uint8_t updated;
-    /** bit 0: has a measurement, bit 1: used by the filter */
-    uint8_t ring_flags[TWO_LINK_ARM_NRING];
+    /** per step, at step % NHIST: bit 0 has a measurement, bit 1 used by the filter */
+    uint8_t ring_flags[TWO_LINK_ARM_NODE_NHIST];
 } two_link_arm_node;
 
 /** What a node sends to the master after the updates of its step: its estimate and its
