@@ -19,7 +19,7 @@ from test_user_models import MIXED
 
 ROOT = Path(__file__).resolve().parents[1]
 # Files (by what follows the model name) that must have no finding at all.
-OWNED = (".h", "_internal.h", "_kernels.h", "_wire.c", "_control.c")
+OWNED = (".h", "_internal.h", "_kernels.h", "_node.c", "_master.c", "_wire.c", "_control.c")
 # The documented built-in variants, and a user MIMO model (two inputs, one flat output an angle).
 VARIANTS = {**misra.VARIANTS, "user model mixed (2 inputs), float, ci": ("user:mixed", {"precision": "float",
                                                                                          "fusion": "ci"})}

@@ -84,8 +84,9 @@ def report(modules: dict[str, tuple[Path, str]], version: str) -> str:
              "sources of each module (the host example, which uses stdio, is left out). Counts are",
              "findings in the code the templates write and in the kernel bodies CasADi prints; a rule",
              "not in a table has no finding in that module. tests/test_misra.py requires no finding",
-             "of any rule in the files it lists (the public and internal headers, the kernels header,",
-             "the wire and the controller) and none in the kernel bodies.", ""]
+             "of any rule in every file the templates write (the public and internal headers, the",
+             "kernels header, the node, the master, the wire and the controller) and none in the",
+             "kernel bodies.", ""]
     tables = []
     for label, (folder, name) in modules.items():
         found = findings(folder, name)
