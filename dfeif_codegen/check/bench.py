@@ -28,7 +28,7 @@ from dfeif_codegen.errors import CodegenError, SetupError
 MODELS = ("dc_motor_link", "two_link_arm")
 # (oosm, fusion) builds measured per model; the first is the reference configuration.
 BUILDS = (("replay", "difference"), ("retrodict", "difference"), ("replay", "paper"), ("replay", "ci"))
-LAGS = (1, 8, 32)
+LAGS = (1, 8, 25, 32)
 
 
 def build_times(model: str, repeat: int, work: Path) -> list[float]:
@@ -235,6 +235,7 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
                 "|---|---:|---:|",
                 f"| node predict + update | {_fmt(step)} | 350 (dc_motor_link) |",
                 f"| replay, per replayed step (lag 8 -> 32) | {_fmt(per)} = {per / step:.2f}x a plain step | 1.0x |",
+                f"| update_delayed, lag 25, replay | {_fmt(c['node_update_delayed_lag25'])} | 10,000 (dc_motor_link) |",
                 f"| update_delayed, lag 32, replay / retrodict | {_fmt(c['node_update_delayed_lag32'])} / "
                 f"{_fmt(r['node_update_delayed_lag32'])} | |",
                 f"| master fuse, difference rule, M = 2 | {_fmt(sec['counts'][('replay', 'difference')]['master_fuse'])}"
