@@ -359,7 +359,8 @@ def _check_outputs(json_path, plot_dir) -> None:
 
 def _filters_of(filters) -> list[str]:
     """The filters asked for besides the derivative-free closed loop (always run)."""
-    names = [f.strip() for f in (filters or ["df"]) for f in str(f).split(",") if f.strip()]
+    filters = [filters] if isinstance(filters, str) else (filters or ["df"])
+    names = [f.strip() for item in filters for f in str(item).split(",") if f.strip()]
     bad = [f for f in names if f not in FILTERS]
     if bad or not names:
         raise ScenarioError(f"--filters: {', '.join(bad) or 'nothing'}: choose from {', '.join(FILTERS)}")
