@@ -217,8 +217,11 @@ def main():
     def opt(name):
         return args[args.index(name) + 1] if name in args else None
 
-    if opt("--matched"):
-        matched_report(model, load(opt("--matched")))
+    if opt("--matched"):        # several files (e.g. different rows of the same seeds): comma-separated
+        merged = {}
+        for part in opt("--matched").split(","):
+            merged.update(load(part))
+        matched_report(model, merged)
     if opt("--real"):
         real(model, load(opt("--real")))
     if opt("--filters"):
