@@ -70,7 +70,7 @@ def one(args):
         out[method] = m
         if with_filters and method == "replay":
             from dfeif_codegen.experiment import compare
-            m["us_per_step"] = compare.derivative_free_cost(res)
+            m["us_per_step"] = compare.evaluate(res, "df")["us_per_step"]   # same driver as the EKF/UKF
             for kind in compare.FILTERS:
                 out[kind] = compare.evaluate(res, kind)
     return model, ri, seed, out

@@ -8,6 +8,12 @@ Jacobian), the same late-frame method (replay) and the same fusion rule (informa
 in physical coordinates). Their errors are reported in the canonical coordinates of the tables
 (estimates mapped by `Phi`, covariances by its Jacobian), so every column compares like with like.
 
+Cost, measured alike for all three: each filter (the derivative-free one too, as an EKF on its own
+constant canonical model, `CanonicalModel`) runs on the same driver (ReplayNode, PhysicalMaster)
+with its predict and its update each one CasADi function called through Numeric's buffer;
+`us_per_step` is the process CPU time of that loop per step (two nodes with their replays and the
+master), `operations` the arithmetic of one predict and one update (CasADi's instruction count).
+
 A run counts as diverged when a covariance stops being positive definite or an estimate is not
 finite, or when its master NEES averages above 100 (the filter no longer knows its error).
 """
