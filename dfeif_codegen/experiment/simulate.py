@@ -5,6 +5,11 @@ states per node and at the master) plus the plant's tracking error and the avera
 95% chi-square band, for every reference and every (late-measurement method, fusion rule) asked
 for, baselines included. Runs go to worker processes (one per core); each run is reproducible from
 its seed, and the seed also fixes the noise and network draws shared by all methods (paired rows).
+With `filters` ("df,ekf,ukf") the EKF and UKF of experiment/compare.py run on the recordings of
+the replay + difference loops and are reported in the same tables and in Table VI.
+
+`simulate(...)` is the keyword API (cli.py only parses): `plan` checks everything and lists each
+distinct run once, `execute` runs them (sweep.py), then the tables, JSON and figures are written.
 
 Statistics without scipy at runtime: Student-t and chi-square quantiles from the normal quantile
 (Cornish-Fisher expansion; Wilson-Hilferty), accurate to well under 1% where they are used.
