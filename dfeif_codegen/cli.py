@@ -100,6 +100,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="first seed")
     filter_options(p, many=True)
     p.add_argument("--reference", choices=["sinusoid", "seesaw"], action="append", help="(repeatable)")
+    p.add_argument("--filters", action="append", metavar="LIST",
+                   help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--json", metavar="FILE", help="write every figure machine-readably ('-' for stdout)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -201,7 +203,11 @@ def verify(args: argparse.Namespace) -> int:
 def simulate(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import simulate
 
-    return simulate.run(args)
+    return simulate.simulate(
+        args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
+        oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
+        json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
+        results=args.results, csv=args.csv, resume=args.resume)
 
 
 def bench(args: argparse.Namespace) -> int:

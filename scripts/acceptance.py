@@ -1,11 +1,12 @@
 """Per-run figures behind docs/experiment.md, "The acceptance figures, restated".
 
-`python scripts/acceptance.py MODEL RUNS OUT.npy [--seed S] [--rows 0,1,5] [--filters]`: for every
+`python scripts/acceptance.py MODEL RUNS OUT.npy [--seed S] [--rows 0,1,5] [--filters] [--reference]`: for every
 seed and delay row of the paper scenario (sinusoid reference), the closed loop with replay +
 difference, with discard and with retrodict; `--filters` instead runs replay + difference only and
 the EKF and UKF nodes on its recording (experiment/compare.py), with the cost per step of each;
 `--matched` runs the matched linear plant (experiment/matched.py) instead of the real one. Stores
-per-run metrics (so ratios get paired intervals) and per-step master NEES. Runs in 2 processes.
+per-run metrics (so ratios get paired intervals) and per-step master NEES. Runs in 2 processes; the closed loops in compiled C
+(check/closed_loop_c.py, the same Result as the numpy engine) unless `--reference`.
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from dfeif_codegen.check import closed_loop_c
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario, simulate
 
 METHODS = ("replay", "discard", "retrodict")
+ENGINE = "reference" if "--reference" in sys.argv else "c"    # the compiled closed loop by default
 
 
 def matched_one(model, ri, seed):
@@ -52,7 +55,7 @@ def one(args):
             continue
         cfg = simulate.make_config(sc, model, 2, 32, "sinusoid", row, method, "difference", seed)
         try:
-            res = ex.run(cfg)
+            res = closed_loop_c.run(cfg) if ENGINE == "c" else ex.run(cfg)
         except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
             out[method] = {"failed": str(exc)}
             continue
@@ -67,7 +70,7 @@ def one(args):
         out[method] = m
         if with_filters and method == "replay":
             from dfeif_codegen.experiment import compare
-            m["us_per_step"] = compare.derivative_free_cost(res)
+            m["us_per_step"] = compare.evaluate(res, "df")["us_per_step"]   # same driver as the EKF/UKF
             for kind in compare.FILTERS:
                 out[kind] = compare.evaluate(res, kind)
     return model, ri, seed, out

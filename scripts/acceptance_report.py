@@ -1,6 +1,6 @@
 """Markdown tables of the restated acceptance figures from scripts/acceptance.py's files.
 
-`python scripts/acceptance_report.py MODEL [--real FILE.npy] [--filters FILE.npy] [--matched FILE.npy]`
+`python scripts/acceptance_report.py MODEL [--real FILE.npy] [--filters FILE.npy|FILE.jsonl [--rows 0,1,5]] [--matched FILE.npy]`
 Every interval is a 95% Student-t interval over the seeds; ratios and differences are formed per
 seed first (the rows and methods of one seed share their random numbers), then averaged.
 """
@@ -18,8 +18,24 @@ SC = scenario.load("paper")
 LABELS = [f"({', '.join(map(str, r.d))}, {r.p:g})" for r in SC.grid]
 
 
-def load(path):
-    return np.load(path, allow_pickle=True)[0]
+def load(path, rows=None):
+    """A scripts/acceptance.py file, or a `codegen simulate --filters df,ekf,ukf --results FILE.jsonl`
+    file (its row numbers mapped to the paper grid's by `rows` when the scenario had fewer)."""
+    if not str(path).endswith(".jsonl"):
+        return np.load(path, allow_pickle=True)[0]
+    import json
+
+    from dfeif_codegen.experiment import sweep
+    names = {"df-replay": "replay", "ekf-replay": "ekf", "ukf-replay": "ukf"}
+    data: dict = {}
+    for line in open(path, encoding="utf-8"):
+        rec = json.loads(line)
+        m = sweep.decode(rec["metrics"])
+        for ref, label, _, ri, seed in rec["runs"]:
+            if label in names:
+                key = (rows[ri] if rows else ri, seed)
+                data.setdefault(key, {})[names[label]] = {"failed": m} if isinstance(m, str) else m
+    return data
 
 
 def seeds_of(data, rows):
@@ -129,7 +145,7 @@ def filters(model, data):
     seeds = seeds_of(data, rows)
     print(f"\n### {model}: derivative-free filter against EKF and UKF, {len(seeds)} runs per row, same recordings\n")
     print("| row | filter | master RMSE " + " | ".join(f"x{i + 1}" for i in range(n)) +
-          " | master NEES | diverged / rejected frames per run | µs per step (2 nodes + master) |")
+          " | master NEES | diverged / rejected frames per run | CPU µs per step (2 nodes + master) |")
     print("|---|---|" + "---|" * n + "---|---|---|")
     series = {}
     for ri in rows:
@@ -156,6 +172,15 @@ def filters(model, data):
         pairs = [(data[(ri, s)]["ekf"], data[(ri, s)]["replay"]) for s in seeds if "failed" not in data[(ri, s)]["ekf"]]
         r = np.array([np.asarray(e["rmse_master"]) / np.asarray(d["rmse_master"]) for e, d in pairs])
         print(f"| {LABELS[ri]} | " + " | ".join(fmt(*ci(r[:, i])) for i in range(n)) + " |")
+    print("\n| row | CPU time per step, EKF / derivative-free | UKF / derivative-free |")
+    print("|---|---|---|")
+    for ri in rows:
+        cells = []
+        for kind in ("ekf", "ukf"):
+            r = [data[(ri, s)][kind]["us_per_step"] / data[(ri, s)]["replay"]["us_per_step"] for s in seeds
+                 if "failed" not in data[(ri, s)][kind]]
+            cells.append(fmt(*ci(r), digits=2))
+        print(f"| {LABELS[ri]} | {cells[0]} | {cells[1]} |")
     return rows, series
 
 
@@ -192,12 +217,16 @@ def main():
     def opt(name):
         return args[args.index(name) + 1] if name in args else None
 
-    if opt("--matched"):
-        matched_report(model, load(opt("--matched")))
+    if opt("--matched"):        # several files (e.g. different rows of the same seeds): comma-separated
+        merged = {}
+        for part in opt("--matched").split(","):
+            merged.update(load(part))
+        matched_report(model, merged)
     if opt("--real"):
         real(model, load(opt("--real")))
     if opt("--filters"):
-        rows, series = filters(model, load(opt("--filters")))
+        mapped = [int(r) for r in opt("--rows").split(",")] if opt("--rows") else None
+        rows, series = filters(model, load(opt("--filters"), mapped))
         if opt("--plot"):
             from dfeif_codegen.experiment import figures
             figures.comparison_figure(opt("--plot"), f"{model}: master RMSE per filter (95% intervals), "

@@ -79,3 +79,92 @@ def test_ekf_and_ukf_agree_on_the_motor():
     np.testing.assert_allclose(ekf["rmse_master"], ukf["rmse_master"], rtol=1e-2)
     # both well below the camera's angle noise (4 mrad): they use every frame
     assert ekf["rmse_master"][0] < 4e-3 and ekf["late_applied"] > 100
+
+
+@pytest.fixture(scope="module")
+def motor_run():
+    from dfeif_codegen.experiment import scenario, simulate
+    sc = scenario.load("paper")
+    cfg = simulate.make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[3], "replay", "difference", 4)
+    return ex.run(ex.Config(**{**cfg.__dict__, "duration": 3.0}))
+
+
+def test_derivative_free_filter_through_the_same_driver(motor_run):
+    """The cost column runs the derivative-free filter through the EKF's driver and call path
+    (compare.CanonicalModel): on a nonlinear closed-loop recording with late frames it must be the
+    derivative-free filter itself, nodes and master, to 1e-9 relative (the same linear Kalman
+    filter: numpy Joseph form against one CasADi function of the same algebra)."""
+    rec = motor_run.recording
+    assert rec.late_step.size > 100
+    out = compare.run_on_recording(rec, "df")
+    for mine, theirs in ((out["node_x"], rec.node_x), (out["node_P"], rec.node_P), (out["x"], rec.x), (out["P"], rec.P)):
+        np.testing.assert_allclose(mine, theirs, rtol=0, atol=1e-9 * np.abs(theirs).max())
+    assert out["applied"] == int(rec.late_applied.sum())
+
+
+def test_simulate_filters_equal_the_compare_path(tmp_path):
+    """`simulate(filters="df,ekf,ukf")` reports, per row, the mean over seeds of compare.evaluate
+    on each seed's closed-loop recording: recomputed here run by run (numpy engine), equal to 1e-12
+    relative (the same arithmetic, averaged in the same seed order; only the C engine's closed
+    loop against numpy's differs, by rounding, ~1e-15)."""
+    import json
+
+    from dfeif_codegen.experiment import scenario, simulate
+    path = tmp_path / "s.toml"
+    path.write_text(TINY)
+    out = tmp_path / "r.json"
+    rc = simulate.simulate("dc_motor_link", scenario=str(path), runs=2, filters="df,ekf,ukf", json_path=str(out),
+                           quiet=True, workers=1, out=open(tmp_path / "log.txt", "w"))
+    assert rc == 0
+    doc = json.loads(out.read_text())
+    tables = {t["method"]: t for t in doc["tables"]}
+    assert set(tables) == {"replay", "df-replay", "ekf-replay", "ukf-replay"}
+    assert tables["ekf-replay"]["filter"] == "ekf"
+    sc = scenario.load(str(path))
+    for ri, row in enumerate(sc.grid):
+        res = [ex.run(simulate.make_config(sc, "dc_motor_link", 2, 32, "sinusoid", row, "replay", "difference", s))
+               for s in (0, 1)]
+        for kind in ("df", "ekf", "ukf"):
+            mine = np.mean([compare.evaluate(r, kind)["rmse_master"] for r in res], axis=0)
+            theirs = tables[f"{kind}-replay"]["rows"][ri]["rmse_master"]["mean"]
+            np.testing.assert_allclose(theirs, mine, rtol=1e-12)
+            nees = np.mean([compare.evaluate(r, kind)["nees_master"] for r in res], axis=0).mean()
+            assert tables[f"{kind}-replay"]["rows"][ri]["nees_master"]["mean"] == pytest.approx(nees, rel=1e-12)
+        # the derivative-free filter through the driver is the closed loop's own filter
+        np.testing.assert_allclose(tables["df-replay"]["rows"][ri]["rmse_master"]["mean"],
+                                   tables["replay"]["rows"][ri]["rmse_master"]["mean"], rtol=1e-9)
+    assert set(doc["settings"]["operations"]) == {"df", "ekf", "ukf"}
+
+
+def test_unknown_filter_is_bad_input(tmp_path):
+    from dfeif_codegen import cli
+    path = tmp_path / "s.toml"
+    path.write_text(TINY)
+    assert cli.main(["simulate", "--scenario", str(path), "--quiet", "--filters", "df,kf"]) == 2
+
+
+TINY = """
+[scenario]
+name = "tiny"
+duration = 1.5
+runs = 2
+references = ["sinusoid"]
+oosm = ["replay"]
+fusion = ["difference"]
+baselines = []
+[filter]
+q = 20.0
+p0_std = [0.05, 0.1, 1.0]
+[control]
+poles = 10.0
+[[nodes]]
+noise_scale = 1.0
+[[nodes]]
+noise_scale = 1.25
+[[grid]]
+d = [0, 0]
+p = 0.0
+[[grid]]
+d = [8, 10]
+p = 0.8
+"""

@@ -8,15 +8,23 @@ Jacobian), the same late-frame method (replay) and the same fusion rule (informa
 in physical coordinates). Their errors are reported in the canonical coordinates of the tables
 (estimates mapped by `Phi`, covariances by its Jacobian), so every column compares like with like.
 
+Cost, measured alike for all three: each filter (the derivative-free one too, as an EKF on its own
+constant canonical model, `CanonicalModel`) runs on the same driver (ReplayNode, PhysicalMaster)
+with its predict and its update each one CasADi function called through Numeric's buffer;
+`us_per_step` is the process CPU time of that loop per step (two nodes with their replays and the
+master), `operations` the arithmetic of one predict and one update (CasADi's instruction count).
+
 A run counts as diverged when a covariance stops being positive definite or an estimate is not
 finite, or when its master NEES averages above 100 (the filter no longer knows its error).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from functools import lru_cache
 
+import casadi as ca
 import numpy as np
 
 from dfeif_codegen.experiment import closed_loop as ex
@@ -28,16 +36,47 @@ FILTERS = {"ekf": EKF, "ukf": UKF}
 DIVERGED_NEES = 100.0
 
 
+class CanonicalModel:
+    """The derivative-free filter's own model (the canonical chains: constant A, B, C) in the shape
+    of a PhysicalModel, so that an EKF on it *is* the derivative-free filter (constant Jacobians)
+    and runs on the same driver (ReplayNode, PhysicalMaster) and the same call path as the EKF and
+    UKF: their costs per step are then measured alike. Phi is the identity here."""
+
+    def __init__(self, flat, ts: float, q):
+        A, B, C = flat.discrete(ts)
+        self.n, self.m, self.ts = flat.n, flat.m, float(ts)
+        self.angle_out = np.array([c.angle for c in flat.chains])
+        self.Qd = flat.process_noise(self.ts, q)
+        x, v = ca.SX.sym("x", self.n), ca.SX.sym("v", self.m)
+        self.step_sx = ca.Function("step", [x, v], [ca.DM(A) @ x + ca.DM(B) @ v])
+        self.h_sx = ca.Function("h", [x], [ca.DM(C) @ x])
+        self.Qx_sx = ca.Function("Qx", [x], [ca.DM(self.Qd)])
+        self.wrap_sx = PhysicalModel.wrap_sx.__get__(self)
+
+    def phi(self, x):
+        return np.asarray(x, float), np.eye(self.n)
+
+    phi_inv = phi
+
+
 @lru_cache(maxsize=None)
-def physical_model(spec: str, ts: float, q: tuple, substeps: int) -> PhysicalModel:
-    return PhysicalModel(ex._flat(spec), ts, np.array(q), substeps)
+def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str):
+    """The filter `kind` ("df", "ekf", "ukf") of one model, built once per process (building its
+    CasADi functions costs far more than a run)."""
+    flat = ex._flat(spec)
+    if kind == "df":
+        return EKF(CanonicalModel(flat, ts, np.array(q)))
+    return FILTERS[kind](PhysicalModel(flat, ts, np.array(q), substeps))
 
 
 def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10) -> dict:
     """Nodes and master of `kind` over a recording: node and master estimates and covariances in
-    canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and seconds of filter work."""
-    pm = physical_model(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps)
-    filt = FILTERS[kind](pm)
+    canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and the CPU seconds of the
+    filter loop alone (process time; the maps to canonical coordinates after it are not counted).
+    "df" runs the derivative-free filter itself through the same driver (CanonicalModel)."""
+    filt = filter_of(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps, kind)
+    pm = filt.model
+    inputs = rec.v if kind == "df" else rec.u
     x0, J0 = pm.phi_inv(rec.master_x0)
     P0 = J0 @ rec.master_P0 @ J0.T
     nodes = [ReplayNode(filt, rec.R[i], x0, P0, rec.max_lag) for i in range(rec.nodes)]
@@ -62,8 +101,8 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10) -> dict:
             phys["node_x"][i, k], phys["node_P"][i, k] = nd.x, nd.P
         phys["x"][k], phys["P"][k] = master.x, master.P
         for nd in nodes:
-            nd.predict(rec.u[k])
-        master.predict(rec.u[k])
+            nd.predict(inputs[k])
+        master.predict(inputs[k])
     seconds = time.process_time() - started
     out = {"seconds": seconds, "rejected": sum(nd.rejected for nd in nodes),
            "applied": sum(nd.applied for nd in nodes)}
@@ -78,38 +117,29 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10) -> dict:
 
 
 def evaluate(res: ex.Result, kind: str) -> dict:
-    """The metrics of closed_loop.metrics for `kind` on `res`'s recording (plus cost per step and
-    the estimated tracking error), or {"failed": reason}."""
-    rec, cfg = res.recording, res.config
+    """closed_loop.metrics of `kind`'s estimates on `res`'s recording (the plant's tracking error
+    is the run's own), plus `us_per_step`, the CPU microseconds per step of the filter loop; a
+    run whose filter fails or diverges gives {"failed": reason}."""
+    rec = res.recording
     try:
         with np.errstate(all="raise"):
-            out = run_on_recording(rec, kind, cfg.substeps)
+            out = run_on_recording(rec, kind, res.config.substeps)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
-        return {"failed": f"{type(exc).__name__}: {exc}"}
-    flat = ex._flat(cfg.model)
-    k0 = min(int(round(cfg.metrics_from / rec.ts)), len(res.t) - 1)
-    zeta = res.zeta[k0:]
-    err = ex._errors(flat, out["x"][k0:], zeta)
-    node_err = ex._errors(flat, out["node_x"][:, k0:], zeta[None])
-    xd = np.array([ex.state_of_flags(flat, r) for r in rec.ref[k0:]])
-    nees = ex._nees(err, out["P"][k0:])
-    m = {
-        "rmse_nodes": np.sqrt(np.mean(node_err ** 2, axis=1)),
-        "rmse_master": np.sqrt(np.mean(err ** 2, axis=0)),
-        "nees_master": nees,
-        "nees_nodes": ex._nees(node_err, out["node_P"][:, k0:]).mean(axis=-1),
-        "rmse_est_track_master": np.sqrt((ex._errors(flat, out["x"][k0:], xd) ** 2).mean(0)),
-        "us_per_step": 1e6 * out["seconds"] / len(res.t),
-        "late_applied": out["applied"], "late_rejected": out["rejected"],
-    }
-    if not np.all(np.isfinite(m["rmse_master"])) or nees.mean() > DIVERGED_NEES:
-        return {"failed": f"diverged (master NEES {nees.mean():.3g})", **m}
+        return {"failed": f"{kind}: {type(exc).__name__}: {exc}"}
+    mine = dataclasses.replace(rec, node_x=out["node_x"], node_P=out["node_P"], x=out["x"], P=out["P"])
+    counters = [{"late_applied": out["applied"], "late_rejected": out["rejected"]}]
+    with np.errstate(all="ignore"):       # a diverged filter's NEES is inf or nan: judged below
+        m = ex.metrics(dataclasses.replace(res, recording=mine, counters=counters))
+    m["us_per_step"] = 1e6 * out["seconds"] / len(res.t)
+    nees = float(np.mean(m["nees_master"]))
+    if not np.all(np.isfinite(m["rmse_master"])) or not nees <= DIVERGED_NEES:
+        return {"failed": f"{kind}: diverged (master NEES {nees:.3g})"}
     return m
 
 
-def derivative_free_cost(res: ex.Result) -> float:
-    """Microseconds per step of the derivative-free nodes, master and controller on the same
-    recording (replay_recording), for the cost column."""
-    started = time.process_time()
-    ex.replay_recording(res.recording)
-    return 1e6 * (time.process_time() - started) / len(res.t)
+def operations(spec: str, ts: float, q, substeps: int = 10) -> dict:
+    """Elementary operations of one predict and one update of each filter (CasADi's instruction
+    count of the SX functions after common-subexpression elimination): a machine-independent
+    cost beside the measured CPU time."""
+    q = tuple(np.asarray(q, float))
+    return {kind: filter_of(spec, float(ts), q, substeps, kind).operations() for kind in ("df", *FILTERS)}

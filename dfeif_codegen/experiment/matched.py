@@ -70,3 +70,24 @@ def metrics(cfg: ex.Config, out: dict) -> dict:
     return {"mse_master": (err ** 2).mean(axis=0), "mse_nodes": (node_err ** 2).mean(axis=1),
             "var_master": np.diagonal(out["P"][k0:], axis1=1, axis2=2).mean(axis=0),
             "nees_master": ex._nees(err, out["P"][k0:])}
+
+
+def centralized_covariances(cfg: ex.Config, steps: int) -> np.ndarray:
+    """P(k|k) of one Kalman filter that has both cameras' frames as they arrive (the two-camera
+    Riccati recursion of bounds.py over `cfg`'s arrival pattern), (K, n, n)."""
+    flat = ex._flat(cfg.model)
+    A, Q, R, P0, _ = bounds.matched_model(cfg)
+    C = np.zeros((flat.m, flat.n))
+    C[np.arange(flat.m), flat.heads] = 1.0
+    H = np.array([C.T @ np.linalg.solve(Ri, C) for Ri in R])
+    return bounds.posterior_covariances(A, Q, H, P0, bounds.arrivals(bounds.network_of(cfg, steps), cfg.max_lag))
+
+
+def riccati_gap(cfg: ex.Config, out: dict) -> float:
+    """Largest gap between the master's P and the centralized filter's, relative to the latter's
+    largest entry per step. Zero (to rounding) without late frames; with late frames the difference
+    rule adds each node's information *increment*, and a late frame's increment, propagated
+    through process noise, depends on the information it is added to (one camera's at the node,
+    both cameras' in the centralized filter), so the two differ unless Q = 0."""
+    central = centralized_covariances(cfg, out["P"].shape[0])
+    return float(np.max(np.abs(out["P"] - central) / np.abs(central).max(axis=(1, 2))[:, None, None]))

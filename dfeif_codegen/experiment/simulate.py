@@ -5,6 +5,11 @@ states per node and at the master) plus the plant's tracking error and the avera
 95% chi-square band, for every reference and every (late-measurement method, fusion rule) asked
 for, baselines included. Runs go to worker processes (one per core); each run is reproducible from
 its seed, and the seed also fixes the noise and network draws shared by all methods (paired rows).
+With `filters` ("df,ekf,ukf") the EKF and UKF of experiment/compare.py run on the recordings of
+the replay + difference loops and are reported in the same tables and in Table VI.
+
+`simulate(...)` is the keyword API (cli.py only parses): `plan` checks everything and lists each
+distinct run once, `execute` runs them (sweep.py), then the tables, JSON and figures are written.
 
 Statistics without scipy at runtime: Student-t and chi-square quantiles from the normal quantile
 (Cornish-Fisher expansion; Wilson-Hilferty), accurate to well under 1% where they are used.
@@ -16,6 +21,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from statistics import NormalDist
 
@@ -132,7 +138,7 @@ def summarize(runs: list[dict], n: int) -> dict:
     if not runs:
         return out
     for key in ("trace_nodes", "trace_master", "rmse_nodes", "rmse_master", "rmse_tracking",
-                "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected"):
+                "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected", "us_per_step"):
         if key not in runs[0]:
             continue
         mean, half = mean_ci([r[key] for r in runs])
@@ -261,7 +267,7 @@ def _jsonable(value):
     return value
 
 
-def plot(directory: str, figures: dict, flat) -> list[str]:
+def plot_figures(directory: str, figures: dict, flat) -> list[str]:
     """PNG figures like the chapter's Figs 9-13 (experiment/figures.py): states against the
     reference, the estimation error with its +-3 sigma band, the delays."""
     from dfeif_codegen.experiment import figures as figs
@@ -311,167 +317,286 @@ def plot(directory: str, figures: dict, flat) -> list[str]:
 
 # --- the command --------------------------------------------------------------------------------------
 
-def run(args) -> int:
-    from dfeif_codegen.symbolic.model import load as load_model
-    from dfeif_codegen.symbolic.flatness import derive
+FILTERS = ("df", "ekf", "ukf")
 
+
+@dataclass
+class Plan:
+    """Everything `simulate` will run, known (and checked) before the first run starts."""
+
+    sc: object
+    flat: object
+    model: str
+    nodes: int
+    max_lag: int
+    runs: int
+    seed: int
+    refs: list
+    configs: list            # (method, fusion) of the derivative-free closed loops
+    filters: list            # "ekf", "ukf": judged on the recordings of replay + difference
+    rows: list
+    wanted: dict             # (cfg, kind) -> [(reference, method label, fusion, row, seed)]
+    figure_keys: set
+
+    @property
+    def seeds(self) -> range:
+        return range(self.seed, self.seed + self.runs)
+
+    @property
+    def labels(self) -> list[tuple[str, str]]:
+        """(method label, fusion) of every table: the closed loops, then each filter on their recordings."""
+        extra = [(f"{k}-replay", "difference") for k in (["df", *self.filters] if self.filters else [])]
+        return list(dict.fromkeys(self.configs + extra))
+
+
+def _check_outputs(json_path, plot_dir) -> None:
     from dfeif_codegen.paths import writable_dir, writable_file
 
-    # everything that can be wrong with the arguments is checked before the first run starts
-    if args.json and args.json != "-":
-        writable_file(args.json, "--json")
-    if args.plot:
-        writable_dir(args.plot, "--plot")
+    if json_path and json_path != "-":
+        writable_file(json_path, "--json")
+    if plot_dir:
+        writable_dir(plot_dir, "--plot")
         try:
             import matplotlib  # noqa: F401
         except ImportError:
             raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
-    sc = scenario_mod.load(args.scenario)
-    flat = derive(load_model(args.model))
-    if args.plot:                          # a missing matplotlib is said before the runs, not after
+
+
+def _filters_of(filters) -> list[str]:
+    """The filters asked for besides the derivative-free closed loop (always run)."""
+    filters = [filters] if isinstance(filters, str) else (filters or ["df"])
+    names = [f.strip() for item in filters for f in str(item).split(",") if f.strip()]
+    bad = [f for f in names if f not in FILTERS]
+    if bad or not names:
+        raise ScenarioError(f"--filters: {', '.join(bad) or 'nothing'}: choose from {', '.join(FILTERS)}")
+    return [f for f in dict.fromkeys(names) if f != "df"]
+
+
+def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
+         filters, plot_dir) -> Plan:
+    """Load and check everything, then list each distinct run once."""
+    from dfeif_codegen.symbolic.flatness import derive
+    from dfeif_codegen.symbolic.model import load as load_model
+
+    kinds = _filters_of(filters)
+    sc = scenario_mod.load(scenario)
+    flat = derive(load_model(model))
+    if plot_dir:                          # a missing matplotlib is said before the runs, not after
         from dfeif_codegen.experiment import figures as figs
         figs.pyplot()
     sc.check_model(flat)
     # --nodes defaults to 2 in the parser: a scenario with another node count keeps its own
     # unless --nodes asks for something other than 2 (node settings then repeat cyclically).
-    nodes = len(sc.noise_scale) if args.nodes is None else args.nodes
+    nodes = len(sc.noise_scale) if nodes is None else nodes
     if nodes < 1:
         raise ScenarioError(f"--nodes: needs at least one node, got {nodes}")
-    if args.max_lag < 1:
-        raise ScenarioError(f"--max-lag: needs at least 1, got {args.max_lag}")
-    scenario_mod.check_window(sc, args.max_lag, nodes)
-    runs = args.runs if args.runs is not None else sc.runs
+    if max_lag < 1:
+        raise ScenarioError(f"--max-lag: needs at least 1, got {max_lag}")
+    scenario_mod.check_window(sc, max_lag, nodes)
+    runs = runs if runs is not None else sc.runs
     if runs < 1:
         raise ScenarioError(f"--runs: needs at least 1, got {runs}")
-    refs = args.reference or sc.references
-    configs = configurations(args.oosm or sc.oosm, args.fusion or sc.fusion, sc.baselines)
-    configs = list(dict.fromkeys(configs))
-    seeds = range(args.seed, args.seed + runs)
+    refs = list(reference or sc.references)
+    configs = list(dict.fromkeys(configurations(list(oosm or sc.oosm), list(fusion or sc.fusion), sc.baselines)))
     rows = [scenario_mod.Row([_pick(r.d, i) for i in range(nodes)], r.p, r.p_drop) for r in sc.grid]
-
-    # every (reference, config, row, seed), each distinct run once
-    wanted: dict = {}
+    p = Plan(sc, flat, model, nodes, max_lag, runs, seed, refs, configs, kinds, rows, {}, set())
     for ref in refs:
-        for method, fusion in configs:
-            for ri, row in enumerate(rows):
-                for seed in seeds:
-                    cfg = make_config(sc, args.model, nodes, args.max_lag, ref, row, method, fusion, seed)
-                    wanted.setdefault(_canonical(cfg), []).append((ref, method, fusion, ri, seed))
-    for cfg in {c.reference: c for c in wanted}.values():
+        for ri, row in enumerate(rows):
+            for s in p.seeds:
+                for method, rule in configs:
+                    cfg = make_config(sc, model, nodes, max_lag, ref, row, method, rule, s)
+                    p.wanted.setdefault((_canonical(cfg), "df"), []).append((ref, method, rule, ri, s))
+                for label, rule in p.labels[len(configs):]:
+                    cfg = make_config(sc, model, nodes, max_lag, ref, row, "replay", rule, s)
+                    p.wanted.setdefault((cfg, label), []).append((ref, label, rule, ri, s))
+    for cfg in {c.reference: c for c, _ in p.wanted}.values():
         try:  # a reference outside the model's domain is bad input, known before any run
             ex.check_reference_of(cfg)
         except ex.UndefinedReference as exc:
             raise ScenarioError(f"{sc.where('reference')}: {cfg.reference}: {exc}") from None
-    figure_keys = {(ref, configs[0][0], configs[0][1], ri, args.seed) for ref in refs for ri in (0, len(rows) - 1)}
-    need_series = bool(args.plot or args.json)
-    engine = getattr(args, "engine", "c")
-    if args.resume and args.results and Path(args.resume) != Path(args.results):
+    p.figure_keys = {(ref, configs[0][0], configs[0][1], ri, seed) for ref in refs for ri in (0, len(rows) - 1)}
+    return p
+
+
+@dataclass
+class Outcome:
+    results: dict            # (reference, label, fusion, row) -> [metrics] in seed order
+    series: dict
+    failures: list
+    per_run: list
+    where: str
+    workers: int
+    reused: int
+    distinct: int
+    elapsed: float
+
+
+def execute(p: Plan, engine: str, need_series: bool, workers, scheduler, results_file, resume,
+            quiet: bool) -> Outcome:
+    """Run every distinct run of the plan (reusing a --resume file's), collecting per key."""
+    if resume and results_file and Path(resume) != Path(results_file):
         raise ScenarioError("--resume FILE continues FILE: give --results the same file or leave it out")
-    previous = sweep.read_records(args.resume) if args.resume else {}
-    show = not args.quiet and sys.stderr.isatty()
-    results: dict = {}
-    series: dict = {}
-    failures: list[tuple] = []
-    per_run: list[tuple] = []
-    jobs = list(wanted.items())
-    ids = {sweep.run_id(cfg, engine): (cfg, keys) for cfg, keys in jobs}
+    previous = sweep.read_records(resume) if resume else {}
+    ids = {sweep.run_id(cfg, engine, kind): (cfg, kind, keys) for (cfg, kind), keys in p.wanted.items()}
     todo, reused = [], []
-    for rid, (cfg, keys) in ids.items():
-        wants_series = need_series and any(k in figure_keys for k in keys)
+    for rid, (cfg, kind, keys) in ids.items():
+        wants_series = need_series and kind == "df" and any(k in p.figure_keys for k in keys)
         if rid in previous and not wants_series:
             reused.append((rid, sweep.decode(previous[rid]["metrics"])))
         else:
-            todo.append((rid, cfg, _series if wants_series else None))
-    workers = sweep.default_workers(getattr(args, "workers", None), len(todo))
-    client = sweep.connect(getattr(args, "scheduler", None))
+            todo.append((rid, cfg, _series if wants_series else None, kind))
+    workers = sweep.default_workers(workers, len(todo))
+    client = sweep.connect(scheduler)
     try:
-        shipped = sweep.prepare([cfg for _, cfg, _ in todo], engine)
+        shipped = sweep.prepare([cfg for _, cfg, _, _ in todo], engine)
     except BaseException:
         if client is not None:
             client.close()
         raise
-    records = sweep.Records(args.resume or args.results, keep_existing=bool(args.resume))
-    progress = Progress(len(todo), show)
+    records = sweep.Records(resume or results_file, keep_existing=bool(resume))
+    progress = Progress(len(todo), not quiet and sys.stderr.isatty())
+    out = Outcome({}, {}, [], [], "", workers, len(reused), len(todo), 0.0)
     started = time.monotonic()
 
     def collect(rid, value, fresh=True):
         metrics, data = value if fresh else (value, None)
-        cfg, keys = ids[rid]
+        _, _, keys = ids[rid]
         if fresh and rid not in previous:
             records.write(rid, keys, engine, metrics)
         for key in keys:
-            per_run.append((*key[:4], key[4], metrics))
+            out.per_run.append((*key[:4], key[4], metrics))
             if isinstance(metrics, str):
-                failures.append((key, f"{key[0]} {key[1]} {key[2]} row {key[3] + 1} seed {key[4]}: {metrics}"))
+                out.failures.append((key, f"{key[0]} {key[1]} {key[2]} row {key[3] + 1} seed {key[4]}: {metrics}"))
             else:
-                results.setdefault(key[:4], []).append((key[4], metrics))
-            if data is not None and key in figure_keys:
-                series[key] = data
+                out.results.setdefault(key[:4], []).append((key[4], metrics))
+            if data is not None and key in p.figure_keys:
+                out.series[key] = data
         if fresh:
             progress.step()
 
     for rid, metrics in reused:
         collect(rid, metrics, fresh=False)
     try:
-        where = sweep.execute(todo, engine, shipped, workers, client, collect)
+        out.where = sweep.execute(todo, engine, shipped, workers, client, collect)
     finally:
         records.close()
         progress.close()
-    elapsed = time.monotonic() - started
+    out.elapsed = time.monotonic() - started
     # the same numbers wherever and in whichever order the runs ran: average in seed order
-    results = {k: [m for _, m in sorted(v, key=lambda sm: sm[0])] for k, v in results.items()}
-    failures = [text for _, text in sorted(failures)]
-    if args.csv:
-        sweep.write_csv(args.csv, per_run, flat.n, nodes)
+    out.results = {k: [m for _, m in sorted(v, key=lambda sm: sm[0])] for k, v in out.results.items()}
+    out.failures = [text for _, text in sorted(out.failures)]
+    return out
 
-    bound = [bounds.row_bound([make_config(sc, args.model, nodes, args.max_lag, refs[0], row, "replay", "difference", s)
-                               for s in seeds]) for row in rows]
-    groups = {(ref, m, f): [summarize(results.get((ref, m, f, ri), []), flat.n) for ri in range(len(rows))]
-              for ref in refs for m, f in configs}
-    ts = sc.ts or flat.model.ts
-    settings = {"scenario": sc.name, "source": sc.source, "model": flat.model.name, "nodes": nodes,
-                "max_lag": args.max_lag, "ts": ts, "duration": sc.duration, "runs": runs,
-                "seeds": [args.seed, args.seed + runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
-                "noise_scale": [_pick(sc.noise_scale, i) for i in range(nodes)], "metrics_from": sc.metrics_from,
-                "elapsed_s": round(elapsed, 3), "workers": workers, "engine": engine, "ran_on": where,
-                "runs_resumed": len(reused), "distinct_runs": len(todo)}
-    to_stdout = args.json == "-"
-    if not to_stdout:
-        out = sys.stdout
-        print(f"codegen simulate: scenario {sc.name} on {flat.model.name}: {nodes} nodes, Ts = {ts:g} s, "
-              f"{sc.duration:g} s runs, N_max = {args.max_lag}, q = {sc.q}, poles {sc.poles}, "
-              f"seeds {args.seed}..{args.seed + runs - 1}, {len(todo)} runs in {elapsed:.0f} s on {where} "
-              f"({engine} engine{f', {len(reused)} resumed' if reused else ''})\n", file=out)
-        print_tables(out, sc, rows, groups, flat, nodes, bound)
-        print_summary(out, rows, groups)
-        if failures:
-            print(f"\n{len(failures)} run(s) failed (left out of the averages):", file=out)
-            for line in failures[:10]:
-                print(f"  {line}", file=out)
+
+def _settings(p: Plan, o: Outcome, engine: str) -> dict:
+    sc = p.sc
+    out = {"scenario": sc.name, "source": sc.source, "model": p.flat.model.name, "nodes": p.nodes,
+           "max_lag": p.max_lag, "ts": sc.ts or p.flat.model.ts, "duration": sc.duration, "runs": p.runs,
+           "seeds": [p.seed, p.seed + p.runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
+           "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
+           "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": engine, "ran_on": o.where,
+           "runs_resumed": o.reused, "distinct_runs": o.distinct}
+    if p.filters:
+        from dfeif_codegen.experiment import compare
+        out["filters"] = ["df", *p.filters]
+        out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps)
+    return out
+
+
+def _figures(p: Plan, o: Outcome) -> dict:
     figures = {}
-    for ref in refs:
-        pair = [series.get((ref, configs[0][0], configs[0][1], ri, args.seed)) for ri in (0, len(rows) - 1)]
-        if all(p is not None for p in pair):
-            figures[ref] = {"no_delay": {**pair[0], "row": _row_label(rows[0])},
-                            "delay": {**pair[1], "row": _row_label(rows[-1]).strip()},
-                            "method": configs[0][0], "fusion": configs[0][1]}
-    if args.json:
-        doc = {"settings": settings, "rows": [{"d": r.d, "p": r.p, "p_drop": r.p_drop} for r in rows],
-               "states": [str(z) for z in flat.zeta],
-               "tables": [{"reference": ref, "method": m, "fusion": f, "rows": s} for (ref, m, f), s in groups.items()],
+    method, rule = p.configs[0]
+    for ref in p.refs:
+        pair = [o.series.get((ref, method, rule, ri, p.seed)) for ri in (0, len(p.rows) - 1)]
+        if all(x is not None for x in pair):
+            figures[ref] = {"no_delay": {**pair[0], "row": _row_label(p.rows[0])},
+                            "delay": {**pair[1], "row": _row_label(p.rows[-1]).strip()},
+                            "method": method, "fusion": rule}
+    return figures
+
+
+def print_filters(out, p: Plan, groups: dict, operations: dict) -> None:
+    """Table VI: the derivative-free filter, the EKF and the UKF on the same recordings."""
+    labels = [(f"{k}-replay", "difference") for k in ("df", *p.filters)]
+    print("Table VI: derivative-free (df) against EKF and UKF on the same recordings (replay + difference; "
+          "master x1 RMSE, time-averaged NEES, failed or diverged runs, CPU us per step of the filter loop, "
+          "mean ± 95% CI)", file=out)
+    for ref in p.refs:
+        for ri, row in enumerate(p.rows):
+            for label, rule in labels:
+                s = groups[(ref, label, rule)][ri]
+                failed = p.runs - s.get("runs", 0)
+                if not s.get("runs"):
+                    print(f"  {ref} {_row_label(row)}  {label:11s} every run failed", file=out)
+                    continue
+                rm, us = s["rmse_master"], s["us_per_step"]
+                print(f"  {ref} {_row_label(row)}  {label:11s} x1 {_fmt(rm['mean'][0], rm['ci95'][0]):>20}  "
+                      f"NEES {s['nees_master']['mean']:6.2f}  failed {failed:3d}/{p.runs}  "
+                      f"{_fmt(us['mean'], us['ci95']):>20} us/step", file=out)
+    ops = ", ".join(f"{k} {v['predict']}/{v['update']}" for k, v in operations.items())
+    print(f"  operations per predict/update (CasADi SX instructions): {ops}\n", file=out)
+
+
+def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int | None = None, seed: int = 0,
+             nodes: int | None = None, max_lag: int = 32, oosm=None, fusion=None, reference=None,
+             filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
+             engine: str = "c", workers: int | None = None, scheduler: str | None = None,
+             results: str | None = None, csv: str | None = None, resume: str | None = None, out=None) -> int:
+    """The chapter's experiment: tables on `out` (stdout), optionally JSON, CSV, per-run records and
+    figures. `filters`: any of "df", "ekf", "ukf" (or one comma-separated string); the EKF and UKF
+    run on the recordings of the replay + difference closed loops. Returns 0, or 1 when a run
+    failed or diverged. Bad input raises a CodegenError before any run."""
+    out = out or sys.stdout
+    _check_outputs(json_path, plot)
+    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
+    o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
+    if csv:
+        sweep.write_csv(csv, o.per_run, p.flat.n, nodes=p.nodes)
+    bound = [bounds.row_bound([make_config(p.sc, model, p.nodes, max_lag, p.refs[0], row, "replay", "difference", s)
+                               for s in p.seeds]) for row in p.rows]
+    groups = {(ref, m, f): [summarize(o.results.get((ref, m, f, ri), []), p.flat.n) for ri in range(len(p.rows))]
+              for ref in p.refs for m, f in p.labels}
+    settings = _settings(p, o, engine)
+    to_stdout = json_path == "-"
+    if not to_stdout:
+        _print_report(out, p, o, settings, groups, bound, engine)
+    figures = _figures(p, o)
+    if json_path:
+        doc = {"settings": settings, "rows": [{"d": r.d, "p": r.p, "p_drop": r.p_drop} for r in p.rows],
+               "states": [str(z) for z in p.flat.zeta],
+               "tables": [{"reference": ref, "method": m, "fusion": f,
+                           "filter": m.split("-")[0] if m.endswith("-replay") else "df", "rows": s}
+                          for (ref, m, f), s in groups.items()],
                "bounds": [{"rmse_central": b.rmse_central, "rmse_nodes": b.rmse_nodes} for b in bound],
-               "failures": failures, "figures": figures}
+               "failures": o.failures, "figures": figures}
         text = json.dumps(_jsonable(doc))
         if to_stdout:
             sys.stdout.write(text + "\n")
         else:
-            Path(args.json).write_text(text + "\n", encoding="utf-8")
-    if args.plot:
-        written = plot(args.plot, figures, flat)
+            Path(json_path).write_text(text + "\n", encoding="utf-8")
+    if plot:
+        written = plot_figures(plot, figures, p.flat)
         if not to_stdout:
-            print(f"\nwrote {len(written)} figures into {args.plot}", file=sys.stdout)
-    if failures:  # a run that failed or diverged is a result to act on, not a footnote
-        print(f"codegen simulate: {len(failures)} of {sum(len(k) for _, k in jobs)} run(s) failed or diverged "
-              f"(first: {failures[0]})", file=sys.stderr)
+            print(f"\nwrote {len(written)} figures into {plot}", file=out)
+    if o.failures:  # a run that failed or diverged is a result to act on, not a footnote
+        print(f"codegen simulate: {len(o.failures)} of {sum(len(k) for k in p.wanted.values())} run(s) failed "
+              f"or diverged (first: {o.failures[0]})", file=sys.stderr)
         return 1
     return 0
+
+
+def _print_report(out, p: Plan, o: Outcome, settings: dict, groups: dict, bound, engine: str) -> None:
+    sc = p.sc
+    print(f"codegen simulate: scenario {sc.name} on {p.flat.model.name}: {p.nodes} nodes, Ts = {settings['ts']:g} s, "
+          f"{sc.duration:g} s runs, N_max = {p.max_lag}, q = {sc.q}, poles {sc.poles}, "
+          f"seeds {p.seed}..{p.seed + p.runs - 1}, {o.distinct} runs in {o.elapsed:.0f} s on {o.where} "
+          f"({engine} engine{f', {o.reused} resumed' if o.reused else ''})\n", file=out)
+    print_tables(out, sc, p.rows, groups, p.flat, p.nodes, bound)
+    if p.filters:
+        print(file=out)
+        print_filters(out, p, groups, settings["operations"])
+    print_summary(out, p.rows, groups)
+    if o.failures:
+        print(f"\n{len(o.failures)} run(s) failed (left out of the averages):", file=out)
+        for line in o.failures[:10]:
+            print(f"  {line}", file=out)

@@ -32,14 +32,18 @@ ENGINES = ("c", "reference")
 _CODES: dict = {}          # compiled loops of this worker process (set by the pool's initializer)
 
 
-def run_id(cfg: ex.Config, engine: str) -> str:
-    return hashlib.sha256(repr((engine, cfg)).encode()).hexdigest()[:20]
+def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
+    """`kind`: the filter judged on the run's recording (experiment/compare.py), "df" for the run's own."""
+    key = (engine, cfg) if kind == "df" else (engine, cfg, kind)
+    return hashlib.sha256(repr(key).encode()).hexdigest()[:20]
 
 
 # --- one batch, wherever it runs ------------------------------------------------------------------
 
-def one(cfg: ex.Config, engine: str, codes: dict, series):
-    """One run -> (metrics or the error text, `series(result)` or None)."""
+def one(cfg: ex.Config, engine: str, codes: dict, series, kind: str = "df"):
+    """One run -> (metrics or the error text, `series(result)` or None). With `kind` "ekf", "ukf"
+    (or "df-replay", the derivative-free filter through the same driver) the metrics are those of
+    that filter on the run's recording (experiment/compare.py)."""
     try:
         if engine == "c":
             from dfeif_codegen.check import closed_loop_c
@@ -48,14 +52,18 @@ def one(cfg: ex.Config, engine: str, codes: dict, series):
             res = ex.run(cfg)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return f"{type(exc).__name__}: {exc}", None
+    if kind != "df":
+        from dfeif_codegen.experiment import compare
+        m = compare.evaluate(res, kind.split("-")[0])
+        return (m["failed"] if "failed" in m else m), None
     return res.metrics, (series(res) if series else None)
 
 
 def batch(items: list, engine: str, shipped: dict | None = None) -> list:
-    """items: (run id, cfg, series function or None) -> [(run id, value)]."""
+    """items: (run id, cfg, series function or None[, filter kind]) -> [(run id, value)]."""
     if shipped is not None:
         _init_worker(shipped)
-    return [(rid, one(cfg, engine, _CODES, series)) for rid, cfg, series in items]
+    return [(rid, one(cfg, engine, _CODES, series, *kind)) for rid, cfg, series, *kind in items]
 
 
 def _init_worker(shipped: dict) -> None:
@@ -66,7 +74,7 @@ def _init_worker(shipped: dict) -> None:
 def prepare(configs, engine: str) -> dict:
     """What every worker needs: the compiled loop of each distinct build (built here, once) and the
     text of any model file (a worker on another machine cannot read the caller's files)."""
-    configs = list(configs)
+    configs = list(dict.fromkeys(configs))
     models = {c.model: Path(c.model).read_text(encoding="utf-8") for c in configs if Path(c.model).is_file()}
     if engine != "c":
         return {"codes": {}, "models": models}

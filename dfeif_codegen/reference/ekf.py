@@ -1,31 +1,28 @@
 """The extended Kalman filter on the physical model: the baseline the chapter says the
 derivative-free filter beats. Jacobians are exact (CasADi AD of the RK4 step and of `h`), so what
-the EKF loses is linearization, not differentiation error."""
+the EKF loses is linearization, not differentiation error. Predict and update are each one CasADi
+function (physical.FusedFilter)."""
 
 from __future__ import annotations
 
-import numpy as np
+import casadi as ca
 
-from dfeif_codegen.reference.linalg import spd_solve, wrap
-from dfeif_codegen.reference.physical import PhysicalModel
+from dfeif_codegen.reference.physical import FusedFilter
 
 
-class EKF:
+class EKF(FusedFilter):
     """predict/update on (x, P); nodes and master use it through physical.ReplayNode / PhysicalMaster."""
 
-    def __init__(self, model: PhysicalModel):
-        self.model = model
-        self._eye = np.eye(model.n)
+    def predict_sx(self, x, P, u):
+        xn = self.model.step_sx(x, u)
+        F = ca.jacobian(xn, x)
+        return xn, F @ P @ F.T + self.model.Qx_sx(x)
 
-    def predict(self, x, P, u):
-        xn, F = self.model.step(x, u)
-        Pn = F @ P @ F.T + self.model.Qx(x)
-        return xn, (Pn + Pn.T) / 2
-
-    def update(self, x, P, z, R):
-        y, H = self.model.h(x)
-        e = wrap(z - y, self.model.angle_out)
+    def update_sx(self, x, P, z, R):
+        y = self.model.h_sx(x)
+        H = ca.jacobian(y, x)
+        e = self.model.wrap_sx(z - y)
         S = H @ P @ H.T + R
-        K = spd_solve(S, H @ P).T
-        L = self._eye - K @ H
-        return x + K @ e, L @ P @ L.T + K @ R @ K.T
+        K = ca.solve(S, H @ P).T
+        L = ca.SX.eye(self.model.n) - K @ H
+        return x + K @ e, L @ P @ L.T + K @ R @ K.T           # Joseph form
