@@ -21,6 +21,12 @@ _API = {
     "build": ("dfeif_codegen.codegen.build", "build"),
     "check_build": ("dfeif_codegen.codegen.build", "check"),
     "load": ("dfeif_codegen.check.loader", "load"),
+    "inspect": ("dfeif_codegen.symbolic.inspect_model", "inspect"),
+    "verify": ("dfeif_codegen.check.verify", "verify"),
+    "bench": ("dfeif_codegen.check.bench", "bench"),
+    "simulate": ("dfeif_codegen.experiment.simulate", "simulate"),
+    "scenario": ("dfeif_codegen.experiment.starter", "scenario"),
+    "network": ("dfeif_codegen.net.run", "network"),
     "CError": ("dfeif_codegen.check.loader", "CError"),
 }
 

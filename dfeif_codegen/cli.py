@@ -232,7 +232,9 @@ def bench(args: argparse.Namespace) -> int:
 def scenario(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import starter
 
-    return starter.run(args)
+    text = starter.scenario(args.model, out=args.out)
+    print(f"codegen scenario: wrote {args.out}" if args.out else text)
+    return 0
 
 
 def network(args: argparse.Namespace) -> int:

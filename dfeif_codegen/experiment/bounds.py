@@ -25,6 +25,7 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment.network import Network
 
 NEVER = np.iinfo(np.int64).max
+BATCH_REALS = 4_000_000   # reals per (B, K, n, n) array of a batched recursion: 32 MB
 
 
 def arrivals(net: Network, max_lag: int) -> np.ndarray:
@@ -46,39 +47,44 @@ def _spd_inv(P: np.ndarray) -> np.ndarray:
 
 
 def posterior_covariances(A, Q, H, P0, arrive) -> np.ndarray:
-    """P(k | frames arrived by k) for every step k, (K, n, n).
+    """P(k | frames arrived by k) for every step k, (K, n, n); or (B, K, n, n) for a batch.
 
     `H[i] = C_i^T R_i^-1 C_i` is camera i's information per frame, `arrive` (cameras, K) the
     arrival step of each frame (NEVER if it never comes). Information form, so several cameras
-    and a missing frame (no information) need no special case."""
+    and a missing frame (no information) need no special case. A batch (`H` (B, cameras, n, n),
+    `arrive` (B, cameras, K): seeds, node subsets) runs as one recursion, which is what makes a
+    hundred seeds cost about what one does."""
     H = np.asarray(H, dtype=float)
     arrive = np.asarray(arrive, dtype=np.int64)
-    cams, K = arrive.shape
+    single = arrive.ndim == 2
+    if single:
+        H, arrive = H[None], arrive[None]
+    B, cams, K = arrive.shape
     n = A.shape[0]
     finite = arrive < NEVER
-    W = int(max((arrive[finite] - np.nonzero(finite)[1]).max(initial=0), 0))
-    # settled chain: every frame that ever arrives
-    prior = np.empty((K, n, n))
-    P = np.asarray(P0, dtype=float)
+    W = int(max(np.where(finite, arrive - np.arange(K), 0).max(initial=0), 0))
+    settled = np.einsum("bck,bcij->bkij", finite.astype(float), H)   # every frame that ever arrives
+    prior = np.empty((B, K, n, n))
+    P = np.broadcast_to(np.asarray(P0, dtype=float), (B, n, n)).copy()
     for k in range(K):
-        prior[k] = P
-        post = _spd_inv(_spd_inv(P) + np.tensordot(finite[:, k].astype(float), H, axes=1))
+        prior[:, k] = P
+        post = _spd_inv(_spd_inv(P) + settled[:, k])
         P = A @ post @ A.T + Q
     steps = np.arange(K)
     start = np.maximum(steps - W, 0)
-    P = prior[start].copy()
+    P = prior[:, start]
     out = np.empty_like(P)
     for t in range(W + 1):
         j = start + t                                   # the step each k is at, (K,)
         live = j <= steps
         jj = np.minimum(j, K - 1)
-        known = (arrive[:, jj] <= steps[None, :]) & live[None, :]          # (cams, K)
-        Y = _spd_inv(P) + np.einsum("ck,cab->kab", known.astype(float), H)
+        known = (arrive[:, :, jj] <= steps) & live                      # (B, cams, K)
+        Y = _spd_inv(P) + np.einsum("bck,bcij->bkij", known.astype(float), H)
         post = _spd_inv(Y)
         done = j == steps
-        out[done] = post[done]
+        out[:, done] = post[:, done]
         P = np.where(live[:, None, None], A @ post @ A.T + Q, P)
-    return out
+    return out[0] if single else out
 
 
 @dataclass
@@ -125,11 +131,21 @@ def row_bound(cfgs: list[ex.Config]) -> RowBound:
     C = np.zeros((flat.m, flat.n))
     C[np.arange(flat.m), flat.heads] = 1.0
     H = np.array([C.T @ np.linalg.solve(Ri, C) for Ri in R])
+    M = len(R)
+    # one batch per chunk of seeds: each seed's M single-camera filters and its centralized one
     nodes, central = [], []
-    for cfg in cfgs:
-        arrive = arrivals(network_of(cfg, K), cfg.max_lag)
-        per = [posterior_covariances(A, Q, H[i:i + 1], P0, arrive[i:i + 1]) for i in range(len(R))]
-        nodes.append([np.diagonal(P, axis1=1, axis2=2)[k0:].mean(axis=0) for P in per])
-        allc = posterior_covariances(A, Q, H, P0, arrive)
-        central.append(np.diagonal(allc, axis1=1, axis2=2)[k0:].mean(axis=0))
+    chunk = max(1, BATCH_REALS // (K * flat.n * flat.n * (M + 1)))
+    for c0 in range(0, len(cfgs), chunk):
+        arrive = []
+        for cfg in cfgs[c0:c0 + chunk]:
+            a = arrivals(network_of(cfg, K), cfg.max_lag)
+            for i in range(M):
+                alone = np.full_like(a, NEVER)
+                alone[i] = a[i]
+                arrive.append(alone)
+            arrive.append(a)
+        P = posterior_covariances(A, Q, np.broadcast_to(H, (len(arrive), *H.shape)), P0, np.array(arrive))
+        var = np.diagonal(P, axis1=2, axis2=3)[:, k0:].mean(axis=1).reshape(-1, M + 1, flat.n)
+        nodes += list(var[:, :M])
+        central += list(var[:, M])
     return RowBound(np.mean(nodes, axis=0), np.mean(central, axis=0))

@@ -81,7 +81,7 @@ class UndefinedReference(ArithmeticError):
 
 def check_reference(flat, ref_rows, t) -> None:
     """Every reference state must map back to a state in the declared domain."""
-    bad = flat.undefined_at(np.array([state_of_flags(flat, r) for r in ref_rows]))
+    bad = flat.undefined_at(state_of_flags(flat, np.asarray(ref_rows)))
     if bad is not None:
         k, what = bad
         raise UndefinedReference(f"the reference at t = {t[k]:.3f} s asks for flat outputs where Phi^-1 is "
@@ -313,11 +313,14 @@ def initial_covariance(flat, p0_std) -> np.ndarray:
 
 @lru_cache(maxsize=64)
 def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K) -> np.ndarray:
-    """The reference flags of every step (the same for every seed and method of a row: computed once)."""
+    """The reference flags of every step, checked to map into the domain (the same for every seed
+    and method of a row: computed and checked once per process)."""
     flat = _flat(spec)
     cfg = Config(model=spec, reference=kind, amplitude=amplitude, period=period, offset=offset, harmonics=harmonics)
     refs = references(cfg, flat.m)
-    table = np.array([flags(refs, flat.degrees, tk) for tk in np.arange(K) * ts])
+    t = np.arange(K) * ts
+    table = np.array([flags(refs, flat.degrees, tk) for tk in t])
+    check_reference(flat, table, t)
     table.flags.writeable = False
     return table
 
@@ -385,7 +388,6 @@ def prepare(cfg: Config) -> Setup:
     P0 = initial_covariance(flat, cfg.p0_std)
     x_hat0 = state_of_flags(flat, ref[0])     # everyone starts at the reference's start
     zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
-    check_reference(flat, ref, t)
 
     q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
     R = np.array([c.R for c in cams])
@@ -433,10 +435,46 @@ def run(cfg: Config) -> Result:
 def check_divergence(s: "Setup", x_true, zeta, x, P, steps: int | None = None) -> None:
     """The divergence watch over a run's arrays (an engine that ran the loop elsewhere), over its
     first `steps` steps (default all): the state after step k is the next step's x_true, so the
-    last step's successor goes unchecked."""
+    last step's successor goes unchecked. Vectorized over the steps to find the first one that
+    trips a criterion; the step-by-step watch then runs over the steps leading to it, so the
+    message is the one the numpy engine's watch gives."""
+    K = min(s.K, s.K if steps is None else steps + 1) - 1
+    if K <= 0:
+        return
     watch = DivergenceWatch(s.flat.model, s.cfg.watch_nees)
-    for k in range(min(s.K, s.K if steps is None else steps + 1) - 1):
+    xs = np.asarray(x_true[1:K + 1], dtype=float)
+    with np.errstate(invalid="ignore"):
+        bad = ~np.all(np.isfinite(xs), axis=1) | np.any((xs < watch.lo) | (xs > watch.hi), axis=1)
+    first = int(np.argmax(bad)) if bad.any() else K
+    if watch.nees:
+        high = ~(_batch_nees(_errors(s.flat, np.array(x[:K], dtype=float), zeta[:K]), P[:K])
+                 <= NEES_DIVERGED * s.flat.n)
+        steps_k = np.arange(K)
+        run = steps_k - np.maximum.accumulate(np.where(high, -1, steps_k))   # highs in a row up to k
+        tripped = run >= NEES_STEPS
+        if tripped.any():
+            first = min(first, int(np.argmax(tripped)))
+    if first == K:
+        return
+    for k in range(max(0, first - NEES_STEPS + 1), first + 1):   # raises at `first`
         watch.step(s.t[k], x_true[k + 1], _errors(s.flat, x[k], zeta[k]), P[k])
+
+
+def _batch_nees(err, P) -> np.ndarray:
+    """NEES per step; inf where P is not finite or singular (the watch's `not nees <= limit`)."""
+    out = np.full(len(err), np.inf)
+    ok = np.all(np.isfinite(P), axis=(1, 2)) & np.all(np.isfinite(err), axis=1)
+    if ok.any():
+        with np.errstate(all="ignore"):
+            try:
+                out[ok] = _nees(err[ok], P[ok])
+            except np.linalg.LinAlgError:   # a singular P somewhere: step by step
+                for k in np.nonzero(ok)[0]:
+                    try:
+                        out[k] = float(err[k] @ np.linalg.solve(P[k], err[k]))
+                    except np.linalg.LinAlgError:
+                        out[k] = np.inf
+    return out
 
 
 def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, counters) -> Result:

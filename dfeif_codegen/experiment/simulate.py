@@ -21,6 +21,7 @@ import json
 import math
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from statistics import NormalDist
@@ -549,11 +550,17 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
     out = out or sys.stdout
     _check_outputs(json_path, plot)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
-    o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
+    # the exact bounds need only the network draws: computed in a thread while the runs go on
+    # (numpy's batched inverses leave the interpreter lock; the main process would only wait)
+    row_cfgs = [[make_config(p.sc, model, p.nodes, max_lag, p.refs[0], row, "replay", "difference", s)
+                 for s in p.seeds] for row in p.rows]
+    bounds.matched_model(row_cfgs[0][0])   # derived here, so the thread only does numpy
+    with ThreadPoolExecutor(1) as pool:
+        pending = pool.submit(lambda: [bounds.row_bound(cfgs) for cfgs in row_cfgs])
+        o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
+        bound = pending.result()
     if csv:
         sweep.write_csv(csv, o.per_run, p.flat.n, nodes=p.nodes)
-    bound = [bounds.row_bound([make_config(p.sc, model, p.nodes, max_lag, p.refs[0], row, "replay", "difference", s)
-                               for s in p.seeds]) for row in p.rows]
     groups = {(ref, m, f): [summarize(o.results.get((ref, m, f, ri), []), p.flat.n) for ri in range(len(p.rows))]
               for ref in p.refs for m, f in p.labels}
     settings = _settings(p, o, engine)

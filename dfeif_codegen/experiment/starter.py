@@ -202,23 +202,21 @@ def _toml_list(values) -> str:
     return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
 
 
-def run(args) -> int:
-    """`codegen scenario MODEL [--out FILE]`."""
-    out = Path(args.out) if args.out else None
-    if out is not None and out.exists():
+def scenario(model: str, out: str | None = None) -> str:
+    """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
+    model; written to `out` when given (only over a file this command wrote before)."""
+    path = Path(out) if out else None
+    if path is not None and path.exists():
         try:
-            first = out.read_text(encoding="utf-8").split("\n", 1)[0]
+            first = path.read_text(encoding="utf-8").split("\n", 1)[0]
         except (OSError, UnicodeDecodeError):
             first = ""
         if not first.startswith(MARKER):
-            raise ScenarioError(f"{out}: exists and was not written by `codegen scenario`; not overwriting it")
-    if out is not None and not out.parent.is_dir():
-        raise ScenarioError(f"{out}: folder {out.parent} does not exist")
-    text, _ = starting_scenario(args.model)
-    scenario_mod.loads(text, str(out or "<generated>")).check_model(ex._flat(args.model))
-    if out is None:
-        print(text)
-    else:
-        out.write_text(text + "\n", encoding="utf-8")
-        print(f"codegen scenario: wrote {out}")
-    return 0
+            raise ScenarioError(f"{path}: exists and was not written by `codegen scenario`; not overwriting it")
+    if path is not None and not path.parent.is_dir():
+        raise ScenarioError(f"{path}: folder {path.parent} does not exist")
+    text, _ = starting_scenario(model)
+    scenario_mod.loads(text, str(path or "<generated>")).check_model(ex._flat(model))
+    if path is not None:
+        path.write_text(text + "\n", encoding="utf-8")
+    return text
