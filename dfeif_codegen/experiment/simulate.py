@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -555,9 +556,14 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
     row_cfgs = [[make_config(p.sc, model, p.nodes, max_lag, p.refs[0], row, "replay", "difference", s)
                  for s in p.seeds] for row in p.rows]
     bounds.matched_model(row_cfgs[0][0])   # derived here, so the thread only does numpy
+    stop = threading.Event()   # set when the runs fail or are interrupted: the thread ends after its row
     with ThreadPoolExecutor(1) as pool:
-        pending = pool.submit(lambda: [bounds.row_bound(cfgs) for cfgs in row_cfgs])
-        o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
+        pending = pool.submit(lambda: [None if stop.is_set() else bounds.row_bound(cfgs) for cfgs in row_cfgs])
+        try:
+            o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
+        except BaseException:
+            stop.set()
+            raise
         bound = pending.result()
     if csv:
         sweep.write_csv(csv, o.per_run, p.flat.n, nodes=p.nodes)
