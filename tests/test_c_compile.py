@@ -664,3 +664,58 @@ def test_replay_from_checkpoints_equals_reference(tmp_path):
         ref.predict(v)
         assert lib("node_predict", node, v) == 0
     assert late > 20
+
+
+def test_spd_inverse_once_equals_numpy():
+    """The node's information inverse (one division per column, each distinct entry once) against
+    numpy's inverse and Cholesky pivots, n = 2..10. Random SPD matrices with cond < 1e3 (checked):
+    two backward-stable inversions differ by at most ~2 n cond eps = 2.2e-12 relative on any IEEE
+    machine, so 1e-10 holds whatever LAPACK kernel numpy picks."""
+    import casadi as ca
+
+    from dfeif_codegen.codegen import kernels
+    rng = np.random.default_rng(13)
+    for n in range(2, 11):
+        G = rng.standard_normal((n, n))
+        S = G @ G.T + n * np.eye(n)
+        assert np.linalg.cond(S) < 1e3
+        X = ca.SX.sym("S", n, n)
+        Y, piv = kernels.spd_inverse_once(X)
+        Y_got, piv_got = (np.array(v) for v in ca.Function("f", [X], [Y, piv])(S))
+        np.testing.assert_allclose(Y_got, np.linalg.inv(S), rtol=1e-10, atol=1e-12, err_msg=f"n = {n}")
+        assert np.array_equal(Y_got, Y_got.T)          # one expression per distinct entry
+        np.testing.assert_allclose(piv_got.ravel(), np.diag(np.linalg.cholesky(S)) ** 2, rtol=1e-10)
+
+
+def test_filter_kernels_of_a_long_chain(tmp_path):
+    """A flat chain of 7 integrators (any user model): the master's predict, printed as a call of
+    node_predict on packed copies, equals CasADi's own evaluation of the unshared predict
+    expression (the same operations: bit-equal unless a compiler fuses a*b+c, which moves each
+    entry by at most a few ulps, hence 1e-13), both halves of P1 equal; the info kernel equals
+    numpy's inverse (cond < 1e3 checked: 2 n cond eps = 3e-12, hence 1e-10)."""
+    from dfeif_codegen.check import bench_peers, harness
+    from dfeif_codegen.codegen import kernels
+
+    n = 7
+    spec = tmp_path / "chain7.toml"
+    spec.write_text(bench_peers.chain_model(n))
+    md = harness.build_model(str(spec), tmp_path / "b")
+    lib = Lib(shared_library(md.path, tmp_path), "chain7")
+    rng = np.random.default_rng(7)
+    G = rng.standard_normal((n, n))
+    P = G @ G.T + n * np.eye(n)
+    assert np.linalg.cond(P) < 1e3
+    x, v, q = rng.standard_normal(n), np.array([0.3]), np.array([2.0])
+    x1, P1 = np.zeros(n), np.zeros(n * n)
+    assert lib("kern_predict", x, P.ravel().copy(), v, q, x1, P1) == 0
+    b = kernels._Builder(flatness.derive(model.load(str(spec))), Options(ts=0.01))
+    x1_ref, P1_ref = (np.array(a) for a in b.predict("p")(x, P, v, q))
+    np.testing.assert_allclose(x1, x1_ref.ravel(), rtol=1e-13)
+    np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=1e-13)
+    assert np.array_equal(P1.reshape(n, n), P1.reshape(n, n).T)
+    c = rng.standard_normal(n)
+    Y, y, piv = np.zeros(n * n), np.zeros(n), np.zeros(n)
+    assert lib("kern_info", x, P.ravel().copy(), c, Y, y, piv) == 0
+    np.testing.assert_allclose(Y.reshape(n, n), np.linalg.inv(P), rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(y, np.linalg.solve(P, x - c), rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(piv, np.diag(np.linalg.cholesky(P)) ** 2, rtol=1e-10)

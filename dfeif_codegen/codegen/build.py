@@ -90,7 +90,7 @@ def context(flat, opts: Options) -> dict:
     kernel_code, kernel_list = {}, []
     for group, functions in ks.groups.items():
         code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
-                                       local_work=group in ks.local_work)
+                                       local_work=group in ks.local_work, wrappers=ks.wrappers)
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w, "local_work": k.local_work,

@@ -66,15 +66,65 @@ def _chol(S: ca.SX) -> tuple[ca.SX, ca.SX]:
     return L, piv
 
 
+def _chol_reciprocal(S: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Cholesky S = L L' as its strictly lower part, the reciprocals r_j = 1 / L_jj and the pivots
+    (<= 0: not positive definite). Why r = sqrt(1 / d) and not 1 / sqrt(d): CasADi rewrites
+    s * (1 / x) into s / x, so only this form keeps one division per column and multiplies the
+    column by it (n divisions instead of n^2 / 2)."""
+    n = S.shape[0]
+    L, r, piv = ca.SX(n, n), ca.SX(n, 1), ca.SX(n, 1)
+    for j in range(n):
+        d = S[j, j]
+        for k in range(j):
+            d = d - L[j, k] * L[j, k]
+        piv[j] = d
+        r[j] = ca.sqrt(1 / d)
+        for i in range(j + 1, n):
+            s = S[i, j]
+            for k in range(j):
+                s = s - L[i, k] * L[j, k]
+            L[i, j] = s * r[j]
+    return L, r, piv
+
+
 def spd_inverse(S: ca.SX) -> tuple[ca.SX, ca.SX]:
     """Inverse of a symmetric positive definite matrix by Cholesky, and its pivots.
-    A 1x1 matrix is a division: the scalar innovation of a single output needs no factorisation."""
+    A 1x1 matrix is a division: the scalar innovation of a single output needs no factorisation.
+    The fusion kernels use this form (their float CI master is at its tolerance); the node's
+    information uses `spd_inverse_once`."""
     n = S.shape[0]
     if n == 1:
         return 1 / S, S
     L, piv = _chol(S)
     Li = _lower_inverse(L)
     return ca.mtimes(Li.T, Li), piv
+
+
+def spd_inverse_once(S: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """`spd_inverse` with each distinct entry computed once: L^-1 by forward substitution with
+    one division per column (multiplications by 1 / L_jj), then the upper triangle of L^-T L^-1
+    mirrored. About half the operations of the plain form at n = 10."""
+    n = S.shape[0]
+    if n == 1:
+        return 1 / S, S
+    L, r, piv = _chol_reciprocal(S)
+    Li = ca.SX(n, n)
+    for j in range(n):
+        Li[j, j] = r[j]
+        for i in range(j + 1, n):
+            s = L[i, j] * Li[j, j]
+            for k in range(j + 1, i):
+                s = s + L[i, k] * Li[k, j]
+            Li[i, j] = -s * r[i]
+    Y = ca.SX(n, n)
+    for a in range(n):
+        for b in range(a, n):
+            y = Li[b, a] * Li[b, b]
+            for k in range(b + 1, n):
+                y = y + Li[k, a] * Li[k, b]
+            Y[a, b] = y
+            Y[b, a] = y
+    return Y, piv
 
 
 def _right_divide(B: ca.SX, S: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -135,6 +185,8 @@ class KernelSet:
 
     groups: dict[str, list[ca.Function]] = field(default_factory=dict)
     local_work: set[str] = field(default_factory=set)   # groups whose kernels keep work locally
+    # kernel -> the kernel it calls on packed copies of its n x n arguments (`packed_wrapper`)
+    wrappers: dict[str, str] = field(default_factory=dict)
 
     def all(self) -> list[ca.Function]:
         return [f for fs in self.groups.values() for f in fs]
@@ -278,7 +330,7 @@ class _Builder:
         that |x| / sigma of several hundred causes in single precision."""
         n = self.n
         x, P, c = _sym("x", n), _sym("P", n, n), _sym("c", n)
-        Y, piv = spd_inverse(P)
+        Y, piv = spd_inverse_once(P)
         return ca.Function(name, [x, P, c], [Y, ca.mtimes(Y, x - c), piv], ["x", "P", "c"], ["Y", "y", "piv"])
 
     def retro_step(self, name: str) -> ca.Function:
@@ -513,7 +565,7 @@ class _Builder:
 # Kernels whose work array is a local of the kernel, not a parameter: then no store into it can
 # alias an argument, and the compiler keeps the intermediates in registers (the node's kernels,
 # called once per step on the hot path; measured: about half their instructions).
-LOCAL_WORK = ("_kern_update", "_kern_node_predict", "_kern_retro_step", "_kern_retro_finish")
+LOCAL_WORK = ("_kern_update", "_kern_node_predict", "_kern_retro_step", "_kern_retro_finish", "_kern_info")
 
 # A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
 # canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
@@ -541,8 +593,10 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
         fusion = [b.master_info(name("master_info")), b.fuse_finish(name("fuse_finish"))]
     if opts.fusion == "ci":
         fusion += [b.ci_grad(name("ci_grad")), b.ci_dir(name("ci_dir"))]
+    # the master's predict is the node's on packed copies: the same expressions (bit for bit),
+    # so its Theta(n^3) straight-line code is not printed twice
     return KernelSet({"filter": filt, "fusion": fusion, "control": [b.control(name("control"))]},
-                     local_work={"fusion"})
+                     local_work={"fusion"}, wrappers={name("predict"): name("node_predict")})
 
 
 # --- C source ---------------------------------------------------------------------------------
@@ -622,7 +676,8 @@ def _function(head: str, params: list[str], body: list[str]) -> str:
 
 
 def c_source(functions: list[ca.Function], real: str, precision: str,
-             helpers: str = "casadi", local_work: bool = False) -> tuple[str, list[KernelC]]:
+             helpers: str = "casadi", local_work: bool = False,
+             wrappers: dict[str, str] | None = None) -> tuple[str, list[KernelC]]:
     """C for a group of kernels: helpers `static`, one typed entry point per kernel
     `int name(const real in1[k1], ..., real out1[j1], ..., real w[SZ_W])`, spaced like clang-format;
     CasADi's helpers (`casadi_sq`, ...) renamed `<helpers>_sq`.
@@ -630,7 +685,12 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
     Why typed: callers name each argument and the compiler checks its type, instead of filling
     `arg[]`/`res[]` by position; and no array of pointers is left to get wrong.
     `local_work`: the work is a local array instead of the last parameter; it cannot alias the
-    arguments, so the compiler keeps it in registers (the master's kernels use this)."""
+    arguments, so the compiler keeps it in registers (the master's kernels use this).
+    `wrappers`: kernels printed as `packed_wrapper` calls of another kernel of the group."""
+    wrappers = wrappers or {}
+    by_name = {f.name(): f for f in functions}
+    wrapped = [f for f in functions if f.name() in wrappers]
+    functions = [f for f in functions if f.name() not in wrappers]
     cg = ca.CodeGenerator("kernels", {"casadi_int": "int", "casadi_real": "double", "avoid_stack": True,
                                       "main": False, "mex": False, "with_header": False,
                                       "with_export": False, "verbose": False, "include_math": True})
@@ -655,7 +715,6 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
     for mt in _CONST.finditer(text):
         if re.search(rf"\b{mt.group(1)}\b", used):
             raise RuntimeError(f"unexpected CasADi constant table {mt.group(1)} in an SX kernel")
-    by_name = {f.name(): f for f in functions}
     for comment, fn, body in bodies:
         name = entries[fn]
         f = by_name[name]
@@ -688,6 +747,10 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
         out.append(f"/* {wrap_comment(info.signature)} */\n"
                    + _function(f"int {name}", info.parameters(real), lines))
         infos.append(info)
+    for f in wrapped:
+        info, text = packed_wrapper(f, by_name[wrappers[f.name()]], real)
+        out.append(text)
+        infos.append(info)
     code = "\n".join(out)
     for mt in _HELPER.finditer(text):   # static helpers named per file (unique across the library)
         code = re.sub(rf"\b{mt.group(1)}\b", helpers + mt.group(1)[len("casadi"):], code)
@@ -696,6 +759,43 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
     if precision == "float":
         code = _float_text(code)
     return code, infos
+
+
+def packed_wrapper(f: ca.Function, target: ca.Function, real: str) -> tuple[KernelC, str]:
+    """C for kernel f as a call of `target` on packed copies: each n x n argument of f whose
+    counterpart in target has n (n + 1) / 2 entries is packed from its upper triangle (CasADi's
+    entry (i, j), i <= j, at i + j n) and each such result unpacked into both triangles; the
+    other arguments are passed through. Same expressions, so the same results bit for bit."""
+    ins = [(f.name_in(i), f.numel_in(i)) for i in range(f.n_in())]
+    outs = [(f.name_out(i), f.numel_out(i)) for i in range(f.n_out())]
+    sizes = [target.numel_in(i) for i in range(target.n_in())] + [target.numel_out(i) for i in range(target.n_out())]
+    if [k for _, k in ins + outs] == sizes or len(sizes) != len(ins) + len(outs):
+        raise RuntimeError(f"kernel {f.name()}: no packed counterpart in {target.name()}")
+    lines, pack, unpack, args = [], [], [], []
+    for (arg, k), kt in zip(ins + outs, sizes):
+        if k == kt:
+            args.append(arg)
+            continue
+        n = math.isqrt(k)
+        if n * n != k or n * (n + 1) // 2 != kt:
+            raise RuntimeError(f"kernel {f.name()}: argument {arg} is not the square of {target.name()}'s")
+        lines.append(f"casadi_real {arg}_packed[{kt}];")
+        args.append(f"{arg}_packed")
+        at, to = "((j * (j + 1)) / 2) + i", f"(j * {n}) + i"
+        if (arg, k) in ins:
+            pack.append(f"{arg}_packed[{at}] = {arg}[{to}];")
+        else:
+            unpack += [f"{arg}[{to}] = {arg}_packed[{at}];", f"{arg}[(i * {n}) + j] = {arg}_packed[{at}];"]
+
+    def loop(body: list[str]) -> list[str]:
+        return ([f"for (j = 0; j < {n}; j++) {{", INDENT + "for (i = 0; i <= j; i++) {"]
+                + [2 * INDENT + b for b in body] + [INDENT + "}", "}"])
+
+    lines += ["int i;", "int j;"] + loop(pack) + [f"(void){target.name()}({', '.join(args)});"]
+    lines += loop(unpack) + ["return 0;"]
+    info = KernelC(f.name(), str(f).rsplit(" ", 1)[0], 1, ins, outs, True)
+    text = f"/* {wrap_comment(info.signature)} */\n" + _function(f"int {f.name()}", info.parameters(real), lines)
+    return info, re.sub(r"\bcasadi_real\b", real, text)
 
 
 def wrap_comment(text: str, width: int = 94) -> str:

@@ -10,13 +10,6 @@
 
 #include "dc_motor_link.h"
 
-/* dc_motor_link_kern_predict:(x[3],P[3x3],v,q)->(x1[3],P1[3x3]) */
-#define DC_MOTOR_LINK_KERN_PREDICT_SZ_W 11
-int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
-                               const dc_motor_link_real v[1], const dc_motor_link_real q[1],
-                               dc_motor_link_real x1[3], dc_motor_link_real P1[9],
-                               dc_motor_link_real w[DC_MOTOR_LINK_KERN_PREDICT_SZ_W]);
-
 /* dc_motor_link_kern_node_predict:(x[3],P[6],v,q)->(x1[3],P1[6]) */
 int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[6],
                                     const dc_motor_link_real v[1], const dc_motor_link_real q[1],
@@ -29,11 +22,14 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
                               dc_motor_link_real P[6], dc_motor_link_real piv[1]);
 
 /* dc_motor_link_kern_info:(x[3],P[3x3],c[3])->(Y[3x3],y[3],piv[3]) */
-#define DC_MOTOR_LINK_KERN_INFO_SZ_W 15
 int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
                             const dc_motor_link_real c[3], dc_motor_link_real Y[9],
-                            dc_motor_link_real y[3], dc_motor_link_real piv[3],
-                            dc_motor_link_real w[DC_MOTOR_LINK_KERN_INFO_SZ_W]);
+                            dc_motor_link_real y[3], dc_motor_link_real piv[3]);
+
+/* dc_motor_link_kern_predict:(x[3],P[3x3],v,q)->(x1[3],P1[3x3]) */
+int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
+                               const dc_motor_link_real v[1], const dc_motor_link_real q[1],
+                               dc_motor_link_real x1[3], dc_motor_link_real P1[9]);
 
 /* dc_motor_link_kern_master_gain:(x[3],P[3x3],xp[3],Pp[3x3],c[3])->(dY[6],dy[3],piv[6]) */
 int dc_motor_link_kern_master_gain(const dc_motor_link_real x[3], const dc_motor_link_real P[9],

@@ -33,9 +33,8 @@ static size_t input_at(uint32_t step)
 static int master_step(const real* x, const real* P, const real* v, const real* q, real* x1,
                        real* P1)
 {
-    real w[DC_MOTOR_LINK_KERN_PREDICT_SZ_W];
     int rc = DC_MOTOR_LINK_OK;
-    (void)dc_motor_link_kern_predict(x, P, v, q, x1, P1, w);
+    (void)dc_motor_link_kern_predict(x, P, v, q, x1, P1);
     if ((dc_motor_link_finite(x1, NX) == 0) || (dc_motor_link_finite(P1, NXX) == 0)) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }

@@ -437,7 +437,6 @@ int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], 
     real origin[NX];
     real x[NX];
     real P[NXX];
-    real w[DC_MOTOR_LINK_KERN_INFO_SZ_W];
     int rc = DC_MOTOR_LINK_OK;
     if (node == NULL) {
         rc = DC_MOTOR_LINK_ERR_ARG;
@@ -446,7 +445,7 @@ int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], 
         (void)memset(origin, 0, sizeof(origin));
         dc_motor_link_move_origin(node->x, node->centre, NULL, x);
         unpack(node->P, P);
-        (void)dc_motor_link_kern_info(x, P, origin, Yl, yl, piv, w);
+        (void)dc_motor_link_kern_info(x, P, origin, Yl, yl, piv);
         if (dc_motor_link_positive(piv, NX) == 0) {
             rc = DC_MOTOR_LINK_ERR_SINGULAR;
         }

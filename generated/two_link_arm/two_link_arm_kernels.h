@@ -10,13 +10,6 @@
 
 #include "two_link_arm.h"
 
-/* two_link_arm_kern_predict:(x[6],P[6x6],v[2],q[2])->(x1[6],P1[6x6]) */
-#define TWO_LINK_ARM_KERN_PREDICT_SZ_W 21
-int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
-                              const two_link_arm_real v[2], const two_link_arm_real q[2],
-                              two_link_arm_real x1[6], two_link_arm_real P1[36],
-                              two_link_arm_real w[TWO_LINK_ARM_KERN_PREDICT_SZ_W]);
-
 /* two_link_arm_kern_node_predict:(x[6],P[21],v[2],q[2])->(x1[6],P1[21]) */
 int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_arm_real P[21],
                                    const two_link_arm_real v[2], const two_link_arm_real q[2],
@@ -29,11 +22,14 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
                              two_link_arm_real P[21], two_link_arm_real piv[2]);
 
 /* two_link_arm_kern_info:(x[6],P[6x6],c[6])->(Y[6x6],y[6],piv[6]) */
-#define TWO_LINK_ARM_KERN_INFO_SZ_W 45
 int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real P[36],
                            const two_link_arm_real c[6], two_link_arm_real Y[36],
-                           two_link_arm_real y[6], two_link_arm_real piv[6],
-                           two_link_arm_real w[TWO_LINK_ARM_KERN_INFO_SZ_W]);
+                           two_link_arm_real y[6], two_link_arm_real piv[6]);
+
+/* two_link_arm_kern_predict:(x[6],P[6x6],v[2],q[2])->(x1[6],P1[6x6]) */
+int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
+                              const two_link_arm_real v[2], const two_link_arm_real q[2],
+                              two_link_arm_real x1[6], two_link_arm_real P1[36]);
 
 /* two_link_arm_kern_master_gain:(x[6],P[6x6],xp[6],Pp[6x6],c[6])->(dY[21],dy[6],piv[12]) */
 int two_link_arm_kern_master_gain(const two_link_arm_real x[6], const two_link_arm_real P[36],

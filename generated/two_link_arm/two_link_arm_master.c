@@ -33,9 +33,8 @@ static size_t input_at(uint32_t step)
 static int master_step(const real* x, const real* P, const real* v, const real* q, real* x1,
                        real* P1)
 {
-    real w[TWO_LINK_ARM_KERN_PREDICT_SZ_W];
     int rc = TWO_LINK_ARM_OK;
-    (void)two_link_arm_kern_predict(x, P, v, q, x1, P1, w);
+    (void)two_link_arm_kern_predict(x, P, v, q, x1, P1);
     if ((two_link_arm_finite(x1, NX) == 0) || (two_link_arm_finite(P1, NXX) == 0)) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }

@@ -443,7 +443,6 @@ int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], re
     real origin[NX];
     real x[NX];
     real P[NXX];
-    real w[TWO_LINK_ARM_KERN_INFO_SZ_W];
     int rc = TWO_LINK_ARM_OK;
     if (node == NULL) {
         rc = TWO_LINK_ARM_ERR_ARG;
@@ -452,7 +451,7 @@ int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], re
         (void)memset(origin, 0, sizeof(origin));
         two_link_arm_move_origin(node->x, node->centre, NULL, x);
         unpack(node->P, P);
-        (void)two_link_arm_kern_info(x, P, origin, Yl, yl, piv, w);
+        (void)two_link_arm_kern_info(x, P, origin, Yl, yl, piv);
         if (two_link_arm_positive(piv, NX) == 0) {
             rc = TWO_LINK_ARM_ERR_SINGULAR;
         }
