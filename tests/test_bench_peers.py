@@ -34,3 +34,18 @@ def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
     assert 0 < out["instructions"]["straight"] < out["instructions"]["generated"]
     arm = harness.build_model("two_link_arm", tmp_path / "a")
     assert set(bench_peers.c_peers("two_link_arm", arm, tmp_path / "wa")["instructions"]) == {"generated", "dense"}
+
+
+def test_kernel_text_splits_the_filter_object_by_kernel(tmp_path):
+    """check.kernel_text's per-kernel bytes (nm symbol sizes) add up to the object's .text as
+    arm-none-eabi-size counts it (each kernel is its own section: nothing else is in it), the
+    replay build's four filter kernels; the master's predict, a call of node_predict on packed
+    copies, is smaller than node_predict itself once n > 2."""
+    require_tool("arm-none-eabi-gcc", "gcc-arm-none-eabi")
+    from dfeif_codegen.check import kernel_text
+
+    for n in (2, 4):
+        per, text = kernel_text.chain_kernels(n, tmp_path)
+        assert set(per) == {"predict", "node_predict", "update", "info"}
+        assert sum(per.values()) == text
+    assert per["predict"] < per["node_predict"]

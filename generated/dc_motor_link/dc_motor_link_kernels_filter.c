@@ -2,7 +2,8 @@
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* Node filter kernels (the master reuses predict): node_predict, update, info, predict.
  * Straight-line code printed by CasADi 3.8 and post-processed by
- * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only). */
+ * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
+ * kernel that is another on packed copies of its matrices is that call between two copy loops. */
 #include <math.h>
 #include "dc_motor_link_internal.h"
 
@@ -292,16 +293,21 @@ int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_lin
     dc_motor_link_real P1_packed[6];
     int i;
     int j;
+    int k;
+    k = 0;
     for (j = 0; j < 3; j++) {
         for (i = 0; i <= j; i++) {
-            P_packed[((j * (j + 1)) / 2) + i] = P[(j * 3) + i];
+            P_packed[k] = P[(j * 3) + i];
+            k++;
         }
     }
     (void)dc_motor_link_kern_node_predict(x, P_packed, v, q, x1, P1_packed);
+    k = 0;
     for (j = 0; j < 3; j++) {
         for (i = 0; i <= j; i++) {
-            P1[(j * 3) + i] = P1_packed[((j * (j + 1)) / 2) + i];
-            P1[(i * 3) + j] = P1_packed[((j * (j + 1)) / 2) + i];
+            P1[(j * 3) + i] = P1_packed[k];
+            P1[(i * 3) + j] = P1_packed[k];
+            k++;
         }
     }
     return 0;

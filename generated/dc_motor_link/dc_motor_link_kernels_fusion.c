@@ -2,7 +2,8 @@
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* Master fusion kernels: master_gain, fuse_finish.
  * Straight-line code printed by CasADi 3.8 and post-processed by
- * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only). */
+ * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
+ * kernel that is another on packed copies of its matrices is that call between two copy loops. */
 #include <math.h>
 #include "dc_motor_link_internal.h"
 

@@ -3,7 +3,8 @@
 /* Flatness-based controller kernel: u and v = F + G u from the estimate, flags and gains:
  * control.
  * Straight-line code printed by CasADi 3.8 and post-processed by
- * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only). */
+ * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
+ * kernel that is another on packed copies of its matrices is that call between two copy loops. */
 #include <math.h>
 #include "two_link_arm_internal.h"
 

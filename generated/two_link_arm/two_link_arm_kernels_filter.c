@@ -2,7 +2,8 @@
  * regenerate with `codegen build two_link_arm`. */
 /* Node filter kernels (the master reuses predict): node_predict, update, info, predict.
  * Straight-line code printed by CasADi 3.8 and post-processed by
- * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only). */
+ * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
+ * kernel that is another on packed copies of its matrices is that call between two copy loops. */
 #include <math.h>
 #include "two_link_arm_internal.h"
 
@@ -1128,16 +1129,21 @@ int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_r
     two_link_arm_real P1_packed[21];
     int i;
     int j;
+    int k;
+    k = 0;
     for (j = 0; j < 6; j++) {
         for (i = 0; i <= j; i++) {
-            P_packed[((j * (j + 1)) / 2) + i] = P[(j * 6) + i];
+            P_packed[k] = P[(j * 6) + i];
+            k++;
         }
     }
     (void)two_link_arm_kern_node_predict(x, P_packed, v, q, x1, P1_packed);
+    k = 0;
     for (j = 0; j < 6; j++) {
         for (i = 0; i <= j; i++) {
-            P1[(j * 6) + i] = P1_packed[((j * (j + 1)) / 2) + i];
-            P1[(i * 6) + j] = P1_packed[((j * (j + 1)) / 2) + i];
+            P1[(j * 6) + i] = P1_packed[k];
+            P1[(i * 6) + j] = P1_packed[k];
+            k++;
         }
     }
     return 0;

@@ -1,0 +1,79 @@
+"""Where the filter kernels' code goes: .text of each kernel of the synthetic flat chains
+(`bench_peers.chain_model`, n = 2..10) as `codegen bench` sizes them (Cortex-M4F, float, -Os, the
+default replay build: predict, node_predict, update, info), with the fitted growth of each and of
+their sum, and optionally the node step's host instructions (callgrind, double).
+
+    python -m dfeif_codegen.check.kernel_text [--steps] [WORK]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import tempfile
+from pathlib import Path
+
+from dfeif_codegen.check import bench_peers, harness, target
+
+
+def symbol_sizes(obj: Path) -> dict[str, int]:
+    """Bytes of each function an object defines (`arm-none-eabi-nm -S`, literal pools included)."""
+    out = subprocess.run([target.require("arm-none-eabi-nm"), "-S", "--defined-only", str(obj)],
+                         capture_output=True, text=True, check=True).stdout
+    return {parts[3]: int(parts[1], 16) for parts in (line.split() for line in out.splitlines())
+            if len(parts) == 4 and parts[2] in "tT"}
+
+
+def chain_kernels(n: int, work: Path) -> tuple[dict[str, int], int]:
+    """Per-kernel bytes (short names) of chain n's filter kernels and the object's .text."""
+    spec = work / f"chain{n}.toml"
+    spec.parent.mkdir(parents=True, exist_ok=True)
+    spec.write_text(bench_peers.chain_model(n))
+    mf = harness.build_model(str(spec), work / f"chain{n}-float", "float")
+    src = [s for s in mf.sources() if s.name == f"chain{n}_kernels_filter.c"]
+    obj = target.compile_objects(src, work / f"obj-chain{n}", [mf.path], opt="-Os")[0]
+    prefix = f"chain{n}_kern_"
+    per = {name[len(prefix):]: size for name, size in symbol_sizes(obj).items() if name.startswith(prefix)}
+    return per, target.sizes([obj])[obj.name].text
+
+
+def table(work: Path, ns=bench_peers.CHAINS, steps: bool = False) -> str:
+    """The markdown table of per-kernel bytes per n, and the fitted exponents."""
+    rows, totals, kernels, step = [], [], None, []
+    for n in ns:
+        per, text = chain_kernels(n, work)
+        kernels = kernels or sorted(per)
+        totals.append(text)
+        cells = [str(per[k]) for k in kernels] + [str(text)]
+        if steps:
+            from dfeif_codegen.check.bench import callgrind
+            md = harness.build_model(str(work / f"chain{n}.toml"), work / f"chain{n}-double")
+            c = callgrind(md, work / f"cg-chain{n}")
+            step.append(c["node_update"] + c["node_predict"])
+            cells.append(f"{step[-1]:,.0f}")
+        rows.append(f"| {n} | " + " | ".join(cells) + " |")
+    head = ["n"] + kernels + ["filter kernels .text"] + (["node step instructions"] if steps else [])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---:|" * len(head)] + rows
+    fits = [f"{k} n^{bench_peers.growth(ns, [_cell(r, i) for r in rows]):.2f}" for i, k in enumerate(kernels)]
+    fits.append(f"total n^{bench_peers.growth(ns, totals):.2f}")
+    if steps:
+        fits.append(f"node step n^{bench_peers.growth(ns, step):.2f}")
+    return "\n".join(lines) + f"\n\nFitted growth over n = {ns[0]}..{ns[-1]}: " + ", ".join(fits) + ".\n"
+
+
+def _cell(row: str, i: int) -> float:
+    return float(row.strip("| ").split(" | ")[i + 1].replace(",", ""))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m dfeif_codegen.check.kernel_text", description=__doc__.split("\n\n")[0])
+    ap.add_argument("work", nargs="?", help="folder for the builds (default: a temporary one)")
+    ap.add_argument("--steps", action="store_true", help="also count the node step's instructions (valgrind)")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        print(table(Path(args.work or tmp), steps=args.steps), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
