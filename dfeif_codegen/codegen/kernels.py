@@ -248,12 +248,13 @@ class _Builder:
         return ca.Function(name, [x, P, v, q], [x1, P1], ["x", "P", "v", "q"], ["x1", "P1"])
 
     def update(self, name: str) -> ca.Function:
-        """The node's update on its packed prior (npp = n (n + 1) / 2 reals), posterior packed."""
+        """The node's update with a measurement on its packed prior (npp = n (n + 1) / 2 reals),
+        posterior packed. A step without one keeps its prior as it is (the node copies it): no
+        gamma factor in the gain, so none of its multiplications."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
-        xm, Pm, z, gamma, R = _sym("xm", n), _sym("Pm", npp), _sym("z", m), _sym("gamma"), _sym("R", m, m)
-        x, P, piv = self._update(xm, self.unpack(Pm, n), z, gamma, R)
-        return ca.Function(name, [xm, Pm, z, gamma, R], [x, self.pack(P), piv],
-                           ["xm", "Pm", "z", "gamma", "R"], ["x", "P", "piv"])
+        xm, Pm, z, R = _sym("xm", n), _sym("Pm", npp), _sym("z", m), _sym("R", m, m)
+        x, P, piv = self._update(xm, self.unpack(Pm, n), z, 1, R)
+        return ca.Function(name, [xm, Pm, z, R], [x, self.pack(P), piv], ["xm", "Pm", "z", "R"], ["x", "P", "piv"])
 
     def _update(self, xm, Pm, z, gamma, R):
         e = self.wrap(z - self.head_rows(xm))

@@ -73,19 +73,45 @@ static void pack(const real* P, real* Pp)
     }
 }
 
-/* 1 if x and the packed P are all finite: x - x is 0 for a finite x and NaN otherwise, summed so
- * that one comparison decides (the results' one check; the inputs were checked on entry). */
-static int finite_state(const real* x, const real* Pp)
+/* 1 if x and the packed P are all finite (the results' one check; the inputs were checked on
+ * entry). Their sum is finite only if every term is (an infinity or a NaN survives any sum, and
+ * s - s is 0 for a finite s, NaN otherwise): one add per value. Only a sum that overflows on
+ * finite terms takes the per-value check. */
+static inline int finite_state(const real* x, const real* Pp)
 {
-    real acc = (real)0;
-    int i;
-    for (i = 0; i < NX; i++) {
-        acc += x[i] - x[i];
+    real acc = x[0];
+    int ok = 1;
+    acc += x[1];
+    acc += x[2];
+    acc += x[3];
+    acc += x[4];
+    acc += x[5];
+    acc += Pp[0];
+    acc += Pp[1];
+    acc += Pp[2];
+    acc += Pp[3];
+    acc += Pp[4];
+    acc += Pp[5];
+    acc += Pp[6];
+    acc += Pp[7];
+    acc += Pp[8];
+    acc += Pp[9];
+    acc += Pp[10];
+    acc += Pp[11];
+    acc += Pp[12];
+    acc += Pp[13];
+    acc += Pp[14];
+    acc += Pp[15];
+    acc += Pp[16];
+    acc += Pp[17];
+    acc += Pp[18];
+    acc += Pp[19];
+    acc += Pp[20];
+    acc -= acc;
+    if (!(acc == (real)0)) {
+        ok = ((two_link_arm_finite(x, NX) != 0) && (two_link_arm_finite(Pp, NPP) != 0)) ? 1 : 0;
     }
-    for (i = 0; i < NPP; i++) {
-        acc += Pp[i] - Pp[i];
-    }
-    return (acc == acc) ? 1 : 0;
+    return ok;
 }
 
 /* Measurement relative to the node's centre. */
@@ -97,44 +123,62 @@ static void centred(const two_link_arm_node* node, const real* z, real* zc)
     }
 }
 
-/* Move each output's centre by whole steps to within half a step of the estimate, and every
+/* Move output j's centre by whole steps to within half a step of the estimate, and every
  * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
  * heads, and A maps a head-only vector to itself. P does not depend on the centre. */
-static void recentre(two_link_arm_node* node)
+static void shift_centre(two_link_arm_node* node, int j, int h)
 {
-    int j;
     int s;
-    const real half = TWO_LINK_ARM_CENTRE_STEP / (real)2;
-    for (j = 0; j < NY; j++) {
-        int h = (int)two_link_arm_heads[j];
-        real shift = (real)0;
-        if ((node->x[h] >= half) || (node->x[h] <= -half)) { /* else within half a step: no shift */
-            shift = two_link_arm_centre_shift(node->x[h]);
-        }
-        if (shift != (real)0) {
-            node->centre[j] += shift;
-            node->x[h] -= shift;
-            node->x_pred[h] -= shift;
-            for (s = 0; s < SLOTS; s++) {
-                node->ring_x[(s * NX) + h] -= shift;
-                node->ring_z[(s * NY) + j] -= shift;
-            }
+    real shift = two_link_arm_centre_shift(node->x[h]);
+    if (shift != (real)0) {
+        node->centre[j] += shift;
+        node->x[h] -= shift;
+        node->x_pred[h] -= shift;
+        for (s = 0; s < SLOTS; s++) {
+            node->ring_x[(s * NX) + h] -= shift;
+            node->ring_z[(s * NY) + j] -= shift;
         }
     }
 }
 
-/* Filter update of one step from a prior (P packed); 0 or an error code. */
-static inline int update_step(const real* xm, const real* Pm, const real* z, real gamma,
+/* Each output's centre within half a step of the estimate x (the node's x): a shift only when
+ * a head is half a step or more away (the heads are the generator's constants). */
+static inline void recentre(two_link_arm_node* node, const real* x)
+{
+    const real half = TWO_LINK_ARM_CENTRE_STEP / (real)2;
+    if ((x[0] >= half) || (x[0] <= -half)) {
+        shift_centre(node, 0, 0);
+    }
+    if ((x[3] >= half) || (x[3] <= -half)) {
+        shift_centre(node, 1, 3);
+    }
+}
+
+/* 1 if all pivots of S are strictly positive (and not NaN). */
+static inline int pivots_ok(const real* piv)
+{
+    return two_link_arm_positive(piv, NY);
+}
+
+/* Filter update of one step from a prior (P packed); 0 or an error code. A step without a
+ * measurement (used = 0) keeps its prior. */
+static inline int update_step(const real* xm, const real* Pm, const real* z, int used,
                               const real* R, real* x, real* P)
 {
     real piv[NY];
     int rc = TWO_LINK_ARM_OK;
-    (void)two_link_arm_kern_update(xm, Pm, z, &gamma, R, x, P, piv);
-    if ((gamma > (real)0) && (two_link_arm_positive(piv, NY) == 0)) {
-        rc = TWO_LINK_ARM_ERR_SINGULAR;
-    }
-    if ((rc == TWO_LINK_ARM_OK) && (finite_state(x, P) == 0)) {
-        rc = TWO_LINK_ARM_ERR_NONFINITE;
+    if (used != 0) {
+        (void)two_link_arm_kern_update(xm, Pm, z, R, x, P, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        } else if (finite_state(x, P) == 0) {
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
+        } else {
+            /* a finite posterior */
+        }
+    } else {
+        (void)memcpy(x, xm, sizeof(real) * (size_t)NX);
+        (void)memcpy(P, Pm, sizeof(real) * (size_t)NPP);
     }
     return rc;
 }
@@ -206,17 +250,16 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
         (void)memcpy(node->ring_P, Pp, sizeof(Pp)); /* the checkpoint of step 0 */
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
-        recentre(node);
+        recentre(node, node->x);
     }
     return rc;
 }
 
+/* While step k is not updated, x and P equal its prior (x_pred, P_pred) and its z slot is 0:
+ * the update computes into them in place, and a failure puts the prior back. */
 int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamma)
 {
-    real zz[NY];
-    real x[NX];
-    real P[NPP];
-    int slot;
+    real* zk;
     int rc = TWO_LINK_ARM_OK;
     if ((node == NULL) || ((gamma != 0) && (gamma != 1)) || ((gamma == 1) && (z == NULL))) {
         rc = TWO_LINK_ARM_ERR_ARG;
@@ -224,28 +267,28 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
     if ((rc == TWO_LINK_ARM_OK) && (node->updated != 0u)) {
         rc = TWO_LINK_ARM_ERR_SEQUENCE;
     }
-    (void)memset(zz, 0, sizeof(zz));
     if ((rc == TWO_LINK_ARM_OK) && (gamma == 1)) {
         if (two_link_arm_finite(z, NY) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
-        } else {
-            centred(node, z, zz);
+        } else { /* the prior of step k: ring_x of its slot and P_pred */
+            zk = &node->ring_z[(int)node->slot * NY];
+            centred(node, z, zk);
+            rc = update_step(&node->ring_x[(int)node->slot * NX], node->P_pred, zk, 1, node->R,
+                             node->x, node->P);
+            if (rc != TWO_LINK_ARM_OK) {
+                (void)memcpy(node->x, node->x_pred, sizeof(node->x));
+                (void)memcpy(node->P, node->P_pred, sizeof(node->P));
+                (void)memset(zk, 0, sizeof(real) * (size_t)NY);
+            }
         }
     }
-    if (rc == TWO_LINK_ARM_OK) { /* the prior of step k: ring_x of its slot and P_pred */
-        slot = (int)node->slot;
-        rc = update_step(&node->ring_x[slot * NX], node->P_pred, zz, (real)gamma, node->R, x, P);
-        if (rc == TWO_LINK_ARM_OK) {
-            (void)memcpy(node->x, x, sizeof(x));
-            (void)memcpy(node->P, P, sizeof(P));
-            (void)memcpy(&node->ring_z[slot * NY], zz, sizeof(zz));
-            node->ring_flags[node->hist] = (uint8_t)((gamma == 1) ? (HAS | USED) : 0u);
-            node->updated = 1;
-            if (gamma == 1) {
-                node->health.updates++;
-            } else {
-                node->health.drops++;
-            }
+    if (rc == TWO_LINK_ARM_OK) {
+        node->ring_flags[node->hist] = (uint8_t)((gamma == 1) ? (HAS | USED) : 0u);
+        node->updated = 1;
+        if (gamma == 1) {
+            node->health.updates++;
+        } else {
+            node->health.drops++;
         }
     }
     return rc;
@@ -267,8 +310,8 @@ static int prior_P(const two_link_arm_node* node, uint32_t j, real* Pm)
     (void)memset(zero, 0, sizeof(zero));
     (void)memcpy(Pm, &node->ring_P[check_of(s) * NPP], sizeof(P));
     while ((rc == TWO_LINK_ARM_OK) && (s < j)) {
-        real gamma = ((node->ring_flags[hist_of(s)] & USED) != 0u) ? (real)1 : (real)0;
-        rc = update_step(x0, Pm, zero, gamma, node->R, x, P);
+        int used = ((node->ring_flags[hist_of(s)] & USED) != 0u) ? 1 : 0;
+        rc = update_step(x0, Pm, zero, used, node->R, x, P);
         if (rc == TWO_LINK_ARM_OK) {
             rc = predict_step(x, P, zero, node->q, x0, Pm);
         }
@@ -297,11 +340,11 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
         int slot = slot_of(j);
         real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
         const real* z = (j == j0) ? zlate : &node->ring_z[slot * NY];
-        real gamma = (real)1; /* the late step, and the steps the history used */
+        int used = 1; /* the late step, and the steps the history used */
         if ((j != j0) && ((node->ring_flags[hist_of(j)] & USED) == 0u)) {
-            gamma = (real)0;
+            used = 0;
         }
-        rc = update_step(&node->ring_x[slot * NX], Pm, z, gamma, node->R, x, P);
+        rc = update_step(&node->ring_x[slot * NX], Pm, z, used, node->R, x, P);
         if ((rc == TWO_LINK_ARM_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
@@ -408,13 +451,12 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
             (void)memcpy(&node->ring_P[check_of(node->k) * NPP], P1, sizeof(P1));
         }
         (void)memset(&node->ring_z[slot * NY], 0, sizeof(real) * (size_t)NY);
-        node->ring_flags[node->hist] = 0;
         (void)memcpy(node->x, x1, sizeof(x1));
         (void)memcpy(node->P, P1, sizeof(P1));
         (void)memcpy(node->x_pred, x1, sizeof(x1));
         (void)memcpy(node->P_pred, P1, sizeof(P1));
         node->updated = 0;
-        recentre(node);
+        recentre(node, x1);
     }
     return rc;
 }
