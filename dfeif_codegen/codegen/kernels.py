@@ -250,11 +250,14 @@ class _Builder:
     def update(self, name: str) -> ca.Function:
         """The node's update with a measurement on its packed prior (npp = n (n + 1) / 2 reals),
         posterior packed. A step without one keeps its prior as it is (the node copies it): no
-        gamma factor in the gain, so none of its multiplications."""
+        gamma factor in the gain, so none of its multiplications.
+        Prior and posterior are each one vector, x then P (the node stores them so): fewer
+        arguments, all in registers on the host."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
-        xm, Pm, z, R = _sym("xm", n), _sym("Pm", npp), _sym("z", m), _sym("R", m, m)
-        x, P, piv = self._update(xm, self.unpack(Pm, n), z, 1, R)
-        return ca.Function(name, [xm, Pm, z, R], [x, self.pack(P), piv], ["xm", "Pm", "z", "R"], ["x", "P", "piv"])
+        prior, z, R = _sym("prior", n + npp), _sym("z", m), _sym("R", m, m)
+        x, P, piv = self._update(prior[:n], self.unpack(prior[n:], n), z, 1, R)
+        return ca.Function(name, [prior, z, R], [ca.vertcat(x, self.pack(P)), piv], ["prior", "z", "R"],
+                           ["post", "piv"])
 
     def _update(self, xm, Pm, z, gamma, R):
         e = self.wrap(z - self.head_rows(xm))

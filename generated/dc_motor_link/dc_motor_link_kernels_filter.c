@@ -182,15 +182,14 @@ int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_moto
     return 0;
 }
 
-/* dc_motor_link_kern_update:(xm[3],Pm[6],z,R)->(x[3],P[6],piv) */
-int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_link_real Pm[6],
-                              const dc_motor_link_real z[1], const dc_motor_link_real R[1],
-                              dc_motor_link_real x[3], dc_motor_link_real P[6],
+/* dc_motor_link_kern_update:(prior[9],z,R)->(post[9],piv) */
+int dc_motor_link_kern_update(const dc_motor_link_real prior[9], const dc_motor_link_real z[1],
+                              const dc_motor_link_real R[1], dc_motor_link_real post[9],
                               dc_motor_link_real piv[1])
 {
     dc_motor_link_real w[13];
-    w[0] = xm[0];
-    w[1] = Pm[0];
+    w[0] = prior[0];
+    w[1] = prior[3];
     w[2] = R[0];
     w[3] = (w[1] + w[2]);
     w[4] = (w[1] / w[3]);
@@ -205,19 +204,19 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
     w[5] = (w[5] - w[6]);
     w[6] = (w[4] * w[5]);
     w[0] = (w[0] + w[6]);
-    x[0] = w[0];
-    w[0] = xm[1];
-    w[6] = Pm[1];
+    post[0] = w[0];
+    w[0] = prior[1];
+    w[6] = prior[4];
     w[7] = (w[6] / w[3]);
     w[8] = (w[7] * w[5]);
     w[0] = (w[0] + w[8]);
-    x[1] = w[0];
-    w[0] = xm[2];
-    w[8] = Pm[3];
+    post[1] = w[0];
+    w[0] = prior[2];
+    w[8] = prior[6];
     w[9] = (w[8] / w[3]);
     w[5] = (w[9] * w[5]);
     w[0] = (w[0] + w[5]);
-    x[2] = w[0];
+    post[2] = w[0];
     w[0] = 1.;
     w[0] = (w[0] - w[4]);
     w[5] = (w[0] * w[1]);
@@ -225,14 +224,14 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
     w[11] = (w[4] * w[2]);
     w[4] = (w[11] * w[4]);
     w[10] = (w[10] + w[4]);
-    P[0] = w[10];
+    post[3] = w[10];
     w[10] = (w[0] * w[6]);
     w[4] = (w[5] * w[7]);
     w[10] = (w[10] - w[4]);
     w[4] = (w[11] * w[7]);
     w[10] = (w[10] + w[4]);
-    P[1] = w[10];
-    w[10] = Pm[2];
+    post[4] = w[10];
+    w[10] = prior[5];
     w[4] = (w[7] * w[6]);
     w[10] = (w[10] - w[4]);
     w[4] = (w[7] * w[1]);
@@ -242,22 +241,22 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
     w[4] = (w[7] * w[2]);
     w[12] = (w[4] * w[7]);
     w[10] = (w[10] + w[12]);
-    P[2] = w[10];
+    post[5] = w[10];
     w[0] = (w[0] * w[8]);
     w[5] = (w[5] * w[9]);
     w[0] = (w[0] - w[5]);
     w[11] = (w[11] * w[9]);
     w[0] = (w[0] + w[11]);
-    P[3] = w[0];
-    w[0] = Pm[4];
+    post[6] = w[0];
+    w[0] = prior[7];
     w[7] = (w[7] * w[8]);
     w[0] = (w[0] - w[7]);
     w[6] = (w[6] * w[9]);
     w[0] = (w[0] - w[6]);
     w[4] = (w[4] * w[9]);
     w[0] = (w[0] + w[4]);
-    P[4] = w[0];
-    w[0] = Pm[5];
+    post[7] = w[0];
+    w[0] = prior[8];
     w[4] = (w[9] * w[8]);
     w[0] = (w[0] - w[4]);
     w[1] = (w[9] * w[1]);
@@ -267,7 +266,7 @@ int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_lin
     w[2] = (w[9] * w[2]);
     w[2] = (w[2] * w[9]);
     w[0] = (w[0] + w[2]);
-    P[5] = w[0];
+    post[8] = w[0];
     piv[0] = w[3];
     return 0;
     return 0;

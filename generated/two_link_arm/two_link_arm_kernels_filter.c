@@ -438,26 +438,25 @@ int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_
     return 0;
 }
 
-/* two_link_arm_kern_update:(xm[6],Pm[21],z[2],R[2x2])->(x[6],P[21],piv[2]) */
-int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_real Pm[21],
-                             const two_link_arm_real z[2], const two_link_arm_real R[4],
-                             two_link_arm_real x[6], two_link_arm_real P[21],
+/* two_link_arm_kern_update:(prior[27],z[2],R[2x2])->(post[27],piv[2]) */
+int two_link_arm_kern_update(const two_link_arm_real prior[27], const two_link_arm_real z[2],
+                             const two_link_arm_real R[4], two_link_arm_real post[27],
                              two_link_arm_real piv[2])
 {
     two_link_arm_real w[46];
-    w[0] = xm[0];
-    w[1] = Pm[0];
+    w[0] = prior[0];
+    w[1] = prior[6];
     w[2] = R[0];
     w[3] = (w[1] + w[2]);
     w[4] = sqrt(w[3]);
     w[5] = (1. / w[4]);
     w[5] = two_link_arm_filter_sq(w[5]);
-    w[6] = Pm[6];
+    w[6] = prior[12];
     w[7] = R[1];
     w[8] = (w[6] + w[7]);
     w[8] = (w[8] / w[4]);
     w[4] = (w[8] / w[4]);
-    w[9] = Pm[9];
+    w[9] = prior[15];
     w[10] = R[3];
     w[11] = (w[9] + w[10]);
     w[8] = two_link_arm_filter_sq(w[8]);
@@ -487,7 +486,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[8] = (w[1] * w[4]);
     w[19] = (w[19] - w[8]);
     w[8] = z[1];
-    w[20] = xm[3];
+    w[20] = prior[3];
     w[8] = (w[8] - w[20]);
     w[16] = (w[8] - w[16]);
     w[16] = (w[16] / w[15]);
@@ -497,11 +496,11 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[15] = (w[19] * w[8]);
     w[17] = (w[17] + w[15]);
     w[0] = (w[0] + w[17]);
-    x[0] = w[0];
-    w[0] = xm[1];
-    w[17] = Pm[1];
+    post[0] = w[0];
+    w[0] = prior[1];
+    w[17] = prior[7];
     w[15] = (w[17] * w[5]);
-    w[16] = Pm[7];
+    w[16] = prior[13];
     w[21] = (w[16] * w[13]);
     w[15] = (w[15] - w[21]);
     w[21] = (w[15] * w[14]);
@@ -511,11 +510,11 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[23] = (w[22] * w[8]);
     w[21] = (w[21] + w[23]);
     w[0] = (w[0] + w[21]);
-    x[1] = w[0];
-    w[0] = xm[2];
-    w[21] = Pm[3];
+    post[1] = w[0];
+    w[0] = prior[2];
+    w[21] = prior[9];
     w[23] = (w[21] * w[5]);
-    w[24] = Pm[8];
+    w[24] = prior[14];
     w[25] = (w[24] * w[13]);
     w[23] = (w[23] - w[25]);
     w[25] = (w[23] * w[14]);
@@ -525,7 +524,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[27] = (w[26] * w[8]);
     w[25] = (w[25] + w[27]);
     w[0] = (w[0] + w[25]);
-    x[2] = w[0];
+    post[2] = w[0];
     w[0] = (w[6] * w[5]);
     w[25] = (w[9] * w[13]);
     w[0] = (w[0] - w[25]);
@@ -536,11 +535,11 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[28] = (w[27] * w[8]);
     w[25] = (w[25] + w[28]);
     w[20] = (w[20] + w[25]);
-    x[3] = w[20];
-    w[20] = xm[4];
-    w[25] = Pm[10];
+    post[3] = w[20];
+    w[20] = prior[4];
+    w[25] = prior[16];
     w[28] = (w[25] * w[5]);
-    w[29] = Pm[13];
+    w[29] = prior[19];
     w[30] = (w[29] * w[13]);
     w[28] = (w[28] - w[30]);
     w[30] = (w[28] * w[14]);
@@ -550,11 +549,11 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[32] = (w[31] * w[8]);
     w[30] = (w[30] + w[32]);
     w[20] = (w[20] + w[30]);
-    x[4] = w[20];
-    w[20] = xm[5];
-    w[30] = Pm[15];
+    post[4] = w[20];
+    w[20] = prior[5];
+    w[30] = prior[21];
     w[5] = (w[30] * w[5]);
-    w[32] = Pm[18];
+    w[32] = prior[24];
     w[13] = (w[32] * w[13]);
     w[5] = (w[5] - w[13]);
     w[14] = (w[5] * w[14]);
@@ -564,7 +563,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[8] = (w[18] * w[8]);
     w[14] = (w[14] + w[8]);
     w[20] = (w[20] + w[14]);
-    x[5] = w[20];
+    post[5] = w[20];
     w[20] = 1.;
     w[14] = (w[20] - w[12]);
     w[8] = (w[14] * w[1]);
@@ -587,7 +586,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[36] = (w[12] * w[19]);
     w[34] = (w[34] + w[36]);
     w[4] = (w[4] + w[34]);
-    P[0] = w[4];
+    post[6] = w[4];
     w[4] = (w[14] * w[17]);
     w[34] = (w[19] * w[16]);
     w[4] = (w[4] - w[34]);
@@ -599,8 +598,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[36] = (w[12] * w[22]);
     w[34] = (w[34] + w[36]);
     w[4] = (w[4] + w[34]);
-    P[1] = w[4];
-    w[4] = Pm[2];
+    post[7] = w[4];
+    w[4] = prior[8];
     w[34] = (w[15] * w[17]);
     w[4] = (w[4] - w[34]);
     w[34] = (w[22] * w[16]);
@@ -627,7 +626,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[38] = (w[37] * w[22]);
     w[36] = (w[36] + w[38]);
     w[4] = (w[4] + w[36]);
-    P[2] = w[4];
+    post[8] = w[4];
     w[4] = (w[14] * w[21]);
     w[36] = (w[19] * w[24]);
     w[4] = (w[4] - w[36]);
@@ -639,8 +638,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[38] = (w[12] * w[26]);
     w[36] = (w[36] + w[38]);
     w[4] = (w[4] + w[36]);
-    P[3] = w[4];
-    w[4] = Pm[4];
+    post[9] = w[4];
+    w[4] = prior[10];
     w[36] = (w[15] * w[21]);
     w[4] = (w[4] - w[36]);
     w[36] = (w[22] * w[24]);
@@ -653,8 +652,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[38] = (w[37] * w[26]);
     w[36] = (w[36] + w[38]);
     w[4] = (w[4] + w[36]);
-    P[4] = w[4];
-    w[4] = Pm[5];
+    post[10] = w[4];
+    w[4] = prior[11];
     w[36] = (w[23] * w[21]);
     w[4] = (w[4] - w[36]);
     w[36] = (w[26] * w[24]);
@@ -681,7 +680,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[40] = (w[39] * w[26]);
     w[38] = (w[38] + w[40]);
     w[4] = (w[4] + w[38]);
-    P[5] = w[4];
+    post[11] = w[4];
     w[20] = (w[20] - w[27]);
     w[4] = (w[13] * w[20]);
     w[38] = (w[8] * w[0]);
@@ -690,7 +689,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[40] = (w[12] * w[27]);
     w[38] = (w[38] + w[40]);
     w[4] = (w[4] + w[38]);
-    P[6] = w[4];
+    post[12] = w[4];
     w[4] = (w[16] * w[20]);
     w[38] = (w[17] * w[0]);
     w[4] = (w[4] - w[38]);
@@ -698,7 +697,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[40] = (w[37] * w[27]);
     w[38] = (w[38] + w[40]);
     w[4] = (w[4] + w[38]);
-    P[7] = w[4];
+    post[13] = w[4];
     w[4] = (w[24] * w[20]);
     w[38] = (w[21] * w[0]);
     w[4] = (w[4] - w[38]);
@@ -706,7 +705,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[40] = (w[39] * w[27]);
     w[38] = (w[38] + w[40]);
     w[4] = (w[4] + w[38]);
-    P[8] = w[4];
+    post[14] = w[4];
     w[4] = (w[20] * w[9]);
     w[38] = (w[0] * w[6]);
     w[4] = (w[4] - w[38]);
@@ -726,7 +725,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[27] = (w[43] * w[27]);
     w[42] = (w[42] + w[27]);
     w[38] = (w[38] + w[42]);
-    P[9] = w[38];
+    post[15] = w[38];
     w[38] = (w[14] * w[25]);
     w[42] = (w[19] * w[29]);
     w[38] = (w[38] - w[42]);
@@ -738,8 +737,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[27] = (w[12] * w[31]);
     w[42] = (w[42] + w[27]);
     w[38] = (w[38] + w[42]);
-    P[10] = w[38];
-    w[38] = Pm[11];
+    post[16] = w[38];
+    w[38] = prior[17];
     w[42] = (w[15] * w[25]);
     w[38] = (w[38] - w[42]);
     w[42] = (w[22] * w[29]);
@@ -752,8 +751,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[27] = (w[37] * w[31]);
     w[42] = (w[42] + w[27]);
     w[38] = (w[38] + w[42]);
-    P[11] = w[38];
-    w[38] = Pm[12];
+    post[17] = w[38];
+    w[38] = prior[18];
     w[42] = (w[23] * w[25]);
     w[38] = (w[38] - w[42]);
     w[42] = (w[26] * w[29]);
@@ -766,7 +765,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[27] = (w[39] * w[31]);
     w[42] = (w[42] + w[27]);
     w[38] = (w[38] + w[42]);
-    P[12] = w[38];
+    post[18] = w[38];
     w[38] = (w[20] * w[29]);
     w[42] = (w[0] * w[25]);
     w[38] = (w[38] - w[42]);
@@ -778,8 +777,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[27] = (w[43] * w[31]);
     w[42] = (w[42] + w[27]);
     w[38] = (w[38] + w[42]);
-    P[13] = w[38];
-    w[38] = Pm[14];
+    post[19] = w[38];
+    w[38] = prior[20];
     w[42] = (w[28] * w[25]);
     w[27] = (w[31] * w[29]);
     w[42] = (w[42] + w[27]);
@@ -806,7 +805,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[45] = (w[44] * w[31]);
     w[27] = (w[27] + w[45]);
     w[38] = (w[38] + w[27]);
-    P[14] = w[38];
+    post[20] = w[38];
     w[14] = (w[14] * w[30]);
     w[19] = (w[19] * w[32]);
     w[14] = (w[14] - w[19]);
@@ -818,8 +817,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[12] = (w[12] * w[18]);
     w[33] = (w[33] + w[12]);
     w[14] = (w[14] + w[33]);
-    P[15] = w[14];
-    w[14] = Pm[16];
+    post[21] = w[14];
+    w[14] = prior[22];
     w[15] = (w[15] * w[30]);
     w[14] = (w[14] - w[15]);
     w[22] = (w[22] * w[32]);
@@ -832,8 +831,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[37] = (w[37] * w[18]);
     w[34] = (w[34] + w[37]);
     w[14] = (w[14] + w[34]);
-    P[16] = w[14];
-    w[14] = Pm[17];
+    post[22] = w[14];
+    w[14] = prior[23];
     w[23] = (w[23] * w[30]);
     w[14] = (w[14] - w[23]);
     w[26] = (w[26] * w[32]);
@@ -846,7 +845,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[39] = (w[39] * w[18]);
     w[36] = (w[36] + w[39]);
     w[14] = (w[14] + w[36]);
-    P[17] = w[14];
+    post[23] = w[14];
     w[20] = (w[20] * w[32]);
     w[0] = (w[0] * w[30]);
     w[20] = (w[20] - w[0]);
@@ -858,8 +857,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[43] = (w[43] * w[18]);
     w[41] = (w[41] + w[43]);
     w[20] = (w[20] + w[41]);
-    P[18] = w[20];
-    w[20] = Pm[19];
+    post[24] = w[20];
+    w[20] = prior[25];
     w[28] = (w[28] * w[30]);
     w[31] = (w[31] * w[32]);
     w[28] = (w[28] + w[31]);
@@ -872,8 +871,8 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[44] = (w[44] * w[18]);
     w[42] = (w[42] + w[44]);
     w[20] = (w[20] + w[42]);
-    P[19] = w[20];
-    w[20] = Pm[20];
+    post[25] = w[20];
+    w[20] = prior[26];
     w[42] = (w[5] * w[30]);
     w[44] = (w[18] * w[32]);
     w[42] = (w[42] + w[44]);
@@ -900,7 +899,7 @@ int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_r
     w[5] = (w[5] * w[18]);
     w[2] = (w[2] + w[5]);
     w[20] = (w[20] + w[2]);
-    P[20] = w[20];
+    post[26] = w[20];
     piv[0] = w[3];
     piv[1] = w[11];
     return 0;

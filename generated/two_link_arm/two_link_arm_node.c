@@ -10,7 +10,8 @@
 #define NX TWO_LINK_ARM_NX
 #define NY TWO_LINK_ARM_NY
 #define NXX (TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
-#define NPP TWO_LINK_ARM_NPP
+#define NPP 21 /* TWO_LINK_ARM_NPP */
+#define NXP 27 /* a state: x, then P packed */
 #define SLOTS (TWO_LINK_ARM_NMAX + 1)
 #define HAS 1u /* the step has a measurement (on time or late) */
 #define USED 2u /* the filter history used it (its gain is not zero) */
@@ -73,43 +74,43 @@ static void pack(const real* P, real* Pp)
     }
 }
 
-/* 1 if x and the packed P are all finite (the results' one check; the inputs were checked on
+/* 1 if a state (x, then P packed) is all finite (the results' one check; the inputs were checked on
  * entry). Their sum is finite only if every term is (an infinity or a NaN survives any sum, and
  * s - s is 0 for a finite s, NaN otherwise): one add per value. Only a sum that overflows on
  * finite terms takes the per-value check. */
-static inline int finite_state(const real* x, const real* Pp)
+static inline int finite_state(const real* xP)
 {
-    real acc = x[0];
+    real acc = xP[0];
     int ok = 1;
-    acc += x[1];
-    acc += x[2];
-    acc += x[3];
-    acc += x[4];
-    acc += x[5];
-    acc += Pp[0];
-    acc += Pp[1];
-    acc += Pp[2];
-    acc += Pp[3];
-    acc += Pp[4];
-    acc += Pp[5];
-    acc += Pp[6];
-    acc += Pp[7];
-    acc += Pp[8];
-    acc += Pp[9];
-    acc += Pp[10];
-    acc += Pp[11];
-    acc += Pp[12];
-    acc += Pp[13];
-    acc += Pp[14];
-    acc += Pp[15];
-    acc += Pp[16];
-    acc += Pp[17];
-    acc += Pp[18];
-    acc += Pp[19];
-    acc += Pp[20];
+    acc += xP[1];
+    acc += xP[2];
+    acc += xP[3];
+    acc += xP[4];
+    acc += xP[5];
+    acc += xP[6];
+    acc += xP[7];
+    acc += xP[8];
+    acc += xP[9];
+    acc += xP[10];
+    acc += xP[11];
+    acc += xP[12];
+    acc += xP[13];
+    acc += xP[14];
+    acc += xP[15];
+    acc += xP[16];
+    acc += xP[17];
+    acc += xP[18];
+    acc += xP[19];
+    acc += xP[20];
+    acc += xP[21];
+    acc += xP[22];
+    acc += xP[23];
+    acc += xP[24];
+    acc += xP[25];
+    acc += xP[26];
     acc -= acc;
     if (!(acc == (real)0)) {
-        ok = ((two_link_arm_finite(x, NX) != 0) && (two_link_arm_finite(Pp, NPP) != 0)) ? 1 : 0;
+        ok = two_link_arm_finite(xP, (size_t)NXP);
     }
     return ok;
 }
@@ -129,11 +130,11 @@ static void centred(const two_link_arm_node* node, const real* z, real* zc)
 static void shift_centre(two_link_arm_node* node, int j, int h)
 {
     int s;
-    real shift = two_link_arm_centre_shift(node->x[h]);
+    real shift = two_link_arm_centre_shift(node->post[h]);
     if (shift != (real)0) {
         node->centre[j] += shift;
-        node->x[h] -= shift;
-        node->x_pred[h] -= shift;
+        node->post[h] -= shift;
+        node->pred[h] -= shift;
         for (s = 0; s < SLOTS; s++) {
             node->ring_x[(s * NX) + h] -= shift;
             node->ring_z[(s * NY) + j] -= shift;
@@ -141,7 +142,7 @@ static void shift_centre(two_link_arm_node* node, int j, int h)
     }
 }
 
-/* Each output's centre within half a step of the estimate x (the node's x): a shift only when
+/* Each output's centre within half a step of the estimate x (the node's): a shift only when
  * a head is half a step or more away (the heads are the generator's constants). */
 static inline void recentre(two_link_arm_node* node, const real* x)
 {
@@ -160,36 +161,12 @@ static inline int pivots_ok(const real* piv)
     return two_link_arm_positive(piv, NY);
 }
 
-/* Filter update of one step from a prior (P packed); 0 or an error code. A step without a
- * measurement (used = 0) keeps its prior. */
-static inline int update_step(const real* xm, const real* Pm, const real* z, int used,
-                              const real* R, real* x, real* P)
-{
-    real piv[NY];
-    int rc = TWO_LINK_ARM_OK;
-    if (used != 0) {
-        (void)two_link_arm_kern_update(xm, Pm, z, R, x, P, piv);
-        if (pivots_ok(piv) == 0) {
-            rc = TWO_LINK_ARM_ERR_SINGULAR;
-        } else if (finite_state(x, P) == 0) {
-            rc = TWO_LINK_ARM_ERR_NONFINITE;
-        } else {
-            /* a finite posterior */
-        }
-    } else {
-        (void)memcpy(x, xm, sizeof(real) * (size_t)NX);
-        (void)memcpy(P, Pm, sizeof(real) * (size_t)NPP);
-    }
-    return rc;
-}
-
-/* Prediction x1 = A x + B v, P1 = A P A' + Q (P packed); 0 or an error code. */
-static inline int predict_step(const real* x, const real* P, const real* v, const real* q, real* x1,
-                               real* P1)
+/* Prediction of a state, x1 = A x + B v, P1 = A P A' + Q; 0 or an error code. */
+static inline int predict_step(const real* post, const real* v, const real* q, real* prior)
 {
     int rc = TWO_LINK_ARM_OK;
-    (void)two_link_arm_kern_node_predict(x, P, v, q, x1, P1);
-    if (finite_state(x1, P1) == 0) {
+    (void)two_link_arm_kern_node_predict(post, &post[NX], v, q, prior, &prior[NX]);
+    if (finite_state(prior) == 0) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
     return rc;
@@ -205,7 +182,7 @@ int two_link_arm_cov_ok(const real* A)
 int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const real P0[NXX],
                            const real R[TWO_LINK_ARM_NYY], const real q[NY])
 {
-    real Pp[NPP];
+    real xP[NXP];
     int i;
     int rc = TWO_LINK_ARM_OK;
     if ((node == NULL) || (x0 == NULL) || (P0 == NULL) || (R == NULL) || (q == NULL)) {
@@ -240,25 +217,33 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
         rc = TWO_LINK_ARM_ERR_ARG;
     }
     if (rc == TWO_LINK_ARM_OK) {
-        pack(P0, Pp);
+        (void)memcpy(xP, x0, sizeof(real) * (size_t)NX);
+        pack(P0, &xP[NX]);
         (void)memset(node, 0, sizeof(*node));
-        (void)memcpy(node->x, x0, sizeof(node->x));
-        (void)memcpy(node->P, Pp, sizeof(node->P));
-        (void)memcpy(node->x_pred, x0, sizeof(node->x_pred));
-        (void)memcpy(node->P_pred, Pp, sizeof(node->P_pred));
-        (void)memcpy(node->ring_x, x0, sizeof(node->x));
-        (void)memcpy(node->ring_P, Pp, sizeof(Pp)); /* the checkpoint of step 0 */
+        (void)memcpy(node->post, xP, sizeof(xP));
+        (void)memcpy(node->pred, xP, sizeof(xP));
+        (void)memcpy(node->ring_x, x0, sizeof(real) * (size_t)NX);
+        (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP); /* the checkpoint of step 0 */
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
-        recentre(node, node->x);
+        recentre(node, node->post);
     }
     return rc;
 }
 
-/* While step k is not updated, x and P equal its prior (x_pred, P_pred) and its z slot is 0:
- * the update computes into them in place, and a failure puts the prior back. */
+/* A failed update puts step k's prior back (see node_update). */
+static void put_back_prior(two_link_arm_node* node)
+{
+    (void)memcpy(node->post, node->pred, sizeof(node->post));
+    (void)memset(&node->ring_z[(int)node->slot * NY], 0, sizeof(real) * (size_t)NY);
+}
+
+/* While step k is not updated, post equals its prior (pred, whose x also equals its ring
+ * slot's) and its z slot is 0: the update computes into them in place, and a failure
+ * puts the prior back. A step without a measurement keeps its prior. */
 int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamma)
 {
+    real piv[NY];
     real* zk;
     int rc = TWO_LINK_ARM_OK;
     if ((node == NULL) || ((gamma != 0) && (gamma != 1)) || ((gamma == 1) && (z == NULL))) {
@@ -270,15 +255,19 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
     if ((rc == TWO_LINK_ARM_OK) && (gamma == 1)) {
         if (two_link_arm_finite(z, NY) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
-        } else { /* the prior of step k: ring_x of its slot and P_pred */
+        } else {
             zk = &node->ring_z[(int)node->slot * NY];
             centred(node, z, zk);
-            rc = update_step(&node->ring_x[(int)node->slot * NX], node->P_pred, zk, 1, node->R,
-                             node->x, node->P);
+            (void)two_link_arm_kern_update(node->pred, zk, node->R, node->post, piv);
+            if (pivots_ok(piv) == 0) {
+                rc = TWO_LINK_ARM_ERR_SINGULAR;
+            } else if (finite_state(node->post) == 0) {
+                rc = TWO_LINK_ARM_ERR_NONFINITE;
+            } else {
+                /* a finite posterior */
+            }
             if (rc != TWO_LINK_ARM_OK) {
-                (void)memcpy(node->x, node->x_pred, sizeof(node->x));
-                (void)memcpy(node->P, node->P_pred, sizeof(node->P));
-                (void)memset(zk, 0, sizeof(real) * (size_t)NY);
+                put_back_prior(node);
             }
         }
     }
@@ -294,26 +283,48 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
     return rc;
 }
 
+/* Filter update of one state (x, then P packed) from its prior; 0 or an error code. A step
+ * without a measurement (used = 0) keeps its prior. */
+static int update_step(const real* prior, const real* z, int used, const real* R, real* post)
+{
+    real piv[NY];
+    int rc = TWO_LINK_ARM_OK;
+    if (used != 0) {
+        (void)two_link_arm_kern_update(prior, z, R, post, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        } else if (finite_state(post) == 0) {
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
+        } else {
+            /* a finite posterior */
+        }
+    } else {
+        (void)memcpy(post, prior, sizeof(real) * (size_t)NXP);
+    }
+    return rc;
+}
+
 /* The P prior of step j (k - NMAX <= j <= k): the checkpoint of the last multiple of
  * CHECK_EVERY at or before j, carried forward by the filter's own kernels with the flags of the
  * steps between (on x = 0 and z = v = 0: P reads neither, so these are the values the filter had,
  * bit for bit). */
-static int prior_P(const two_link_arm_node* node, uint32_t j, real* Pm)
+static int prior_P(const two_link_arm_node* node, uint32_t j, real* prior)
 {
-    real x0[NX];
-    real x[NX];
-    real P[NPP];
+    real post[NXP];
     real zero[NY];
     uint32_t s = j - (j % TWO_LINK_ARM_NODE_CHECK_EVERY);
     int rc = TWO_LINK_ARM_OK;
-    (void)memset(x0, 0, sizeof(x0));
+    (void)memset(prior, 0, sizeof(real) * (size_t)NX);
     (void)memset(zero, 0, sizeof(zero));
-    (void)memcpy(Pm, &node->ring_P[check_of(s) * NPP], sizeof(P));
+    (void)memcpy(&prior[NX], &node->ring_P[check_of(s) * NPP], sizeof(real) * (size_t)NPP);
     while ((rc == TWO_LINK_ARM_OK) && (s < j)) {
-        int used = ((node->ring_flags[hist_of(s)] & USED) != 0u) ? 1 : 0;
-        rc = update_step(x0, Pm, zero, used, node->R, x, P);
+        int used = 0;
+        if ((node->ring_flags[hist_of(s)] & USED) != 0u) {
+            used = 1;
+        }
+        rc = update_step(prior, zero, used, node->R, post);
         if (rc == TWO_LINK_ARM_OK) {
-            rc = predict_step(x, P, zero, node->q, x0, Pm);
+            rc = predict_step(post, zero, node->q, prior);
         }
         s++;
     }
@@ -324,18 +335,19 @@ static int prior_P(const two_link_arm_node* node, uint32_t j, real* Pm)
  * z), then the prediction into the next slot, written in place, and each checkpoint passed
  * rewritten; returns the posterior of step k. On a failure the slots' x and the checkpoints are
  * put back from the copies taken on the way. */
-static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real* x, real* P)
+static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real* post)
 {
     real old_x[TWO_LINK_ARM_NMAX * NX];
     real old_P[TWO_LINK_ARM_NODE_NCHECK_REALS];
-    real Pm[NPP];
+    real prior[NXP]; /* step j's: x as its slot holds it, P carried */
     uint32_t j = j0;
     uint32_t written = 0u; /* priors' x rewritten so far: slots j0 + 1 .. j0 + written */
     int checks = 0; /* checkpoints rewritten so far, from the first multiple after j0 */
     uint32_t first;
     uint32_t i;
     int c;
-    int rc = prior_P(node, j0, Pm);
+    int rc = prior_P(node, j0, prior);
+    (void)memcpy(prior, &node->ring_x[slot_of(j0) * NX], sizeof(real) * (size_t)NX);
     while ((rc == TWO_LINK_ARM_OK) && (j <= node->k)) {
         int slot = slot_of(j);
         real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
@@ -344,16 +356,19 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
         if ((j != j0) && ((node->ring_flags[hist_of(j)] & USED) == 0u)) {
             used = 0;
         }
-        rc = update_step(&node->ring_x[slot * NX], Pm, z, used, node->R, x, P);
+        rc = update_step(prior, z, used, node->R, post);
         if ((rc == TWO_LINK_ARM_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(x, P, &node->ring_v[slot * NY], node->q, xnext, Pm);
+            rc = predict_step(post, &node->ring_v[slot * NY], node->q, prior);
+            if (rc == TWO_LINK_ARM_OK) {
+                (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
+            }
             if ((rc == TWO_LINK_ARM_OK) && (((j + 1u) % TWO_LINK_ARM_NODE_CHECK_EVERY) == 0u)) {
                 real* cp = &node->ring_P[check_of(j + 1u) * NPP];
-                (void)memcpy(&old_P[checks * NPP], cp, sizeof(Pm));
+                (void)memcpy(&old_P[checks * NPP], cp, sizeof(real) * (size_t)NPP);
                 checks++;
-                (void)memcpy(cp, Pm, sizeof(Pm));
+                (void)memcpy(cp, &prior[NX], sizeof(real) * (size_t)NPP);
             }
         }
         j++;
@@ -366,7 +381,8 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
                          sizeof(real) * (size_t)NX);
         }
         for (c = 0; c < checks; c++) {
-            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP], sizeof(Pm));
+            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP],
+                         sizeof(real) * (size_t)NPP);
             first += TWO_LINK_ARM_NODE_CHECK_EVERY;
         }
     }
@@ -375,8 +391,7 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
 
 int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[NY], int32_t lag)
 {
-    real x[NX];
-    real P[NPP];
+    real post[NXP];
     real z[NY];
     uint32_t N = 0u;
     int hist = 0;
@@ -405,15 +420,14 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
         }
     }
     if (rc == TWO_LINK_ARM_OK) {
-        rc = replay(node, node->k - N, z, x, P);
+        rc = replay(node, node->k - N, z, post);
     }
     if (rc == TWO_LINK_ARM_OK) {
         (void)memcpy(&node->ring_z[slot_of(node->k - N) * NY], z, sizeof(real) * (size_t)NY);
         node->ring_flags[hist] = (uint8_t)(HAS | USED);
     }
     if (rc == TWO_LINK_ARM_OK) {
-        (void)memcpy(node->x, x, sizeof(x));
-        (void)memcpy(node->P, P, sizeof(P));
+        (void)memcpy(node->post, post, sizeof(post));
         node->health.late_applied++;
     }
     return rc;
@@ -421,8 +435,7 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
 
 int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
 {
-    real x1[NX];
-    real P1[NPP];
+    real next[NXP];
     int slot;
     uint32_t hist;
     int rc = TWO_LINK_ARM_OK;
@@ -436,7 +449,7 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
     if (rc == TWO_LINK_ARM_OK) {
-        rc = predict_step(node->x, node->P, v, node->q, x1, P1);
+        rc = predict_step(node->post, v, node->q, next);
     }
     if (rc == TWO_LINK_ARM_OK) {
         slot = (int)node->slot;
@@ -446,17 +459,16 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
         node->slot = (uint16_t)slot;
         hist = (uint32_t)node->hist + 1u;
         node->hist = (uint16_t)((hist == TWO_LINK_ARM_NODE_NHIST) ? 0u : hist);
-        (void)memcpy(&node->ring_x[slot * NX], x1, sizeof(x1));
+        (void)memcpy(&node->ring_x[slot * NX], next, sizeof(real) * (size_t)NX);
         if ((node->k % TWO_LINK_ARM_NODE_CHECK_EVERY) == 0u) {
-            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], P1, sizeof(P1));
+            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], &next[NX],
+                         sizeof(real) * (size_t)NPP);
         }
         (void)memset(&node->ring_z[slot * NY], 0, sizeof(real) * (size_t)NY);
-        (void)memcpy(node->x, x1, sizeof(x1));
-        (void)memcpy(node->P, P1, sizeof(P1));
-        (void)memcpy(node->x_pred, x1, sizeof(x1));
-        (void)memcpy(node->P_pred, P1, sizeof(P1));
+        (void)memcpy(node->post, next, sizeof(next));
+        (void)memcpy(node->pred, next, sizeof(next));
         node->updated = 0;
-        recentre(node, x1);
+        recentre(node, next);
     }
     return rc;
 }
@@ -468,10 +480,10 @@ int two_link_arm_node_estimate(const two_link_arm_node* node, real x[NX], real P
         rc = TWO_LINK_ARM_ERR_ARG;
     } else {
         if (x != NULL) {
-            two_link_arm_move_origin(node->x, node->centre, NULL, x);
+            two_link_arm_move_origin(node->post, node->centre, NULL, x);
         }
         if (P != NULL) {
-            unpack(node->P, P);
+            unpack(&node->post[NX], P);
         }
     }
     return rc;
@@ -492,8 +504,8 @@ int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], re
     }
     if (rc == TWO_LINK_ARM_OK) {
         (void)memset(origin, 0, sizeof(origin));
-        two_link_arm_move_origin(node->x, node->centre, NULL, x);
-        unpack(node->P, P);
+        two_link_arm_move_origin(node->post, node->centre, NULL, x);
+        unpack(&node->post[NX], P);
         (void)two_link_arm_kern_info(x, P, origin, Yl, yl, piv, w);
         if (two_link_arm_positive(piv, NX) == 0) {
             rc = TWO_LINK_ARM_ERR_SINGULAR;
@@ -522,10 +534,10 @@ int two_link_arm_node_packet(const two_link_arm_node* node, two_link_arm_packet*
     } else {
         packet->step = node->k;
         (void)memcpy(packet->centre, node->centre, sizeof(packet->centre));
-        (void)memcpy(packet->x, node->x, sizeof(packet->x));
-        unpack(node->P, packet->P);
-        (void)memcpy(packet->x_pred, node->x_pred, sizeof(packet->x_pred));
-        unpack(node->P_pred, packet->P_pred);
+        (void)memcpy(packet->x, node->post, sizeof(packet->x));
+        unpack(&node->post[NX], packet->P);
+        (void)memcpy(packet->x_pred, node->pred, sizeof(packet->x_pred));
+        unpack(&node->pred[NX], packet->P_pred);
     }
     return rc;
 }
