@@ -294,6 +294,30 @@ def test_failed_update_puts_the_prior_back(host_cc, tmp_path, oosm):
     assert a.raw == b.raw
 
 
+@pytest.mark.parametrize("oosm", ["replay", "retrodict"])
+def test_a_non_finite_frame_or_input_fails_through_the_result_check(host_cc, tmp_path, oosm):
+    """z and v are not checked on entry: a NaN or an infinity in them reaches every entry of the
+    result (IEEE: NaN * 0 and inf * 0 are NaN, inf - inf too), which the results' check rejects,
+    and the update puts the prior back. The node starts at position 0.3, so its centre moved by
+    0.25 at init: the current step's z slot stays 0 through that move (else the put-back would
+    differ in that slot)."""
+    import ctypes
+
+    call, size = _cart_node(tmp_path, oosm)
+    a = ctypes.create_string_buffer(size)
+    assert call("node_init", a, _ptr([0.3, 0.0]), _ptr(np.diag([0.05, 0.1]) ** 2), _ptr([[1e-4]]),
+                _ptr([20.0])) == 0
+    for k in range(3):
+        before = a.raw
+        for bad in (np.nan, np.inf, -np.inf):
+            assert call("node_update", a, _ptr([bad]), 1) == -3 and a.raw == before   # ERR_NONFINITE
+        assert call("node_update", a, _ptr([0.3 + 0.2 * k]), 1) == 0
+        before = a.raw
+        for bad in (np.nan, np.inf):
+            assert call("node_predict", a, _ptr([bad])) == -3 and a.raw == before
+        assert call("node_predict", a, _ptr([30.0])) == 0
+
+
 def test_a_finite_state_whose_sum_overflows_is_accepted(host_cc, tmp_path):
     """The results' finiteness is one sum of x and P; a sum that overflows on finite values takes
     the per-value check, which accepts them: position and velocity 1e308 (sum 2e308 > DBL_MAX).

@@ -107,7 +107,7 @@ static void centred(const dc_motor_link_node* node, const real* z, real* zc)
 }
 
 /* Move output j's centre by whole steps to within half a step of the estimate, and every
- * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
+ * stored value with it (called before the current step's update). Moving the centre leaves A x + B v unchanged: it only touches the chain
  * heads, and A maps a head-only vector to itself. P does not depend on the centre. */
 static void shift_centre(dc_motor_link_node* node, int j, int h)
 {
@@ -121,6 +121,7 @@ static void shift_centre(dc_motor_link_node* node, int j, int h)
             node->ring_x[(s * NX) + h] -= shift;
             node->ring_z[(s) + j] -= shift;
         }
+        node->ring_z[((int)node->slot) + j] = (real)0; /* the current step's: no z yet */
     }
 }
 
@@ -225,23 +226,19 @@ int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int ga
     if ((rc == DC_MOTOR_LINK_OK) && (node->updated != 0u)) {
         rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
-    if ((rc == DC_MOTOR_LINK_OK) && (gamma == 1)) {
-        if (dc_motor_link_finite(z, NY) == 0) {
+    if ((rc == DC_MOTOR_LINK_OK) && (gamma == 1)) { /* a non-finite z makes the posterior so */
+        zk = &node->ring_z[(int)node->slot];
+        centred(node, z, zk);
+        (void)dc_motor_link_kern_update(node->pred, zk, node->R, node->post, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        } else if (finite_state(node->post) == 0) {
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
         } else {
-            zk = &node->ring_z[(int)node->slot];
-            centred(node, z, zk);
-            (void)dc_motor_link_kern_update(node->pred, zk, node->R, node->post, piv);
-            if (pivots_ok(piv) == 0) {
-                rc = DC_MOTOR_LINK_ERR_SINGULAR;
-            } else if (finite_state(node->post) == 0) {
-                rc = DC_MOTOR_LINK_ERR_NONFINITE;
-            } else {
-                /* a finite posterior */
-            }
-            if (rc != DC_MOTOR_LINK_OK) {
-                put_back_prior(node);
-            }
+            /* a finite posterior */
+        }
+        if (rc != DC_MOTOR_LINK_OK) {
+            put_back_prior(node);
         }
     }
     if (rc == DC_MOTOR_LINK_OK) {
@@ -418,10 +415,7 @@ int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
     if ((rc == DC_MOTOR_LINK_OK) && (node->updated == 0u)) {
         rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
-    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(v, NY) == 0)) {
-        rc = DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    if (rc == DC_MOTOR_LINK_OK) {
+    if (rc == DC_MOTOR_LINK_OK) { /* a non-finite v makes the prediction so */
         rc = predict_step(node->post, v, node->q, next);
     }
     if (rc == DC_MOTOR_LINK_OK) {

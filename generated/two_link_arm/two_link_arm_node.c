@@ -125,7 +125,7 @@ static void centred(const two_link_arm_node* node, const real* z, real* zc)
 }
 
 /* Move output j's centre by whole steps to within half a step of the estimate, and every
- * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
+ * stored value with it (called before the current step's update). Moving the centre leaves A x + B v unchanged: it only touches the chain
  * heads, and A maps a head-only vector to itself. P does not depend on the centre. */
 static void shift_centre(two_link_arm_node* node, int j, int h)
 {
@@ -139,6 +139,7 @@ static void shift_centre(two_link_arm_node* node, int j, int h)
             node->ring_x[(s * NX) + h] -= shift;
             node->ring_z[(s * NY) + j] -= shift;
         }
+        node->ring_z[((int)node->slot * NY) + j] = (real)0; /* the current step's: no z yet */
     }
 }
 
@@ -252,23 +253,19 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
     if ((rc == TWO_LINK_ARM_OK) && (node->updated != 0u)) {
         rc = TWO_LINK_ARM_ERR_SEQUENCE;
     }
-    if ((rc == TWO_LINK_ARM_OK) && (gamma == 1)) {
-        if (two_link_arm_finite(z, NY) == 0) {
+    if ((rc == TWO_LINK_ARM_OK) && (gamma == 1)) { /* a non-finite z makes the posterior so */
+        zk = &node->ring_z[(int)node->slot * NY];
+        centred(node, z, zk);
+        (void)two_link_arm_kern_update(node->pred, zk, node->R, node->post, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        } else if (finite_state(node->post) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
         } else {
-            zk = &node->ring_z[(int)node->slot * NY];
-            centred(node, z, zk);
-            (void)two_link_arm_kern_update(node->pred, zk, node->R, node->post, piv);
-            if (pivots_ok(piv) == 0) {
-                rc = TWO_LINK_ARM_ERR_SINGULAR;
-            } else if (finite_state(node->post) == 0) {
-                rc = TWO_LINK_ARM_ERR_NONFINITE;
-            } else {
-                /* a finite posterior */
-            }
-            if (rc != TWO_LINK_ARM_OK) {
-                put_back_prior(node);
-            }
+            /* a finite posterior */
+        }
+        if (rc != TWO_LINK_ARM_OK) {
+            put_back_prior(node);
         }
     }
     if (rc == TWO_LINK_ARM_OK) {
@@ -445,10 +442,7 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
     if ((rc == TWO_LINK_ARM_OK) && (node->updated == 0u)) {
         rc = TWO_LINK_ARM_ERR_SEQUENCE;
     }
-    if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_finite(v, NY) == 0)) {
-        rc = TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    if (rc == TWO_LINK_ARM_OK) {
+    if (rc == TWO_LINK_ARM_OK) { /* a non-finite v makes the prediction so */
         rc = predict_step(node->post, v, node->q, next);
     }
     if (rc == TWO_LINK_ARM_OK) {
