@@ -269,12 +269,12 @@ class _Builder:
         return ca.mtimes(ca.mtimes(self.A, self.symmetric(P)), self.A.T) + self.Q_of(q)
 
     def node_predict(self, name: str) -> ca.Function:
-        """The node's prediction on its packed covariance."""
+        """The node's prediction of its state (x, then P packed: one argument)."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
-        x, P, v, q = _sym("x", n), _sym("P", npp), _sym("v", m), _sym("q", m)
-        x1 = ca.mtimes(self.A, x) + ca.mtimes(self.B, v)
-        P1 = self._propagate_P(self.unpack(P, n), q)
-        return ca.Function(name, [x, P, v, q], [x1, self.pack(P1)], ["x", "P", "v", "q"], ["x1", "P1"])
+        post, v, q = _sym("post", n + npp), _sym("v", m), _sym("q", m)
+        x1 = ca.mtimes(self.A, post[:n]) + ca.mtimes(self.B, v)
+        P1 = self._propagate_P(self.unpack(post[n:], n), q)
+        return ca.Function(name, [post, v, q], [x1, self.pack(P1)], ["post", "v", "q"], ["x1", "P1"])
 
     def info(self, name: str) -> ca.Function:
         """Information form about a centre c: Y = P^-1, y = Y (x - c). The master centres on its

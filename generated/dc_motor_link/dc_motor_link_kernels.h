@@ -17,10 +17,10 @@ int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_lin
                                dc_motor_link_real x1[3], dc_motor_link_real P1[9],
                                dc_motor_link_real w[DC_MOTOR_LINK_KERN_PREDICT_SZ_W]);
 
-/* dc_motor_link_kern_node_predict:(x[3],P[6],v,q)->(x1[3],P1[6]) */
-int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[6],
-                                    const dc_motor_link_real v[1], const dc_motor_link_real q[1],
-                                    dc_motor_link_real x1[3], dc_motor_link_real P1[6]);
+/* dc_motor_link_kern_node_predict:(post[9],v,q)->(x1[3],P1[6]) */
+int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real v[1],
+                                    const dc_motor_link_real q[1], dc_motor_link_real x1[3],
+                                    dc_motor_link_real P1[6]);
 
 /* dc_motor_link_kern_update:(prior[9],z,R)->(post[9],piv) */
 int dc_motor_link_kern_update(const dc_motor_link_real prior[9], const dc_motor_link_real z[1],

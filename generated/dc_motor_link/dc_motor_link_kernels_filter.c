@@ -98,19 +98,19 @@ int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_lin
     return 0;
 }
 
-/* dc_motor_link_kern_node_predict:(x[3],P[6],v,q)->(x1[3],P1[6]) */
-int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[6],
-                                    const dc_motor_link_real v[1], const dc_motor_link_real q[1],
-                                    dc_motor_link_real x1[3], dc_motor_link_real P1[6])
+/* dc_motor_link_kern_node_predict:(post[9],v,q)->(x1[3],P1[6]) */
+int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real v[1],
+                                    const dc_motor_link_real q[1], dc_motor_link_real x1[3],
+                                    dc_motor_link_real P1[6])
 {
     dc_motor_link_real w[11];
-    w[0] = x[0];
+    w[0] = post[0];
     w[1] = 1.0000000000000000e-02;
-    w[2] = x[1];
+    w[2] = post[1];
     w[3] = (w[1] * w[2]);
     w[0] = (w[0] + w[3]);
     w[3] = 5.0000000000000002e-05;
-    w[4] = x[2];
+    w[4] = post[2];
     w[5] = (w[3] * w[4]);
     w[0] = (w[0] + w[5]);
     w[5] = 1.6666666666666670e-07;
@@ -126,24 +126,24 @@ int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_moto
     w[6] = (w[1] * w[6]);
     w[4] = (w[4] + w[6]);
     x1[2] = w[4];
-    w[4] = P[0];
-    w[6] = P[1];
+    w[4] = post[3];
+    w[6] = post[4];
     w[2] = (w[1] * w[6]);
     w[4] = (w[4] + w[2]);
-    w[2] = P[3];
+    w[2] = post[6];
     w[0] = (w[3] * w[2]);
     w[4] = (w[4] + w[0]);
-    w[0] = P[2];
+    w[0] = post[5];
     w[7] = (w[1] * w[0]);
     w[6] = (w[6] + w[7]);
-    w[7] = P[4];
+    w[7] = post[7];
     w[8] = (w[3] * w[7]);
     w[6] = (w[6] + w[8]);
     w[8] = (w[1] * w[6]);
     w[4] = (w[4] + w[8]);
     w[8] = (w[1] * w[7]);
     w[2] = (w[2] + w[8]);
-    w[8] = P[5];
+    w[8] = post[8];
     w[9] = (w[3] * w[8]);
     w[2] = (w[2] + w[9]);
     w[9] = (w[3] * w[2]);

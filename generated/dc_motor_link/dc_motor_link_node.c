@@ -145,7 +145,7 @@ static inline int pivots_ok(const real* piv)
 static inline int predict_step(const real* post, const real* v, const real* q, real* prior)
 {
     int rc = DC_MOTOR_LINK_OK;
-    (void)dc_motor_link_kern_node_predict(post, &post[NX], v, q, prior, &prior[NX]);
+    (void)dc_motor_link_kern_node_predict(post, v, q, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }

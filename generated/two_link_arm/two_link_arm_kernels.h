@@ -17,10 +17,10 @@ int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_r
                               two_link_arm_real x1[6], two_link_arm_real P1[36],
                               two_link_arm_real w[TWO_LINK_ARM_KERN_PREDICT_SZ_W]);
 
-/* two_link_arm_kern_node_predict:(x[6],P[21],v[2],q[2])->(x1[6],P1[21]) */
-int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_arm_real P[21],
-                                   const two_link_arm_real v[2], const two_link_arm_real q[2],
-                                   two_link_arm_real x1[6], two_link_arm_real P1[21]);
+/* two_link_arm_kern_node_predict:(post[27],v[2],q[2])->(x1[6],P1[21]) */
+int two_link_arm_kern_node_predict(const two_link_arm_real post[27], const two_link_arm_real v[2],
+                                   const two_link_arm_real q[2], two_link_arm_real x1[6],
+                                   two_link_arm_real P1[21]);
 
 /* two_link_arm_kern_update:(prior[27],z[2],R[2x2])->(post[27],piv[2]) */
 int two_link_arm_kern_update(const two_link_arm_real prior[27], const two_link_arm_real z[2],

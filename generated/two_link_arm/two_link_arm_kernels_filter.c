@@ -232,19 +232,19 @@ int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_r
     return 0;
 }
 
-/* two_link_arm_kern_node_predict:(x[6],P[21],v[2],q[2])->(x1[6],P1[21]) */
-int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_arm_real P[21],
-                                   const two_link_arm_real v[2], const two_link_arm_real q[2],
-                                   two_link_arm_real x1[6], two_link_arm_real P1[21])
+/* two_link_arm_kern_node_predict:(post[27],v[2],q[2])->(x1[6],P1[21]) */
+int two_link_arm_kern_node_predict(const two_link_arm_real post[27], const two_link_arm_real v[2],
+                                   const two_link_arm_real q[2], two_link_arm_real x1[6],
+                                   two_link_arm_real P1[21])
 {
     two_link_arm_real w[19];
-    w[0] = x[0];
+    w[0] = post[0];
     w[1] = 1.0000000000000000e-02;
-    w[2] = x[1];
+    w[2] = post[1];
     w[3] = (w[1] * w[2]);
     w[0] = (w[0] + w[3]);
     w[3] = 5.0000000000000002e-05;
-    w[4] = x[2];
+    w[4] = post[2];
     w[5] = (w[3] * w[4]);
     w[0] = (w[0] + w[5]);
     w[5] = 1.6666666666666670e-07;
@@ -260,11 +260,11 @@ int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_
     w[6] = (w[1] * w[6]);
     w[4] = (w[4] + w[6]);
     x1[2] = w[4];
-    w[4] = x[3];
-    w[6] = x[4];
+    w[4] = post[3];
+    w[6] = post[4];
     w[2] = (w[1] * w[6]);
     w[4] = (w[4] + w[2]);
-    w[2] = x[5];
+    w[2] = post[5];
     w[0] = (w[3] * w[2]);
     w[4] = (w[4] + w[0]);
     w[0] = v[1];
@@ -279,24 +279,24 @@ int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_
     w[0] = (w[1] * w[0]);
     w[2] = (w[2] + w[0]);
     x1[5] = w[2];
-    w[2] = P[0];
-    w[0] = P[1];
+    w[2] = post[6];
+    w[0] = post[7];
     w[6] = (w[1] * w[0]);
     w[2] = (w[2] + w[6]);
-    w[6] = P[3];
+    w[6] = post[9];
     w[4] = (w[3] * w[6]);
     w[2] = (w[2] + w[4]);
-    w[4] = P[2];
+    w[4] = post[8];
     w[7] = (w[1] * w[4]);
     w[0] = (w[0] + w[7]);
-    w[7] = P[4];
+    w[7] = post[10];
     w[8] = (w[3] * w[7]);
     w[0] = (w[0] + w[8]);
     w[8] = (w[1] * w[0]);
     w[2] = (w[2] + w[8]);
     w[8] = (w[1] * w[7]);
     w[6] = (w[6] + w[8]);
-    w[8] = P[5];
+    w[8] = post[11];
     w[9] = (w[3] * w[8]);
     w[6] = (w[6] + w[9]);
     w[9] = (w[3] * w[6]);
@@ -331,27 +331,27 @@ int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_
     w[10] = (w[1] * w[10]);
     w[8] = (w[8] + w[10]);
     P1[5] = w[8];
-    w[8] = P[6];
-    w[10] = P[7];
+    w[8] = post[12];
+    w[10] = post[13];
     w[7] = (w[1] * w[10]);
     w[8] = (w[8] + w[7]);
-    w[7] = P[8];
+    w[7] = post[14];
     w[6] = (w[3] * w[7]);
     w[8] = (w[8] + w[6]);
-    w[6] = P[10];
-    w[4] = P[11];
+    w[6] = post[16];
+    w[4] = post[17];
     w[11] = (w[1] * w[4]);
     w[6] = (w[6] + w[11]);
-    w[11] = P[12];
+    w[11] = post[18];
     w[12] = (w[3] * w[11]);
     w[6] = (w[6] + w[12]);
     w[12] = (w[1] * w[6]);
     w[8] = (w[8] + w[12]);
-    w[12] = P[15];
-    w[13] = P[16];
+    w[12] = post[21];
+    w[13] = post[22];
     w[14] = (w[1] * w[13]);
     w[12] = (w[12] + w[14]);
-    w[14] = P[17];
+    w[14] = post[23];
     w[15] = (w[3] * w[14]);
     w[12] = (w[12] + w[15]);
     w[15] = (w[3] * w[12]);
@@ -373,24 +373,24 @@ int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_
     w[10] = (w[3] * w[14]);
     w[7] = (w[7] + w[10]);
     P1[8] = w[7];
-    w[7] = P[9];
-    w[10] = P[13];
+    w[7] = post[15];
+    w[10] = post[19];
     w[8] = (w[1] * w[10]);
     w[7] = (w[7] + w[8]);
-    w[8] = P[18];
+    w[8] = post[24];
     w[15] = (w[3] * w[8]);
     w[7] = (w[7] + w[15]);
-    w[15] = P[14];
+    w[15] = post[20];
     w[16] = (w[1] * w[15]);
     w[10] = (w[10] + w[16]);
-    w[16] = P[19];
+    w[16] = post[25];
     w[17] = (w[3] * w[16]);
     w[10] = (w[10] + w[17]);
     w[17] = (w[1] * w[10]);
     w[7] = (w[7] + w[17]);
     w[17] = (w[1] * w[16]);
     w[8] = (w[8] + w[17]);
-    w[17] = P[20];
+    w[17] = post[26];
     w[18] = (w[3] * w[17]);
     w[8] = (w[8] + w[18]);
     w[18] = (w[3] * w[8]);

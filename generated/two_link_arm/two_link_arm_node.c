@@ -166,7 +166,7 @@ static inline int pivots_ok(const real* piv)
 static inline int predict_step(const real* post, const real* v, const real* q, real* prior)
 {
     int rc = TWO_LINK_ARM_OK;
-    (void)two_link_arm_kern_node_predict(post, &post[NX], v, q, prior, &prior[NX]);
+    (void)two_link_arm_kern_node_predict(post, v, q, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
