@@ -74,10 +74,11 @@ static void pack(const real* P, real* Pp)
     }
 }
 
-/* 1 if a state (x, then P packed) is all finite (the results' one check; the inputs were checked on
- * entry). Their sum is finite only if every term is (an infinity or a NaN survives any sum, and
- * s - s is 0 for a finite s, NaN otherwise): one add per value. Only a sum that overflows on
- * finite terms takes the per-value check. */
+/* 1 if a state (x, then P packed) is all finite: the results' one check. The stored inputs were
+ * checked at init, and a NaN or infinity in z or v reaches the result's x (NaN * 0 is NaN). The
+ * sum is finite only if every term is (an infinity or a NaN survives any sum, and s - s is 0 for
+ * a finite s, NaN otherwise): one add per value. Only a sum that overflows on finite terms takes
+ * the per-value check. */
 static inline int finite_state(const real* xP)
 {
     real acc = xP[0];
@@ -107,8 +108,9 @@ static void centred(const dc_motor_link_node* node, const real* z, real* zc)
 }
 
 /* Move output j's centre by whole steps to within half a step of the estimate, and every
- * stored value with it (called before the current step's update). Moving the centre leaves A x + B v unchanged: it only touches the chain
- * heads, and A maps a head-only vector to itself. P does not depend on the centre. */
+ * stored value with it (called before the current step's update). Moving the centre leaves
+ * A x + B v unchanged: it only touches the chain heads, and A maps a head-only vector to itself.
+ * P does not depend on the centre. */
 static void shift_centre(dc_motor_link_node* node, int j, int h)
 {
     int s;
@@ -197,7 +199,8 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
         (void)memcpy(node->post, xP, sizeof(xP));
         (void)memcpy(node->pred, xP, sizeof(xP));
         (void)memcpy(node->ring_x, x0, sizeof(real) * (size_t)NX);
-        (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP); /* the checkpoint of step 0 */
+        /* the checkpoint of step 0 */
+        (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP);
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
         recentre(node, node->post);
