@@ -301,9 +301,10 @@ int main(void)
 
     /* information of a non-positive-definite covariance */
     tmp = a;
-    /* P = -I in the node's packed upper triangle (column j holds entries 0..j, the diagonal last) */
-    for (i = 0; i < K(NPP); i++) tmp.P[i] = 0;
-    for (i = 0; i < NX; i++) tmp.P[(i * (i + 1)) / 2 + i] = -1;
+    /* P = -I in the node's packed upper triangle (column j holds entries 0..j, the diagonal last),
+     * stored after x in the node's estimate */
+    for (i = 0; i < K(NPP); i++) tmp.post[NX + i] = 0;
+    for (i = 0; i < NX; i++) tmp.post[NX + (i * (i + 1)) / 2 + i] = -1;
     snap = tmp;
     for (i = 0; i < NX * NX; i++) Y[i] = 7;
     CHECK(F(node_information)(&tmp, Y, x) == K(ERR_SINGULAR) && SAME(tmp, snap) && Y[0] == 7);

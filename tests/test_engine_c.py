@@ -256,6 +256,90 @@ def test_failed_replay_leaves_the_node_unchanged(host_cc, tmp_path):
     assert failed >= 3
 
 
+def _cart_node(tmp_path, oosm):
+    import ctypes
+
+    from dfeif_codegen.check import harness
+
+    (tmp_path / "cart.toml").write_text(CART)
+    md = harness.build_model(str(tmp_path / "cart.toml"), tmp_path / oosm, "double", oosm, "difference", 2, 8)
+    lib = ctypes.CDLL(str(harness.compile_shared(md.sources(), tmp_path / f"lib{oosm}.so", [md.path])))
+    lib.cart_node_size.restype = ctypes.c_size_t
+    call = lambda name, *args: getattr(lib, f"cart_{name}")(*args)  # noqa: E731
+    return call, lib.cart_node_size()
+
+
+def _ptr(a):
+    return np.ascontiguousarray(a, dtype=float).ctypes.data_as(__import__("ctypes").c_void_p)
+
+
+@pytest.mark.parametrize("oosm", ["replay", "retrodict"])
+def test_failed_update_puts_the_prior_back(host_cc, tmp_path, oosm):
+    """The on-time update computes into the node and puts the prior back when it fails: a frame
+    1.7e308 against a position prior of -1e308 has an innovation that overflows a double, so x
+    becomes infinite (ERR_NONFINITE); the node is then byte for byte what it was, and the next
+    calls match a twin that never saw the frame."""
+    import ctypes
+
+    call, size = _cart_node(tmp_path, oosm)
+    a = ctypes.create_string_buffer(size)
+    assert call("node_init", a, _ptr([-1e308, 0.0]), _ptr(np.diag([0.05, 0.1]) ** 2), _ptr([[1e-4]]),
+                _ptr([20.0])) == 0
+    twin = a.raw
+    assert call("node_update", a, _ptr([1.7e308]), 1) == -3 and a.raw == twin    # ERR_NONFINITE
+    b = ctypes.create_string_buffer(twin, size)
+    for node in (a, b):
+        assert call("node_update", node, _ptr([-1e308]), 1) == 0
+        assert call("node_predict", node, _ptr([0.3])) == 0
+    assert a.raw == b.raw
+
+
+@pytest.mark.parametrize("oosm", ["replay", "retrodict"])
+def test_a_non_finite_frame_or_input_fails_through_the_result_check(host_cc, tmp_path, oosm):
+    """z and v are not checked on entry: a NaN or an infinity in them reaches every entry of the
+    result (IEEE: NaN * 0 and inf * 0 are NaN, inf - inf too), which the results' check rejects,
+    and the update puts the prior back. The node starts at position 0.3, so its centre moved by
+    0.25 at init: the current step's z slot stays 0 through that move (else the put-back would
+    differ in that slot)."""
+    import ctypes
+
+    call, size = _cart_node(tmp_path, oosm)
+    a = ctypes.create_string_buffer(size)
+    assert call("node_init", a, _ptr([0.3, 0.0]), _ptr(np.diag([0.05, 0.1]) ** 2), _ptr([[1e-4]]),
+                _ptr([20.0])) == 0
+    for k in range(3):
+        before = a.raw
+        for bad in (np.nan, np.inf, -np.inf):
+            assert call("node_update", a, _ptr([bad]), 1) == -3 and a.raw == before   # ERR_NONFINITE
+        assert call("node_update", a, _ptr([0.3 + 0.2 * k]), 1) == 0
+        before = a.raw
+        for bad in (np.nan, np.inf):
+            assert call("node_predict", a, _ptr([bad])) == -3 and a.raw == before
+        assert call("node_predict", a, _ptr([30.0])) == 0
+
+
+def test_a_finite_state_whose_sum_overflows_is_accepted(host_cc, tmp_path):
+    """The results' finiteness is one sum of x and P; a sum that overflows on finite values takes
+    the per-value check, which accepts them: position and velocity 1e308 (sum 2e308 > DBL_MAX).
+    A frame equal to the position leaves x as it was (zero innovation); the prediction moves the
+    position by ts * velocity + ts^2 / 2 * v: computed in double in another order than here, so
+    within 2 ulps (rtol 1e-15)."""
+    import ctypes
+
+    call, size = _cart_node(tmp_path, "replay")
+    a = ctypes.create_string_buffer(size)
+    assert call("node_init", a, _ptr([1e308, 1e308]), _ptr(np.diag([0.05, 0.1]) ** 2), _ptr([[1e-4]]),
+                _ptr([20.0])) == 0
+    assert call("node_update", a, _ptr([1e308]), 1) == 0
+    x = np.zeros(2)
+    assert call("node_estimate", a, x.ctypes.data_as(ctypes.c_void_p), None) == 0
+    assert x[0] == 1e308 and x[1] == 1e308
+    assert call("node_predict", a, _ptr([0.3])) == 0
+    assert call("node_estimate", a, x.ctypes.data_as(ctypes.c_void_p), None) == 0
+    ts = 0.01
+    np.testing.assert_allclose(x, [1e308 + ts * 1e308 + ts * ts / 2 * 0.3, 1e308 + ts * 0.3], rtol=1e-15)
+
+
 def test_a_worker_needs_none_of_the_callers_files(host_cc, tmp_path):
     """What a worker gets (compiled loops as bytes, model files as text) is enough: a fresh
     process runs a user model's run after the model file and every build folder are gone, and

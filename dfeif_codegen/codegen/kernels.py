@@ -300,12 +300,16 @@ class _Builder:
         return ca.Function(name, [x, P, v, q], [x1, P1], ["x", "P", "v", "q"], ["x1", "P1"])
 
     def update(self, name: str) -> ca.Function:
-        """The node's update on its packed prior (npp = n (n + 1) / 2 reals), posterior packed."""
+        """The node's update with a measurement on its packed prior (npp = n (n + 1) / 2 reals),
+        posterior packed. A step without one keeps its prior as it is (the node copies it): no
+        gamma factor in the gain, so none of its multiplications.
+        Prior and posterior are each one vector, x then P (the node stores them so): fewer
+        arguments, all in registers on the host."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
-        xm, Pm, z, gamma, R = _sym("xm", n), _sym("Pm", npp), _sym("z", m), _sym("gamma"), _sym("R", m, m)
-        x, P, piv = self._update(xm, self.unpack(Pm, n), z, gamma, R)
-        return ca.Function(name, [xm, Pm, z, gamma, R], [x, self.pack(P), piv],
-                           ["xm", "Pm", "z", "gamma", "R"], ["x", "P", "piv"])
+        prior, z, R = _sym("prior", n + npp), _sym("z", m), _sym("R", m, m)
+        x, P, piv = self._update(prior[:n], self.unpack(prior[n:], n), z, 1, R)
+        return ca.Function(name, [prior, z, R], [ca.vertcat(x, self.pack(P)), piv], ["prior", "z", "R"],
+                           ["post", "piv"])
 
     def _update(self, xm, Pm, z, gamma, R):
         e = self.wrap(z - self.head_rows(xm))
@@ -317,12 +321,12 @@ class _Builder:
         return ca.mtimes(ca.mtimes(self.A, self.symmetric(P)), self.A.T) + self.Q_of(q)
 
     def node_predict(self, name: str) -> ca.Function:
-        """The node's prediction on its packed covariance."""
+        """The node's prediction of its state (x, then P packed: one argument)."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
-        x, P, v, q = _sym("x", n), _sym("P", npp), _sym("v", m), _sym("q", m)
-        x1 = ca.mtimes(self.A, x) + ca.mtimes(self.B, v)
-        P1 = self._propagate_P(self.unpack(P, n), q)
-        return ca.Function(name, [x, P, v, q], [x1, self.pack(P1)], ["x", "P", "v", "q"], ["x1", "P1"])
+        post, v, q = _sym("post", n + npp), _sym("v", m), _sym("q", m)
+        x1 = ca.mtimes(self.A, post[:n]) + ca.mtimes(self.B, v)
+        P1 = self._propagate_P(self.unpack(post[n:], n), q)
+        return ca.Function(name, [post, v, q], [x1, self.pack(P1)], ["post", "v", "q"], ["x1", "P1"])
 
     def info(self, name: str) -> ca.Function:
         """Information form about a centre c: Y = P^-1, y = Y (x - c). The master centres on its
@@ -763,36 +767,68 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
 
 
 def packed_wrapper(f: ca.Function, target: ca.Function, real: str) -> tuple[KernelC, str]:
-    """C for kernel f as a call of `target` on packed copies: each n x n argument of f whose
-    counterpart in target has n (n + 1) / 2 entries is packed from its upper triangle (CasADi's
-    entry (i, j), i <= j, at i + j n) and each such result unpacked into both triangles; the
-    other arguments are passed through. Same expressions, so the same results bit for bit."""
+    """C for kernel f as a call of `target` on packed copies. Each of target's arguments is made of
+    the next of f's, in order: one passed through when the sizes agree, else several copied into
+    one buffer, an n x n one as its upper triangle (CasADi's entry (i, j), i <= j, at i + j n), as
+    the node keeps a state [x; P packed]; each packed result is unpacked into both triangles.
+    Same expressions, so the same results bit for bit."""
     ins = [(f.name_in(i), f.numel_in(i)) for i in range(f.n_in())]
     outs = [(f.name_out(i), f.numel_out(i)) for i in range(f.n_out())]
-    sizes = [target.numel_in(i) for i in range(target.n_in())] + [target.numel_out(i) for i in range(target.n_out())]
-    if [k for _, k in ins + outs] == sizes or len(sizes) != len(ins) + len(outs):
+    t_ins = [(target.name_in(i), target.numel_in(i)) for i in range(target.n_in())]
+    t_outs = [target.numel_out(i) for i in range(target.n_out())]
+    if ins == t_ins or len(outs) != len(t_outs):
         raise RuntimeError(f"kernel {f.name()}: no packed counterpart in {target.name()}")
-    lines, pack, unpack, args = [], [], [], []
-    for (arg, k), kt in zip(ins + outs, sizes):
+
+    square = {f.name_in(i) for i in range(f.n_in()) if f.size1_in(i) == f.size2_in(i) > 1}
+
+    def packed_size(arg: str, k: int, kt: int) -> int:   # k entries of f stored in target's form
+        if k == kt or arg not in square:
+            return k
+        n = math.isqrt(k)
+        return n * (n + 1) // 2
+
+    def loop(n: int, body: list[str]) -> list[str]:   # k runs over the packed entries (packed_index)
+        return (["k = 0;", f"for (j = 0; j < {n}; j++) {{", INDENT + "for (i = 0; i <= j; i++) {"]
+                + [2 * INDENT + b for b in body + ["k++;"]] + [INDENT + "}", "}"])
+
+    decls, pack, unpack, args = [], [], [], []
+    pending = list(ins)
+    for t_arg, kt in t_ins:
+        if pending and pending[0][1] == kt:
+            args.append(pending.pop(0)[0])
+            continue
+        buf, filled = f"{t_arg}_packed", 0
+        decls.append(f"casadi_real {buf}[{kt}];")
+        args.append(buf)
+        while filled < kt:
+            if not pending:
+                raise RuntimeError(f"kernel {f.name()}: its arguments do not fill {target.name()}'s {t_arg}")
+            arg, k = pending.pop(0)
+            size = packed_size(arg, k, kt - filled)
+            if size == k:
+                at = f"{filled} + i" if filled else "i"
+                pack += [f"for (i = 0; i < {k}; i++) {{", INDENT + f"{buf}[{at}] = {arg}[i];", "}"]
+            else:
+                n = math.isqrt(k)
+                at = f"{filled} + k" if filled else "k"
+                pack += loop(n, [f"{buf}[{at}] = {arg}[(j * {n}) + i];"])
+            filled += size
+        if filled != kt:
+            raise RuntimeError(f"kernel {f.name()}: its arguments overfill {target.name()}'s {t_arg}")
+    if pending:
+        raise RuntimeError(f"kernel {f.name()}: arguments left over for {target.name()}")
+    for (arg, k), kt in zip(outs, t_outs):
         if k == kt:
             args.append(arg)
             continue
         n = math.isqrt(k)
         if n * n != k or n * (n + 1) // 2 != kt:
-            raise RuntimeError(f"kernel {f.name()}: argument {arg} is not the square of {target.name()}'s")
-        lines.append(f"casadi_real {arg}_packed[{kt}];")
+            raise RuntimeError(f"kernel {f.name()}: result {arg} is not the square of {target.name()}'s")
+        decls.append(f"casadi_real {arg}_packed[{kt}];")
         args.append(f"{arg}_packed")
-        if (arg, k) in ins:
-            pack.append(f"{arg}_packed[k] = {arg}[(j * {n}) + i];")
-        else:
-            unpack += [f"{arg}[(j * {n}) + i] = {arg}_packed[k];", f"{arg}[(i * {n}) + j] = {arg}_packed[k];"]
-
-    def loop(body: list[str]) -> list[str]:   # k runs over the packed entries (packed_index)
-        return (["k = 0;", f"for (j = 0; j < {n}; j++) {{", INDENT + "for (i = 0; i <= j; i++) {"]
-                + [2 * INDENT + b for b in body + ["k++;"]] + [INDENT + "}", "}"])
-
-    lines += ["int i;", "int j;", "int k;"] + loop(pack) + [f"(void){target.name()}({', '.join(args)});"]
-    lines += loop(unpack) + ["return 0;"]
+        unpack += loop(n, [f"{arg}[(j * {n}) + i] = {arg}_packed[k];", f"{arg}[(i * {n}) + j] = {arg}_packed[k];"])
+    lines = decls + ["int i;", "int j;", "int k;"] + pack + [f"(void){target.name()}({', '.join(args)});"]
+    lines += unpack + ["return 0;"]
     info = KernelC(f.name(), str(f).rsplit(" ", 1)[0], 1, ins, outs, True)
     text = f"/* {wrap_comment(info.signature)} */\n" + _function(f"int {f.name()}", info.parameters(real), lines)
     return info, re.sub(r"\bcasadi_real\b", real, text)

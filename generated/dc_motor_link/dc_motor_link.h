@@ -158,12 +158,10 @@ typedef struct {
 typedef struct {
     /** flat outputs' origin for the fields below */
     dc_motor_link_real centre[DC_MOTOR_LINK_NY];
-    /** estimate at step k (posterior once updated), P packed */
-    dc_motor_link_real x[DC_MOTOR_LINK_NX];
-    dc_motor_link_real P[DC_MOTOR_LINK_NPP];
-    /** prediction into step k, before any update (the prior of step k) */
-    dc_motor_link_real x_pred[DC_MOTOR_LINK_NX];
-    dc_motor_link_real P_pred[DC_MOTOR_LINK_NPP];
+    /** estimate at step k (posterior once updated): x, then P packed */
+    dc_motor_link_real post[DC_MOTOR_LINK_NX + DC_MOTOR_LINK_NPP];
+    /** prediction into step k, before any update (the prior of step k): x, then P packed */
+    dc_motor_link_real pred[DC_MOTOR_LINK_NX + DC_MOTOR_LINK_NPP];
     /** measurement covariance */
     dc_motor_link_real R[DC_MOTOR_LINK_NYY];
     /** process-noise density per chain */

@@ -10,16 +10,15 @@
 
 #include "dc_motor_link.h"
 
-/* dc_motor_link_kern_node_predict:(x[3],P[6],v,q)->(x1[3],P1[6]) */
-int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[6],
-                                    const dc_motor_link_real v[1], const dc_motor_link_real q[1],
-                                    dc_motor_link_real x1[3], dc_motor_link_real P1[6]);
+/* dc_motor_link_kern_node_predict:(post[9],v,q)->(x1[3],P1[6]) */
+int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real v[1],
+                                    const dc_motor_link_real q[1], dc_motor_link_real x1[3],
+                                    dc_motor_link_real P1[6]);
 
-/* dc_motor_link_kern_update:(xm[3],Pm[6],z,gamma,R)->(x[3],P[6],piv) */
-int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_link_real Pm[6],
-                              const dc_motor_link_real z[1], const dc_motor_link_real gamma[1],
-                              const dc_motor_link_real R[1], dc_motor_link_real x[3],
-                              dc_motor_link_real P[6], dc_motor_link_real piv[1]);
+/* dc_motor_link_kern_update:(prior[9],z,R)->(post[9],piv) */
+int dc_motor_link_kern_update(const dc_motor_link_real prior[9], const dc_motor_link_real z[1],
+                              const dc_motor_link_real R[1], dc_motor_link_real post[9],
+                              dc_motor_link_real piv[1]);
 
 /* dc_motor_link_kern_info:(x[3],P[3x3],c[3])->(Y[3x3],y[3],piv[3]) */
 int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_real P[9],

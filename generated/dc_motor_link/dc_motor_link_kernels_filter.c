@@ -12,19 +12,19 @@ static dc_motor_link_real casadi_sq(dc_motor_link_real x)
     return x * x;
 }
 
-/* dc_motor_link_kern_node_predict:(x[3],P[6],v,q)->(x1[3],P1[6]) */
-int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[6],
-                                    const dc_motor_link_real v[1], const dc_motor_link_real q[1],
-                                    dc_motor_link_real x1[3], dc_motor_link_real P1[6])
+/* dc_motor_link_kern_node_predict:(post[9],v,q)->(x1[3],P1[6]) */
+int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real v[1],
+                                    const dc_motor_link_real q[1], dc_motor_link_real x1[3],
+                                    dc_motor_link_real P1[6])
 {
     dc_motor_link_real w[11];
-    w[0] = x[0];
+    w[0] = post[0];
     w[1] = 1.0000000000000000e-02;
-    w[2] = x[1];
+    w[2] = post[1];
     w[3] = (w[1] * w[2]);
     w[0] = (w[0] + w[3]);
     w[3] = 5.0000000000000002e-05;
-    w[4] = x[2];
+    w[4] = post[2];
     w[5] = (w[3] * w[4]);
     w[0] = (w[0] + w[5]);
     w[5] = 1.6666666666666670e-07;
@@ -40,24 +40,24 @@ int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_moto
     w[6] = (w[1] * w[6]);
     w[4] = (w[4] + w[6]);
     x1[2] = w[4];
-    w[4] = P[0];
-    w[6] = P[1];
+    w[4] = post[3];
+    w[6] = post[4];
     w[2] = (w[1] * w[6]);
     w[4] = (w[4] + w[2]);
-    w[2] = P[3];
+    w[2] = post[6];
     w[0] = (w[3] * w[2]);
     w[4] = (w[4] + w[0]);
-    w[0] = P[2];
+    w[0] = post[5];
     w[7] = (w[1] * w[0]);
     w[6] = (w[6] + w[7]);
-    w[7] = P[4];
+    w[7] = post[7];
     w[8] = (w[3] * w[7]);
     w[6] = (w[6] + w[8]);
     w[8] = (w[1] * w[6]);
     w[4] = (w[4] + w[8]);
     w[8] = (w[1] * w[7]);
     w[2] = (w[2] + w[8]);
-    w[8] = P[5];
+    w[8] = post[8];
     w[9] = (w[3] * w[8]);
     w[2] = (w[2] + w[9]);
     w[9] = (w[3] * w[2]);
@@ -96,97 +96,92 @@ int dc_motor_link_kern_node_predict(const dc_motor_link_real x[3], const dc_moto
     return 0;
 }
 
-/* dc_motor_link_kern_update:(xm[3],Pm[6],z,gamma,R)->(x[3],P[6],piv) */
-int dc_motor_link_kern_update(const dc_motor_link_real xm[3], const dc_motor_link_real Pm[6],
-                              const dc_motor_link_real z[1], const dc_motor_link_real gamma[1],
-                              const dc_motor_link_real R[1], dc_motor_link_real x[3],
-                              dc_motor_link_real P[6], dc_motor_link_real piv[1])
+/* dc_motor_link_kern_update:(prior[9],z,R)->(post[9],piv) */
+int dc_motor_link_kern_update(const dc_motor_link_real prior[9], const dc_motor_link_real z[1],
+                              const dc_motor_link_real R[1], dc_motor_link_real post[9],
+                              dc_motor_link_real piv[1])
 {
     dc_motor_link_real w[13];
-    w[0] = xm[0];
-    w[1] = gamma[0];
-    w[2] = Pm[0];
-    w[3] = R[0];
-    w[4] = (w[2] + w[3]);
-    w[5] = (w[2] / w[4]);
-    w[5] = (w[1] * w[5]);
-    w[6] = z[0];
-    w[6] = (w[6] - w[0]);
-    w[7] = 6.2831853071795862e+00;
-    w[8] = 3.1415926535897931e+00;
-    w[8] = (w[6] - w[8]);
-    w[8] = (w[8] / w[7]);
-    w[8] = ceil(w[8]);
-    w[7] = (w[7] * w[8]);
-    w[6] = (w[6] - w[7]);
-    w[7] = (w[5] * w[6]);
-    w[0] = (w[0] + w[7]);
-    x[0] = w[0];
-    w[0] = xm[1];
-    w[7] = Pm[1];
-    w[8] = (w[7] / w[4]);
-    w[8] = (w[1] * w[8]);
-    w[9] = (w[8] * w[6]);
-    w[0] = (w[0] + w[9]);
-    x[1] = w[0];
-    w[0] = xm[2];
-    w[9] = Pm[3];
-    w[10] = (w[9] / w[4]);
-    w[1] = (w[1] * w[10]);
-    w[6] = (w[1] * w[6]);
+    w[0] = prior[0];
+    w[1] = prior[3];
+    w[2] = R[0];
+    w[3] = (w[1] + w[2]);
+    w[4] = (w[1] / w[3]);
+    w[5] = z[0];
+    w[5] = (w[5] - w[0]);
+    w[6] = 6.2831853071795862e+00;
+    w[7] = 3.1415926535897931e+00;
+    w[7] = (w[5] - w[7]);
+    w[7] = (w[7] / w[6]);
+    w[7] = ceil(w[7]);
+    w[6] = (w[6] * w[7]);
+    w[5] = (w[5] - w[6]);
+    w[6] = (w[4] * w[5]);
     w[0] = (w[0] + w[6]);
-    x[2] = w[0];
+    post[0] = w[0];
+    w[0] = prior[1];
+    w[6] = prior[4];
+    w[7] = (w[6] / w[3]);
+    w[8] = (w[7] * w[5]);
+    w[0] = (w[0] + w[8]);
+    post[1] = w[0];
+    w[0] = prior[2];
+    w[8] = prior[6];
+    w[9] = (w[8] / w[3]);
+    w[5] = (w[9] * w[5]);
+    w[0] = (w[0] + w[5]);
+    post[2] = w[0];
     w[0] = 1.;
-    w[0] = (w[0] - w[5]);
-    w[6] = (w[0] * w[2]);
-    w[10] = (w[6] * w[0]);
-    w[11] = (w[5] * w[3]);
-    w[5] = (w[11] * w[5]);
-    w[10] = (w[10] + w[5]);
-    P[0] = w[10];
-    w[10] = (w[0] * w[7]);
-    w[5] = (w[6] * w[8]);
-    w[10] = (w[10] - w[5]);
-    w[5] = (w[11] * w[8]);
-    w[10] = (w[10] + w[5]);
-    P[1] = w[10];
-    w[10] = Pm[2];
-    w[5] = (w[8] * w[7]);
-    w[10] = (w[10] - w[5]);
-    w[5] = (w[8] * w[2]);
-    w[7] = (w[7] - w[5]);
-    w[5] = (w[7] * w[8]);
-    w[10] = (w[10] - w[5]);
-    w[5] = (w[8] * w[3]);
-    w[12] = (w[5] * w[8]);
+    w[0] = (w[0] - w[4]);
+    w[5] = (w[0] * w[1]);
+    w[10] = (w[5] * w[0]);
+    w[11] = (w[4] * w[2]);
+    w[4] = (w[11] * w[4]);
+    w[10] = (w[10] + w[4]);
+    post[3] = w[10];
+    w[10] = (w[0] * w[6]);
+    w[4] = (w[5] * w[7]);
+    w[10] = (w[10] - w[4]);
+    w[4] = (w[11] * w[7]);
+    w[10] = (w[10] + w[4]);
+    post[4] = w[10];
+    w[10] = prior[5];
+    w[4] = (w[7] * w[6]);
+    w[10] = (w[10] - w[4]);
+    w[4] = (w[7] * w[1]);
+    w[6] = (w[6] - w[4]);
+    w[4] = (w[6] * w[7]);
+    w[10] = (w[10] - w[4]);
+    w[4] = (w[7] * w[2]);
+    w[12] = (w[4] * w[7]);
     w[10] = (w[10] + w[12]);
-    P[2] = w[10];
-    w[0] = (w[0] * w[9]);
-    w[6] = (w[6] * w[1]);
-    w[0] = (w[0] - w[6]);
-    w[11] = (w[11] * w[1]);
+    post[5] = w[10];
+    w[0] = (w[0] * w[8]);
+    w[5] = (w[5] * w[9]);
+    w[0] = (w[0] - w[5]);
+    w[11] = (w[11] * w[9]);
     w[0] = (w[0] + w[11]);
-    P[3] = w[0];
-    w[0] = Pm[4];
+    post[6] = w[0];
+    w[0] = prior[7];
+    w[7] = (w[7] * w[8]);
+    w[0] = (w[0] - w[7]);
+    w[6] = (w[6] * w[9]);
+    w[0] = (w[0] - w[6]);
+    w[4] = (w[4] * w[9]);
+    w[0] = (w[0] + w[4]);
+    post[7] = w[0];
+    w[0] = prior[8];
+    w[4] = (w[9] * w[8]);
+    w[0] = (w[0] - w[4]);
+    w[1] = (w[9] * w[1]);
+    w[8] = (w[8] - w[1]);
     w[8] = (w[8] * w[9]);
     w[0] = (w[0] - w[8]);
-    w[7] = (w[7] * w[1]);
-    w[0] = (w[0] - w[7]);
-    w[5] = (w[5] * w[1]);
-    w[0] = (w[0] + w[5]);
-    P[4] = w[0];
-    w[0] = Pm[5];
-    w[5] = (w[1] * w[9]);
-    w[0] = (w[0] - w[5]);
-    w[2] = (w[1] * w[2]);
-    w[9] = (w[9] - w[2]);
-    w[9] = (w[9] * w[1]);
-    w[0] = (w[0] - w[9]);
-    w[3] = (w[1] * w[3]);
-    w[3] = (w[3] * w[1]);
-    w[0] = (w[0] + w[3]);
-    P[5] = w[0];
-    piv[0] = w[4];
+    w[2] = (w[9] * w[2]);
+    w[2] = (w[2] * w[9]);
+    w[0] = (w[0] + w[2]);
+    post[8] = w[0];
+    piv[0] = w[3];
     return 0;
     return 0;
 }
@@ -289,19 +284,22 @@ int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_lin
                                const dc_motor_link_real v[1], const dc_motor_link_real q[1],
                                dc_motor_link_real x1[3], dc_motor_link_real P1[9])
 {
-    dc_motor_link_real P_packed[6];
+    dc_motor_link_real post_packed[9];
     dc_motor_link_real P1_packed[6];
     int i;
     int j;
     int k;
+    for (i = 0; i < 3; i++) {
+        post_packed[i] = x[i];
+    }
     k = 0;
     for (j = 0; j < 3; j++) {
         for (i = 0; i <= j; i++) {
-            P_packed[k] = P[(j * 3) + i];
+            post_packed[3 + k] = P[(j * 3) + i];
             k++;
         }
     }
-    (void)dc_motor_link_kern_node_predict(x, P_packed, v, q, x1, P1_packed);
+    (void)dc_motor_link_kern_node_predict(post_packed, v, q, x1, P1_packed);
     k = 0;
     for (j = 0; j < 3; j++) {
         for (i = 0; i <= j; i++) {

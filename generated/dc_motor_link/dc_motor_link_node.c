@@ -10,7 +10,8 @@
 #define NX DC_MOTOR_LINK_NX
 #define NY DC_MOTOR_LINK_NY
 #define NXX (DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
-#define NPP DC_MOTOR_LINK_NPP
+#define NPP 6 /* DC_MOTOR_LINK_NPP */
+#define NXP 9 /* a state: x, then P packed */
 #define SLOTS (DC_MOTOR_LINK_NMAX + 1)
 #define HAS 1u /* the step has a measurement (on time or late) */
 #define USED 2u /* the filter history used it (its gain is not zero) */
@@ -73,19 +74,28 @@ static void pack(const real* P, real* Pp)
     }
 }
 
-/* 1 if x and the packed P are all finite: x - x is 0 for a finite x and NaN otherwise, summed so
- * that one comparison decides (the results' one check; the inputs were checked on entry). */
-static int finite_state(const real* x, const real* Pp)
+/* 1 if a state (x, then P packed) is all finite: the results' one check. The stored inputs were
+ * checked at init, and a NaN or infinity in z or v reaches the result's x (NaN * 0 is NaN). The
+ * sum is finite only if every term is (an infinity or a NaN survives any sum, and s - s is 0 for
+ * a finite s, NaN otherwise): one add per value. Only a sum that overflows on finite terms takes
+ * the per-value check. */
+static inline int finite_state(const real* xP)
 {
-    real acc = (real)0;
-    int i;
-    for (i = 0; i < NX; i++) {
-        acc += x[i] - x[i];
+    real acc = xP[0];
+    int ok = 1;
+    acc += xP[1];
+    acc += xP[2];
+    acc += xP[3];
+    acc += xP[4];
+    acc += xP[5];
+    acc += xP[6];
+    acc += xP[7];
+    acc += xP[8];
+    acc -= acc;
+    if (!(acc == (real)0)) {
+        ok = dc_motor_link_finite(xP, (size_t)NXP);
     }
-    for (i = 0; i < NPP; i++) {
-        acc += Pp[i] - Pp[i];
-    }
-    return (acc == acc) ? 1 : 0;
+    return ok;
 }
 
 /* Measurement relative to the node's centre. */
@@ -97,55 +107,48 @@ static void centred(const dc_motor_link_node* node, const real* z, real* zc)
     }
 }
 
-/* Move each output's centre by whole steps to within half a step of the estimate, and every
- * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
- * heads, and A maps a head-only vector to itself. P does not depend on the centre. */
-static void recentre(dc_motor_link_node* node)
+/* Move output j's centre by whole steps to within half a step of the estimate, and every
+ * stored value with it (called before the current step's update). Moving the centre leaves
+ * A x + B v unchanged: it only touches the chain heads, and A maps a head-only vector to itself.
+ * P does not depend on the centre. */
+static void shift_centre(dc_motor_link_node* node, int j, int h)
 {
-    int j;
     int s;
+    real shift = dc_motor_link_centre_shift(node->post[h]);
+    if (shift != (real)0) {
+        node->centre[j] += shift;
+        node->post[h] -= shift;
+        node->pred[h] -= shift;
+        for (s = 0; s < SLOTS; s++) {
+            node->ring_x[(s * NX) + h] -= shift;
+            node->ring_z[(s) + j] -= shift;
+        }
+        node->ring_z[((int)node->slot) + j] = (real)0; /* the current step's: no z yet */
+    }
+}
+
+/* Each output's centre within half a step of the estimate x (the node's): a shift only when
+ * a head is half a step or more away (the heads are the generator's constants). */
+static inline void recentre(dc_motor_link_node* node, const real* x)
+{
     const real half = DC_MOTOR_LINK_CENTRE_STEP / (real)2;
-    for (j = 0; j < NY; j++) {
-        int h = (int)dc_motor_link_heads[j];
-        real shift = (real)0;
-        if ((node->x[h] >= half) || (node->x[h] <= -half)) { /* else within half a step: no shift */
-            shift = dc_motor_link_centre_shift(node->x[h]);
-        }
-        if (shift != (real)0) {
-            node->centre[j] += shift;
-            node->x[h] -= shift;
-            node->x_pred[h] -= shift;
-            for (s = 0; s < SLOTS; s++) {
-                node->ring_x[(s * NX) + h] -= shift;
-                node->ring_z[(s) + j] -= shift;
-            }
-        }
+    if ((x[0] >= half) || (x[0] <= -half)) {
+        shift_centre(node, 0, 0);
     }
 }
 
-/* Filter update of one step from a prior (P packed); 0 or an error code. */
-static inline int update_step(const real* xm, const real* Pm, const real* z, real gamma,
-                              const real* R, real* x, real* P)
+/* 1 if all pivots of S are strictly positive (and not NaN). */
+static inline int pivots_ok(const real* piv)
 {
-    real piv[NY];
-    int rc = DC_MOTOR_LINK_OK;
-    (void)dc_motor_link_kern_update(xm, Pm, z, &gamma, R, x, P, piv);
-    if ((gamma > (real)0) && (dc_motor_link_positive(piv, NY) == 0)) {
-        rc = DC_MOTOR_LINK_ERR_SINGULAR;
-    }
-    if ((rc == DC_MOTOR_LINK_OK) && (finite_state(x, P) == 0)) {
-        rc = DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    return rc;
+    return (piv[0] > (real)0) ? 1 : 0;
 }
 
-/* Prediction x1 = A x + B v, P1 = A P A' + Q (P packed); 0 or an error code. */
-static inline int predict_step(const real* x, const real* P, const real* v, const real* q, real* x1,
-                               real* P1)
+/* Prediction of a state, x1 = A x + B v, P1 = A P A' + Q; 0 or an error code. */
+static inline int predict_step(const real* post, const real* v, const real* q, real* prior)
 {
     int rc = DC_MOTOR_LINK_OK;
-    (void)dc_motor_link_kern_node_predict(x, P, v, q, x1, P1);
-    if (finite_state(x1, P1) == 0) {
+    (void)dc_motor_link_kern_node_predict(post, v, q, prior, &prior[NX]);
+    if (finite_state(prior) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
     return rc;
@@ -161,7 +164,7 @@ int dc_motor_link_cov_ok(const real* A)
 int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const real P0[NXX],
                             const real R[DC_MOTOR_LINK_NYY], const real q[NY])
 {
-    real Pp[NPP];
+    real xP[NXP];
     int i;
     int rc = DC_MOTOR_LINK_OK;
     if ((node == NULL) || (x0 == NULL) || (P0 == NULL) || (R == NULL) || (q == NULL)) {
@@ -190,27 +193,35 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
         rc = DC_MOTOR_LINK_ERR_ARG;
     }
     if (rc == DC_MOTOR_LINK_OK) {
-        pack(P0, Pp);
+        (void)memcpy(xP, x0, sizeof(real) * (size_t)NX);
+        pack(P0, &xP[NX]);
         (void)memset(node, 0, sizeof(*node));
-        (void)memcpy(node->x, x0, sizeof(node->x));
-        (void)memcpy(node->P, Pp, sizeof(node->P));
-        (void)memcpy(node->x_pred, x0, sizeof(node->x_pred));
-        (void)memcpy(node->P_pred, Pp, sizeof(node->P_pred));
-        (void)memcpy(node->ring_x, x0, sizeof(node->x));
-        (void)memcpy(node->ring_P, Pp, sizeof(Pp)); /* the checkpoint of step 0 */
+        (void)memcpy(node->post, xP, sizeof(xP));
+        (void)memcpy(node->pred, xP, sizeof(xP));
+        (void)memcpy(node->ring_x, x0, sizeof(real) * (size_t)NX);
+        /* the checkpoint of step 0 */
+        (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP);
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
-        recentre(node);
+        recentre(node, node->post);
     }
     return rc;
 }
 
+/* A failed update puts step k's prior back (see node_update). */
+static void put_back_prior(dc_motor_link_node* node)
+{
+    (void)memcpy(node->post, node->pred, sizeof(node->post));
+    (void)memset(&node->ring_z[(int)node->slot], 0, sizeof(real) * (size_t)NY);
+}
+
+/* While step k is not updated, post equals its prior (pred, whose x also equals its ring
+ * slot's) and its z slot is 0: the update computes into them in place, and a failure
+ * puts the prior back. A step without a measurement keeps its prior. */
 int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int gamma)
 {
-    real zz[NY];
-    real x[NX];
-    real P[NPP];
-    int slot;
+    real piv[NY];
+    real* zk;
     int rc = DC_MOTOR_LINK_OK;
     if ((node == NULL) || ((gamma != 0) && (gamma != 1)) || ((gamma == 1) && (z == NULL))) {
         rc = DC_MOTOR_LINK_ERR_ARG;
@@ -218,29 +229,50 @@ int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int ga
     if ((rc == DC_MOTOR_LINK_OK) && (node->updated != 0u)) {
         rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
-    (void)memset(zz, 0, sizeof(zz));
-    if ((rc == DC_MOTOR_LINK_OK) && (gamma == 1)) {
-        if (dc_motor_link_finite(z, NY) == 0) {
+    if ((rc == DC_MOTOR_LINK_OK) && (gamma == 1)) { /* a non-finite z makes the posterior so */
+        zk = &node->ring_z[(int)node->slot];
+        centred(node, z, zk);
+        (void)dc_motor_link_kern_update(node->pred, zk, node->R, node->post, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        } else if (finite_state(node->post) == 0) {
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
         } else {
-            centred(node, z, zz);
+            /* a finite posterior */
+        }
+        if (rc != DC_MOTOR_LINK_OK) {
+            put_back_prior(node);
         }
     }
-    if (rc == DC_MOTOR_LINK_OK) { /* the prior of step k: ring_x of its slot and P_pred */
-        slot = (int)node->slot;
-        rc = update_step(&node->ring_x[slot * NX], node->P_pred, zz, (real)gamma, node->R, x, P);
-        if (rc == DC_MOTOR_LINK_OK) {
-            (void)memcpy(node->x, x, sizeof(x));
-            (void)memcpy(node->P, P, sizeof(P));
-            (void)memcpy(&node->ring_z[slot], zz, sizeof(zz));
-            node->ring_flags[node->hist] = (uint8_t)((gamma == 1) ? (HAS | USED) : 0u);
-            node->updated = 1;
-            if (gamma == 1) {
-                node->health.updates++;
-            } else {
-                node->health.drops++;
-            }
+    if (rc == DC_MOTOR_LINK_OK) {
+        node->ring_flags[node->hist] = (uint8_t)((gamma == 1) ? (HAS | USED) : 0u);
+        node->updated = 1;
+        if (gamma == 1) {
+            node->health.updates++;
+        } else {
+            node->health.drops++;
         }
+    }
+    return rc;
+}
+
+/* Filter update of one state (x, then P packed) from its prior; 0 or an error code. A step
+ * without a measurement (used = 0) keeps its prior. */
+static int update_step(const real* prior, const real* z, int used, const real* R, real* post)
+{
+    real piv[NY];
+    int rc = DC_MOTOR_LINK_OK;
+    if (used != 0) {
+        (void)dc_motor_link_kern_update(prior, z, R, post, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        } else if (finite_state(post) == 0) {
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
+        } else {
+            /* a finite posterior */
+        }
+    } else {
+        (void)memcpy(post, prior, sizeof(real) * (size_t)NXP);
     }
     return rc;
 }
@@ -249,22 +281,23 @@ int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int ga
  * CHECK_EVERY at or before j, carried forward by the filter's own kernels with the flags of the
  * steps between (on x = 0 and z = v = 0: P reads neither, so these are the values the filter had,
  * bit for bit). */
-static int prior_P(const dc_motor_link_node* node, uint32_t j, real* Pm)
+static int prior_P(const dc_motor_link_node* node, uint32_t j, real* prior)
 {
-    real x0[NX];
-    real x[NX];
-    real P[NPP];
+    real post[NXP];
     real zero[NY];
     uint32_t s = j - (j % DC_MOTOR_LINK_NODE_CHECK_EVERY);
     int rc = DC_MOTOR_LINK_OK;
-    (void)memset(x0, 0, sizeof(x0));
+    (void)memset(prior, 0, sizeof(real) * (size_t)NX);
     (void)memset(zero, 0, sizeof(zero));
-    (void)memcpy(Pm, &node->ring_P[check_of(s) * NPP], sizeof(P));
+    (void)memcpy(&prior[NX], &node->ring_P[check_of(s) * NPP], sizeof(real) * (size_t)NPP);
     while ((rc == DC_MOTOR_LINK_OK) && (s < j)) {
-        real gamma = ((node->ring_flags[hist_of(s)] & USED) != 0u) ? (real)1 : (real)0;
-        rc = update_step(x0, Pm, zero, gamma, node->R, x, P);
+        int used = 0;
+        if ((node->ring_flags[hist_of(s)] & USED) != 0u) {
+            used = 1;
+        }
+        rc = update_step(prior, zero, used, node->R, post);
         if (rc == DC_MOTOR_LINK_OK) {
-            rc = predict_step(x, P, zero, node->q, x0, Pm);
+            rc = predict_step(post, zero, node->q, prior);
         }
         s++;
     }
@@ -275,36 +308,40 @@ static int prior_P(const dc_motor_link_node* node, uint32_t j, real* Pm)
  * z), then the prediction into the next slot, written in place, and each checkpoint passed
  * rewritten; returns the posterior of step k. On a failure the slots' x and the checkpoints are
  * put back from the copies taken on the way. */
-static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, real* x, real* P)
+static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, real* post)
 {
     real old_x[DC_MOTOR_LINK_NMAX * NX];
     real old_P[DC_MOTOR_LINK_NODE_NCHECK_REALS];
-    real Pm[NPP];
+    real prior[NXP]; /* step j's: x as its slot holds it, P carried */
     uint32_t j = j0;
     uint32_t written = 0u; /* priors' x rewritten so far: slots j0 + 1 .. j0 + written */
     int checks = 0; /* checkpoints rewritten so far, from the first multiple after j0 */
     uint32_t first;
     uint32_t i;
     int c;
-    int rc = prior_P(node, j0, Pm);
+    int rc = prior_P(node, j0, prior);
+    (void)memcpy(prior, &node->ring_x[slot_of(j0) * NX], sizeof(real) * (size_t)NX);
     while ((rc == DC_MOTOR_LINK_OK) && (j <= node->k)) {
         int slot = slot_of(j);
         real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
         const real* z = (j == j0) ? zlate : &node->ring_z[slot];
-        real gamma = (real)1; /* the late step, and the steps the history used */
+        int used = 1; /* the late step, and the steps the history used */
         if ((j != j0) && ((node->ring_flags[hist_of(j)] & USED) == 0u)) {
-            gamma = (real)0;
+            used = 0;
         }
-        rc = update_step(&node->ring_x[slot * NX], Pm, z, gamma, node->R, x, P);
+        rc = update_step(prior, z, used, node->R, post);
         if ((rc == DC_MOTOR_LINK_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(x, P, &node->ring_v[slot], node->q, xnext, Pm);
+            rc = predict_step(post, &node->ring_v[slot], node->q, prior);
+            if (rc == DC_MOTOR_LINK_OK) {
+                (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
+            }
             if ((rc == DC_MOTOR_LINK_OK) && (((j + 1u) % DC_MOTOR_LINK_NODE_CHECK_EVERY) == 0u)) {
                 real* cp = &node->ring_P[check_of(j + 1u) * NPP];
-                (void)memcpy(&old_P[checks * NPP], cp, sizeof(Pm));
+                (void)memcpy(&old_P[checks * NPP], cp, sizeof(real) * (size_t)NPP);
                 checks++;
-                (void)memcpy(cp, Pm, sizeof(Pm));
+                (void)memcpy(cp, &prior[NX], sizeof(real) * (size_t)NPP);
             }
         }
         j++;
@@ -317,7 +354,8 @@ static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, real
                          sizeof(real) * (size_t)NX);
         }
         for (c = 0; c < checks; c++) {
-            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP], sizeof(Pm));
+            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP],
+                         sizeof(real) * (size_t)NPP);
             first += DC_MOTOR_LINK_NODE_CHECK_EVERY;
         }
     }
@@ -326,8 +364,7 @@ static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, real
 
 int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs[NY], int32_t lag)
 {
-    real x[NX];
-    real P[NPP];
+    real post[NXP];
     real z[NY];
     uint32_t N = 0u;
     int hist = 0;
@@ -356,15 +393,14 @@ int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs
         }
     }
     if (rc == DC_MOTOR_LINK_OK) {
-        rc = replay(node, node->k - N, z, x, P);
+        rc = replay(node, node->k - N, z, post);
     }
     if (rc == DC_MOTOR_LINK_OK) {
         (void)memcpy(&node->ring_z[slot_of(node->k - N)], z, sizeof(real) * (size_t)NY);
         node->ring_flags[hist] = (uint8_t)(HAS | USED);
     }
     if (rc == DC_MOTOR_LINK_OK) {
-        (void)memcpy(node->x, x, sizeof(x));
-        (void)memcpy(node->P, P, sizeof(P));
+        (void)memcpy(node->post, post, sizeof(post));
         node->health.late_applied++;
     }
     return rc;
@@ -372,8 +408,7 @@ int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs
 
 int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
 {
-    real x1[NX];
-    real P1[NPP];
+    real next[NXP];
     int slot;
     uint32_t hist;
     int rc = DC_MOTOR_LINK_OK;
@@ -383,11 +418,8 @@ int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
     if ((rc == DC_MOTOR_LINK_OK) && (node->updated == 0u)) {
         rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
-    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(v, NY) == 0)) {
-        rc = DC_MOTOR_LINK_ERR_NONFINITE;
-    }
-    if (rc == DC_MOTOR_LINK_OK) {
-        rc = predict_step(node->x, node->P, v, node->q, x1, P1);
+    if (rc == DC_MOTOR_LINK_OK) { /* a non-finite v makes the prediction so */
+        rc = predict_step(node->post, v, node->q, next);
     }
     if (rc == DC_MOTOR_LINK_OK) {
         slot = (int)node->slot;
@@ -397,18 +429,16 @@ int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
         node->slot = (uint16_t)slot;
         hist = (uint32_t)node->hist + 1u;
         node->hist = (uint16_t)((hist == DC_MOTOR_LINK_NODE_NHIST) ? 0u : hist);
-        (void)memcpy(&node->ring_x[slot * NX], x1, sizeof(x1));
+        (void)memcpy(&node->ring_x[slot * NX], next, sizeof(real) * (size_t)NX);
         if ((node->k % DC_MOTOR_LINK_NODE_CHECK_EVERY) == 0u) {
-            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], P1, sizeof(P1));
+            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], &next[NX],
+                         sizeof(real) * (size_t)NPP);
         }
         (void)memset(&node->ring_z[slot], 0, sizeof(real) * (size_t)NY);
-        node->ring_flags[node->hist] = 0;
-        (void)memcpy(node->x, x1, sizeof(x1));
-        (void)memcpy(node->P, P1, sizeof(P1));
-        (void)memcpy(node->x_pred, x1, sizeof(x1));
-        (void)memcpy(node->P_pred, P1, sizeof(P1));
+        (void)memcpy(node->post, next, sizeof(next));
+        (void)memcpy(node->pred, next, sizeof(next));
         node->updated = 0;
-        recentre(node);
+        recentre(node, next);
     }
     return rc;
 }
@@ -420,10 +450,10 @@ int dc_motor_link_node_estimate(const dc_motor_link_node* node, real x[NX], real
         rc = DC_MOTOR_LINK_ERR_ARG;
     } else {
         if (x != NULL) {
-            dc_motor_link_move_origin(node->x, node->centre, NULL, x);
+            dc_motor_link_move_origin(node->post, node->centre, NULL, x);
         }
         if (P != NULL) {
-            unpack(node->P, P);
+            unpack(&node->post[NX], P);
         }
     }
     return rc;
@@ -443,8 +473,8 @@ int dc_motor_link_node_information(const dc_motor_link_node* node, real Y[NXX], 
     }
     if (rc == DC_MOTOR_LINK_OK) {
         (void)memset(origin, 0, sizeof(origin));
-        dc_motor_link_move_origin(node->x, node->centre, NULL, x);
-        unpack(node->P, P);
+        dc_motor_link_move_origin(node->post, node->centre, NULL, x);
+        unpack(&node->post[NX], P);
         (void)dc_motor_link_kern_info(x, P, origin, Yl, yl, piv);
         if (dc_motor_link_positive(piv, NX) == 0) {
             rc = DC_MOTOR_LINK_ERR_SINGULAR;
@@ -473,10 +503,10 @@ int dc_motor_link_node_packet(const dc_motor_link_node* node, dc_motor_link_pack
     } else {
         packet->step = node->k;
         (void)memcpy(packet->centre, node->centre, sizeof(packet->centre));
-        (void)memcpy(packet->x, node->x, sizeof(packet->x));
-        unpack(node->P, packet->P);
-        (void)memcpy(packet->x_pred, node->x_pred, sizeof(packet->x_pred));
-        unpack(node->P_pred, packet->P_pred);
+        (void)memcpy(packet->x, node->post, sizeof(packet->x));
+        unpack(&node->post[NX], packet->P);
+        (void)memcpy(packet->x_pred, node->pred, sizeof(packet->x_pred));
+        unpack(&node->pred[NX], packet->P_pred);
     }
     return rc;
 }

@@ -164,12 +164,10 @@ typedef struct {
 typedef struct {
     /** flat outputs' origin for the fields below */
     two_link_arm_real centre[TWO_LINK_ARM_NY];
-    /** estimate at step k (posterior once updated), P packed */
-    two_link_arm_real x[TWO_LINK_ARM_NX];
-    two_link_arm_real P[TWO_LINK_ARM_NPP];
-    /** prediction into step k, before any update (the prior of step k) */
-    two_link_arm_real x_pred[TWO_LINK_ARM_NX];
-    two_link_arm_real P_pred[TWO_LINK_ARM_NPP];
+    /** estimate at step k (posterior once updated): x, then P packed */
+    two_link_arm_real post[TWO_LINK_ARM_NX + TWO_LINK_ARM_NPP];
+    /** prediction into step k, before any update (the prior of step k): x, then P packed */
+    two_link_arm_real pred[TWO_LINK_ARM_NX + TWO_LINK_ARM_NPP];
     /** measurement covariance */
     two_link_arm_real R[TWO_LINK_ARM_NYY];
     /** process-noise density per chain */

@@ -10,16 +10,15 @@
 
 #include "two_link_arm.h"
 
-/* two_link_arm_kern_node_predict:(x[6],P[21],v[2],q[2])->(x1[6],P1[21]) */
-int two_link_arm_kern_node_predict(const two_link_arm_real x[6], const two_link_arm_real P[21],
-                                   const two_link_arm_real v[2], const two_link_arm_real q[2],
-                                   two_link_arm_real x1[6], two_link_arm_real P1[21]);
+/* two_link_arm_kern_node_predict:(post[27],v[2],q[2])->(x1[6],P1[21]) */
+int two_link_arm_kern_node_predict(const two_link_arm_real post[27], const two_link_arm_real v[2],
+                                   const two_link_arm_real q[2], two_link_arm_real x1[6],
+                                   two_link_arm_real P1[21]);
 
-/* two_link_arm_kern_update:(xm[6],Pm[21],z[2],gamma,R[2x2])->(x[6],P[21],piv[2]) */
-int two_link_arm_kern_update(const two_link_arm_real xm[6], const two_link_arm_real Pm[21],
-                             const two_link_arm_real z[2], const two_link_arm_real gamma[1],
-                             const two_link_arm_real R[4], two_link_arm_real x[6],
-                             two_link_arm_real P[21], two_link_arm_real piv[2]);
+/* two_link_arm_kern_update:(prior[27],z[2],R[2x2])->(post[27],piv[2]) */
+int two_link_arm_kern_update(const two_link_arm_real prior[27], const two_link_arm_real z[2],
+                             const two_link_arm_real R[4], two_link_arm_real post[27],
+                             two_link_arm_real piv[2]);
 
 /* two_link_arm_kern_info:(x[6],P[6x6],c[6])->(Y[6x6],y[6],piv[6]) */
 int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real P[36],

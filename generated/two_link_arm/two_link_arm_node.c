@@ -10,7 +10,8 @@
 #define NX TWO_LINK_ARM_NX
 #define NY TWO_LINK_ARM_NY
 #define NXX (TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
-#define NPP TWO_LINK_ARM_NPP
+#define NPP 21 /* TWO_LINK_ARM_NPP */
+#define NXP 27 /* a state: x, then P packed */
 #define SLOTS (TWO_LINK_ARM_NMAX + 1)
 #define HAS 1u /* the step has a measurement (on time or late) */
 #define USED 2u /* the filter history used it (its gain is not zero) */
@@ -73,19 +74,46 @@ static void pack(const real* P, real* Pp)
     }
 }
 
-/* 1 if x and the packed P are all finite: x - x is 0 for a finite x and NaN otherwise, summed so
- * that one comparison decides (the results' one check; the inputs were checked on entry). */
-static int finite_state(const real* x, const real* Pp)
+/* 1 if a state (x, then P packed) is all finite: the results' one check. The stored inputs were
+ * checked at init, and a NaN or infinity in z or v reaches the result's x (NaN * 0 is NaN). The
+ * sum is finite only if every term is (an infinity or a NaN survives any sum, and s - s is 0 for
+ * a finite s, NaN otherwise): one add per value. Only a sum that overflows on finite terms takes
+ * the per-value check. */
+static inline int finite_state(const real* xP)
 {
-    real acc = (real)0;
-    int i;
-    for (i = 0; i < NX; i++) {
-        acc += x[i] - x[i];
+    real acc = xP[0];
+    int ok = 1;
+    acc += xP[1];
+    acc += xP[2];
+    acc += xP[3];
+    acc += xP[4];
+    acc += xP[5];
+    acc += xP[6];
+    acc += xP[7];
+    acc += xP[8];
+    acc += xP[9];
+    acc += xP[10];
+    acc += xP[11];
+    acc += xP[12];
+    acc += xP[13];
+    acc += xP[14];
+    acc += xP[15];
+    acc += xP[16];
+    acc += xP[17];
+    acc += xP[18];
+    acc += xP[19];
+    acc += xP[20];
+    acc += xP[21];
+    acc += xP[22];
+    acc += xP[23];
+    acc += xP[24];
+    acc += xP[25];
+    acc += xP[26];
+    acc -= acc;
+    if (!(acc == (real)0)) {
+        ok = two_link_arm_finite(xP, (size_t)NXP);
     }
-    for (i = 0; i < NPP; i++) {
-        acc += Pp[i] - Pp[i];
-    }
-    return (acc == acc) ? 1 : 0;
+    return ok;
 }
 
 /* Measurement relative to the node's centre. */
@@ -97,55 +125,51 @@ static void centred(const two_link_arm_node* node, const real* z, real* zc)
     }
 }
 
-/* Move each output's centre by whole steps to within half a step of the estimate, and every
- * stored value with it. Moving the centre leaves A x + B v unchanged: it only touches the chain
- * heads, and A maps a head-only vector to itself. P does not depend on the centre. */
-static void recentre(two_link_arm_node* node)
+/* Move output j's centre by whole steps to within half a step of the estimate, and every
+ * stored value with it (called before the current step's update). Moving the centre leaves
+ * A x + B v unchanged: it only touches the chain heads, and A maps a head-only vector to itself.
+ * P does not depend on the centre. */
+static void shift_centre(two_link_arm_node* node, int j, int h)
 {
-    int j;
     int s;
+    real shift = two_link_arm_centre_shift(node->post[h]);
+    if (shift != (real)0) {
+        node->centre[j] += shift;
+        node->post[h] -= shift;
+        node->pred[h] -= shift;
+        for (s = 0; s < SLOTS; s++) {
+            node->ring_x[(s * NX) + h] -= shift;
+            node->ring_z[(s * NY) + j] -= shift;
+        }
+        node->ring_z[((int)node->slot * NY) + j] = (real)0; /* the current step's: no z yet */
+    }
+}
+
+/* Each output's centre within half a step of the estimate x (the node's): a shift only when
+ * a head is half a step or more away (the heads are the generator's constants). */
+static inline void recentre(two_link_arm_node* node, const real* x)
+{
     const real half = TWO_LINK_ARM_CENTRE_STEP / (real)2;
-    for (j = 0; j < NY; j++) {
-        int h = (int)two_link_arm_heads[j];
-        real shift = (real)0;
-        if ((node->x[h] >= half) || (node->x[h] <= -half)) { /* else within half a step: no shift */
-            shift = two_link_arm_centre_shift(node->x[h]);
-        }
-        if (shift != (real)0) {
-            node->centre[j] += shift;
-            node->x[h] -= shift;
-            node->x_pred[h] -= shift;
-            for (s = 0; s < SLOTS; s++) {
-                node->ring_x[(s * NX) + h] -= shift;
-                node->ring_z[(s * NY) + j] -= shift;
-            }
-        }
+    if ((x[0] >= half) || (x[0] <= -half)) {
+        shift_centre(node, 0, 0);
+    }
+    if ((x[3] >= half) || (x[3] <= -half)) {
+        shift_centre(node, 1, 3);
     }
 }
 
-/* Filter update of one step from a prior (P packed); 0 or an error code. */
-static inline int update_step(const real* xm, const real* Pm, const real* z, real gamma,
-                              const real* R, real* x, real* P)
+/* 1 if all pivots of S are strictly positive (and not NaN). */
+static inline int pivots_ok(const real* piv)
 {
-    real piv[NY];
-    int rc = TWO_LINK_ARM_OK;
-    (void)two_link_arm_kern_update(xm, Pm, z, &gamma, R, x, P, piv);
-    if ((gamma > (real)0) && (two_link_arm_positive(piv, NY) == 0)) {
-        rc = TWO_LINK_ARM_ERR_SINGULAR;
-    }
-    if ((rc == TWO_LINK_ARM_OK) && (finite_state(x, P) == 0)) {
-        rc = TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    return rc;
+    return two_link_arm_positive(piv, NY);
 }
 
-/* Prediction x1 = A x + B v, P1 = A P A' + Q (P packed); 0 or an error code. */
-static inline int predict_step(const real* x, const real* P, const real* v, const real* q, real* x1,
-                               real* P1)
+/* Prediction of a state, x1 = A x + B v, P1 = A P A' + Q; 0 or an error code. */
+static inline int predict_step(const real* post, const real* v, const real* q, real* prior)
 {
     int rc = TWO_LINK_ARM_OK;
-    (void)two_link_arm_kern_node_predict(x, P, v, q, x1, P1);
-    if (finite_state(x1, P1) == 0) {
+    (void)two_link_arm_kern_node_predict(post, v, q, prior, &prior[NX]);
+    if (finite_state(prior) == 0) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
     return rc;
@@ -161,7 +185,7 @@ int two_link_arm_cov_ok(const real* A)
 int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const real P0[NXX],
                            const real R[TWO_LINK_ARM_NYY], const real q[NY])
 {
-    real Pp[NPP];
+    real xP[NXP];
     int i;
     int rc = TWO_LINK_ARM_OK;
     if ((node == NULL) || (x0 == NULL) || (P0 == NULL) || (R == NULL) || (q == NULL)) {
@@ -196,27 +220,35 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
         rc = TWO_LINK_ARM_ERR_ARG;
     }
     if (rc == TWO_LINK_ARM_OK) {
-        pack(P0, Pp);
+        (void)memcpy(xP, x0, sizeof(real) * (size_t)NX);
+        pack(P0, &xP[NX]);
         (void)memset(node, 0, sizeof(*node));
-        (void)memcpy(node->x, x0, sizeof(node->x));
-        (void)memcpy(node->P, Pp, sizeof(node->P));
-        (void)memcpy(node->x_pred, x0, sizeof(node->x_pred));
-        (void)memcpy(node->P_pred, Pp, sizeof(node->P_pred));
-        (void)memcpy(node->ring_x, x0, sizeof(node->x));
-        (void)memcpy(node->ring_P, Pp, sizeof(Pp)); /* the checkpoint of step 0 */
+        (void)memcpy(node->post, xP, sizeof(xP));
+        (void)memcpy(node->pred, xP, sizeof(xP));
+        (void)memcpy(node->ring_x, x0, sizeof(real) * (size_t)NX);
+        /* the checkpoint of step 0 */
+        (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP);
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
-        recentre(node);
+        recentre(node, node->post);
     }
     return rc;
 }
 
+/* A failed update puts step k's prior back (see node_update). */
+static void put_back_prior(two_link_arm_node* node)
+{
+    (void)memcpy(node->post, node->pred, sizeof(node->post));
+    (void)memset(&node->ring_z[(int)node->slot * NY], 0, sizeof(real) * (size_t)NY);
+}
+
+/* While step k is not updated, post equals its prior (pred, whose x also equals its ring
+ * slot's) and its z slot is 0: the update computes into them in place, and a failure
+ * puts the prior back. A step without a measurement keeps its prior. */
 int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamma)
 {
-    real zz[NY];
-    real x[NX];
-    real P[NPP];
-    int slot;
+    real piv[NY];
+    real* zk;
     int rc = TWO_LINK_ARM_OK;
     if ((node == NULL) || ((gamma != 0) && (gamma != 1)) || ((gamma == 1) && (z == NULL))) {
         rc = TWO_LINK_ARM_ERR_ARG;
@@ -224,29 +256,50 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
     if ((rc == TWO_LINK_ARM_OK) && (node->updated != 0u)) {
         rc = TWO_LINK_ARM_ERR_SEQUENCE;
     }
-    (void)memset(zz, 0, sizeof(zz));
-    if ((rc == TWO_LINK_ARM_OK) && (gamma == 1)) {
-        if (two_link_arm_finite(z, NY) == 0) {
+    if ((rc == TWO_LINK_ARM_OK) && (gamma == 1)) { /* a non-finite z makes the posterior so */
+        zk = &node->ring_z[(int)node->slot * NY];
+        centred(node, z, zk);
+        (void)two_link_arm_kern_update(node->pred, zk, node->R, node->post, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        } else if (finite_state(node->post) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
         } else {
-            centred(node, z, zz);
+            /* a finite posterior */
+        }
+        if (rc != TWO_LINK_ARM_OK) {
+            put_back_prior(node);
         }
     }
-    if (rc == TWO_LINK_ARM_OK) { /* the prior of step k: ring_x of its slot and P_pred */
-        slot = (int)node->slot;
-        rc = update_step(&node->ring_x[slot * NX], node->P_pred, zz, (real)gamma, node->R, x, P);
-        if (rc == TWO_LINK_ARM_OK) {
-            (void)memcpy(node->x, x, sizeof(x));
-            (void)memcpy(node->P, P, sizeof(P));
-            (void)memcpy(&node->ring_z[slot * NY], zz, sizeof(zz));
-            node->ring_flags[node->hist] = (uint8_t)((gamma == 1) ? (HAS | USED) : 0u);
-            node->updated = 1;
-            if (gamma == 1) {
-                node->health.updates++;
-            } else {
-                node->health.drops++;
-            }
+    if (rc == TWO_LINK_ARM_OK) {
+        node->ring_flags[node->hist] = (uint8_t)((gamma == 1) ? (HAS | USED) : 0u);
+        node->updated = 1;
+        if (gamma == 1) {
+            node->health.updates++;
+        } else {
+            node->health.drops++;
         }
+    }
+    return rc;
+}
+
+/* Filter update of one state (x, then P packed) from its prior; 0 or an error code. A step
+ * without a measurement (used = 0) keeps its prior. */
+static int update_step(const real* prior, const real* z, int used, const real* R, real* post)
+{
+    real piv[NY];
+    int rc = TWO_LINK_ARM_OK;
+    if (used != 0) {
+        (void)two_link_arm_kern_update(prior, z, R, post, piv);
+        if (pivots_ok(piv) == 0) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
+        } else if (finite_state(post) == 0) {
+            rc = TWO_LINK_ARM_ERR_NONFINITE;
+        } else {
+            /* a finite posterior */
+        }
+    } else {
+        (void)memcpy(post, prior, sizeof(real) * (size_t)NXP);
     }
     return rc;
 }
@@ -255,22 +308,23 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
  * CHECK_EVERY at or before j, carried forward by the filter's own kernels with the flags of the
  * steps between (on x = 0 and z = v = 0: P reads neither, so these are the values the filter had,
  * bit for bit). */
-static int prior_P(const two_link_arm_node* node, uint32_t j, real* Pm)
+static int prior_P(const two_link_arm_node* node, uint32_t j, real* prior)
 {
-    real x0[NX];
-    real x[NX];
-    real P[NPP];
+    real post[NXP];
     real zero[NY];
     uint32_t s = j - (j % TWO_LINK_ARM_NODE_CHECK_EVERY);
     int rc = TWO_LINK_ARM_OK;
-    (void)memset(x0, 0, sizeof(x0));
+    (void)memset(prior, 0, sizeof(real) * (size_t)NX);
     (void)memset(zero, 0, sizeof(zero));
-    (void)memcpy(Pm, &node->ring_P[check_of(s) * NPP], sizeof(P));
+    (void)memcpy(&prior[NX], &node->ring_P[check_of(s) * NPP], sizeof(real) * (size_t)NPP);
     while ((rc == TWO_LINK_ARM_OK) && (s < j)) {
-        real gamma = ((node->ring_flags[hist_of(s)] & USED) != 0u) ? (real)1 : (real)0;
-        rc = update_step(x0, Pm, zero, gamma, node->R, x, P);
+        int used = 0;
+        if ((node->ring_flags[hist_of(s)] & USED) != 0u) {
+            used = 1;
+        }
+        rc = update_step(prior, zero, used, node->R, post);
         if (rc == TWO_LINK_ARM_OK) {
-            rc = predict_step(x, P, zero, node->q, x0, Pm);
+            rc = predict_step(post, zero, node->q, prior);
         }
         s++;
     }
@@ -281,36 +335,40 @@ static int prior_P(const two_link_arm_node* node, uint32_t j, real* Pm)
  * z), then the prediction into the next slot, written in place, and each checkpoint passed
  * rewritten; returns the posterior of step k. On a failure the slots' x and the checkpoints are
  * put back from the copies taken on the way. */
-static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real* x, real* P)
+static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real* post)
 {
     real old_x[TWO_LINK_ARM_NMAX * NX];
     real old_P[TWO_LINK_ARM_NODE_NCHECK_REALS];
-    real Pm[NPP];
+    real prior[NXP]; /* step j's: x as its slot holds it, P carried */
     uint32_t j = j0;
     uint32_t written = 0u; /* priors' x rewritten so far: slots j0 + 1 .. j0 + written */
     int checks = 0; /* checkpoints rewritten so far, from the first multiple after j0 */
     uint32_t first;
     uint32_t i;
     int c;
-    int rc = prior_P(node, j0, Pm);
+    int rc = prior_P(node, j0, prior);
+    (void)memcpy(prior, &node->ring_x[slot_of(j0) * NX], sizeof(real) * (size_t)NX);
     while ((rc == TWO_LINK_ARM_OK) && (j <= node->k)) {
         int slot = slot_of(j);
         real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
         const real* z = (j == j0) ? zlate : &node->ring_z[slot * NY];
-        real gamma = (real)1; /* the late step, and the steps the history used */
+        int used = 1; /* the late step, and the steps the history used */
         if ((j != j0) && ((node->ring_flags[hist_of(j)] & USED) == 0u)) {
-            gamma = (real)0;
+            used = 0;
         }
-        rc = update_step(&node->ring_x[slot * NX], Pm, z, gamma, node->R, x, P);
+        rc = update_step(prior, z, used, node->R, post);
         if ((rc == TWO_LINK_ARM_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(x, P, &node->ring_v[slot * NY], node->q, xnext, Pm);
+            rc = predict_step(post, &node->ring_v[slot * NY], node->q, prior);
+            if (rc == TWO_LINK_ARM_OK) {
+                (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
+            }
             if ((rc == TWO_LINK_ARM_OK) && (((j + 1u) % TWO_LINK_ARM_NODE_CHECK_EVERY) == 0u)) {
                 real* cp = &node->ring_P[check_of(j + 1u) * NPP];
-                (void)memcpy(&old_P[checks * NPP], cp, sizeof(Pm));
+                (void)memcpy(&old_P[checks * NPP], cp, sizeof(real) * (size_t)NPP);
                 checks++;
-                (void)memcpy(cp, Pm, sizeof(Pm));
+                (void)memcpy(cp, &prior[NX], sizeof(real) * (size_t)NPP);
             }
         }
         j++;
@@ -323,7 +381,8 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
                          sizeof(real) * (size_t)NX);
         }
         for (c = 0; c < checks; c++) {
-            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP], sizeof(Pm));
+            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP],
+                         sizeof(real) * (size_t)NPP);
             first += TWO_LINK_ARM_NODE_CHECK_EVERY;
         }
     }
@@ -332,8 +391,7 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
 
 int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[NY], int32_t lag)
 {
-    real x[NX];
-    real P[NPP];
+    real post[NXP];
     real z[NY];
     uint32_t N = 0u;
     int hist = 0;
@@ -362,15 +420,14 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
         }
     }
     if (rc == TWO_LINK_ARM_OK) {
-        rc = replay(node, node->k - N, z, x, P);
+        rc = replay(node, node->k - N, z, post);
     }
     if (rc == TWO_LINK_ARM_OK) {
         (void)memcpy(&node->ring_z[slot_of(node->k - N) * NY], z, sizeof(real) * (size_t)NY);
         node->ring_flags[hist] = (uint8_t)(HAS | USED);
     }
     if (rc == TWO_LINK_ARM_OK) {
-        (void)memcpy(node->x, x, sizeof(x));
-        (void)memcpy(node->P, P, sizeof(P));
+        (void)memcpy(node->post, post, sizeof(post));
         node->health.late_applied++;
     }
     return rc;
@@ -378,8 +435,7 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
 
 int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
 {
-    real x1[NX];
-    real P1[NPP];
+    real next[NXP];
     int slot;
     uint32_t hist;
     int rc = TWO_LINK_ARM_OK;
@@ -389,11 +445,8 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
     if ((rc == TWO_LINK_ARM_OK) && (node->updated == 0u)) {
         rc = TWO_LINK_ARM_ERR_SEQUENCE;
     }
-    if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_finite(v, NY) == 0)) {
-        rc = TWO_LINK_ARM_ERR_NONFINITE;
-    }
-    if (rc == TWO_LINK_ARM_OK) {
-        rc = predict_step(node->x, node->P, v, node->q, x1, P1);
+    if (rc == TWO_LINK_ARM_OK) { /* a non-finite v makes the prediction so */
+        rc = predict_step(node->post, v, node->q, next);
     }
     if (rc == TWO_LINK_ARM_OK) {
         slot = (int)node->slot;
@@ -403,18 +456,16 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
         node->slot = (uint16_t)slot;
         hist = (uint32_t)node->hist + 1u;
         node->hist = (uint16_t)((hist == TWO_LINK_ARM_NODE_NHIST) ? 0u : hist);
-        (void)memcpy(&node->ring_x[slot * NX], x1, sizeof(x1));
+        (void)memcpy(&node->ring_x[slot * NX], next, sizeof(real) * (size_t)NX);
         if ((node->k % TWO_LINK_ARM_NODE_CHECK_EVERY) == 0u) {
-            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], P1, sizeof(P1));
+            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], &next[NX],
+                         sizeof(real) * (size_t)NPP);
         }
         (void)memset(&node->ring_z[slot * NY], 0, sizeof(real) * (size_t)NY);
-        node->ring_flags[node->hist] = 0;
-        (void)memcpy(node->x, x1, sizeof(x1));
-        (void)memcpy(node->P, P1, sizeof(P1));
-        (void)memcpy(node->x_pred, x1, sizeof(x1));
-        (void)memcpy(node->P_pred, P1, sizeof(P1));
+        (void)memcpy(node->post, next, sizeof(next));
+        (void)memcpy(node->pred, next, sizeof(next));
         node->updated = 0;
-        recentre(node);
+        recentre(node, next);
     }
     return rc;
 }
@@ -426,10 +477,10 @@ int two_link_arm_node_estimate(const two_link_arm_node* node, real x[NX], real P
         rc = TWO_LINK_ARM_ERR_ARG;
     } else {
         if (x != NULL) {
-            two_link_arm_move_origin(node->x, node->centre, NULL, x);
+            two_link_arm_move_origin(node->post, node->centre, NULL, x);
         }
         if (P != NULL) {
-            unpack(node->P, P);
+            unpack(&node->post[NX], P);
         }
     }
     return rc;
@@ -449,8 +500,8 @@ int two_link_arm_node_information(const two_link_arm_node* node, real Y[NXX], re
     }
     if (rc == TWO_LINK_ARM_OK) {
         (void)memset(origin, 0, sizeof(origin));
-        two_link_arm_move_origin(node->x, node->centre, NULL, x);
-        unpack(node->P, P);
+        two_link_arm_move_origin(node->post, node->centre, NULL, x);
+        unpack(&node->post[NX], P);
         (void)two_link_arm_kern_info(x, P, origin, Yl, yl, piv);
         if (two_link_arm_positive(piv, NX) == 0) {
             rc = TWO_LINK_ARM_ERR_SINGULAR;
@@ -479,10 +530,10 @@ int two_link_arm_node_packet(const two_link_arm_node* node, two_link_arm_packet*
     } else {
         packet->step = node->k;
         (void)memcpy(packet->centre, node->centre, sizeof(packet->centre));
-        (void)memcpy(packet->x, node->x, sizeof(packet->x));
-        unpack(node->P, packet->P);
-        (void)memcpy(packet->x_pred, node->x_pred, sizeof(packet->x_pred));
-        unpack(node->P_pred, packet->P_pred);
+        (void)memcpy(packet->x, node->post, sizeof(packet->x));
+        unpack(&node->post[NX], packet->P);
+        (void)memcpy(packet->x_pred, node->pred, sizeof(packet->x_pred));
+        unpack(&node->pred[NX], packet->P_pred);
     }
     return rc;
 }
