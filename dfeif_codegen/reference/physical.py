@@ -97,23 +97,29 @@ def compiled_function(fn: ca.Function, cc: str | None = None) -> ca.Function:
     The C does the interpreter's operations in the same order on IEEE doubles, and
     `-ffp-contract=off` forbids fused multiply-adds, so the results are the interpreter's; the
     EKF's and UKF's predict (10 RK4 substeps and their Jacobian, or 2n + 1 of them) run 3-5x
-    faster. The library is cached in the temp folder under the hash of its source and flags
-    (built in a private folder, then renamed: concurrent workers never see half a file)."""
+    faster. The library is cached in a folder of the temp folder private to this user (a library
+    another user could plant would run in this process), under the hash of its source and flags;
+    built in a private folder, then renamed: concurrent workers never see half a file."""
     cc = cc or os.environ.get("CC", "cc")
     gen = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
     gen.add(fn)
     source = gen.dump()
     key = hashlib.sha256("\0".join((source, cc, *CC_FLAGS)).encode()).hexdigest()[:20]
-    lib = os.path.join(tempfile.gettempdir(), f"dfeif-casadi-{key}.so")
+    cache = os.path.join(tempfile.gettempdir(), f"dfeif-casadi-{os.getuid()}")
+    os.makedirs(cache, mode=0o700, exist_ok=True)
+    info = os.stat(cache)
+    if info.st_uid != os.getuid() or info.st_mode & 0o022:
+        raise RuntimeError(f"{cache}: not a folder private to this user; remove it")
+    lib = os.path.join(cache, f"{key}.so")
     if not os.path.exists(lib):
-        with tempfile.TemporaryDirectory() as work:
+        with tempfile.TemporaryDirectory(dir=cache) as work:
             c_file, tmp_lib = os.path.join(work, "f.c"), os.path.join(work, "f.so")
             with open(c_file, "w", encoding="utf-8") as fh:
                 fh.write(source)
             done = subprocess.run([cc, *CC_FLAGS, "-o", tmp_lib, c_file], capture_output=True, text=True)
             if done.returncode:
                 raise RuntimeError(f"{cc} failed on {fn.name()}: {done.stderr.strip()[:300]}")
-            os.replace(tmp_lib, lib)      # the same file system (both in the temp folder): atomic
+            os.replace(tmp_lib, lib)      # the same folder's file system: atomic
     return ca.external(fn.name(), lib)
 
 
