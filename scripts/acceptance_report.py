@@ -1,6 +1,7 @@
 """Markdown tables of the restated acceptance figures from scripts/acceptance.py's files.
 
-`python scripts/acceptance_report.py MODEL [--real FILE.npy] [--filters FILE.npy|FILE.jsonl [--rows 0,1,5]] [--matched FILE.npy]`
+`python scripts/acceptance_report.py MODEL [--real FILE.npy] [--filters FILE.npy|FILE.jsonl[,FILE2...] [--rows 0,1,5[/2,3,4...]]] [--matched FILE.npy[,FILE2...]] [--plot DIR]`
+(several files are merged: e.g. the rows of one sweep and the other rows of another, same seeds).
 Every interval is a 95% Student-t interval over the seeds; ratios and differences are formed per
 seed first (the rows and methods of one seed share their random numbers), then averaged.
 """
@@ -193,19 +194,20 @@ def matched_report(model, data):
     bnd = bound_ratios(model, seeds)
     lo, hi = simulate.nees_band(n, R)
     print(f"\n### {model}, matched linear plant, replay + difference, {R} runs\n")
-    print("| row | master RMSE / exact bound x1 | x2 | x3 | within ±5%? | max rel. gap master P vs centralized Riccati | "
+    print("| row | master RMSE / exact bound " + " | ".join(f"x{i + 1}" for i in range(n)) +
+          " | within ±5%? | max rel. gap master P vs centralized Riccati | "
           f"NEES avg (band [{lo:.2f}, {hi:.2f}]) | steps in band |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|" + "---|" * n + "---|---|---|---|")
     for ri in rows:
         mse = np.array([data[(ri, s)]["matched"]["mse_master"] for s in seeds])      # (R, n)
         rms = np.sqrt(mse.mean(axis=0))
         # delta method for the interval of sqrt(mean mse) / bound
         half = simulate.t_quantile(0.975, R - 1) * mse.std(axis=0, ddof=1) / np.sqrt(R) / (2 * rms)
         ratio, rh = rms / bnd[ri].rmse_central, half / bnd[ri].rmse_central
-        ok = all(abs(ratio[i] - 1) + rh[i] <= 0.05 for i in range(3))
+        ok = all(abs(ratio[i] - 1) + rh[i] <= 0.05 for i in range(n))
         gap = max(data[(ri, s)]["matched"]["P_gap"] for s in seeds)
         per_step = np.mean([data[(ri, s)]["matched"]["nees_master"] for s in seeds], axis=0)
-        print(f"| {LABELS[ri]} | " + " | ".join(fmt(ratio[i], rh[i]) for i in range(3)) +
+        print(f"| {LABELS[ri]} | " + " | ".join(fmt(ratio[i], rh[i]) for i in range(n)) +
               f" | {'yes' if ok else 'no'} | {gap:.1e} | {per_step.mean():.2f} | "
               f"{100 * np.mean((per_step >= lo) & (per_step <= hi)):.0f}% |")
 
@@ -224,9 +226,15 @@ def main():
         matched_report(model, merged)
     if opt("--real"):
         real(model, load(opt("--real")))
-    if opt("--filters"):
-        mapped = [int(r) for r in opt("--rows").split(",")] if opt("--rows") else None
-        rows, series = filters(model, load(opt("--filters"), mapped))
+    if opt("--filters"):        # several files: comma-separated, with their --rows maps separated by "/"
+        files = opt("--filters").split(",")
+        maps = opt("--rows").split("/") if opt("--rows") else [None] * len(files)
+        if len(maps) != len(files):
+            sys.exit("--rows: one row map per --filters file, separated by '/'")
+        merged = {}
+        for part, rows_of in zip(files, maps):
+            merged.update(load(part, [int(r) for r in rows_of.split(",")] if rows_of else None))
+        rows, series = filters(model, merged)
         if opt("--plot"):
             from dfeif_codegen.experiment import figures
             figures.comparison_figure(opt("--plot"), f"{model}: master RMSE per filter (95% intervals), "

@@ -82,20 +82,26 @@ def test_difference_master_is_centralized_without_delays():
     np.testing.assert_allclose(P, res.recording.P, rtol=1e-10, atol=1e-10 * np.abs(P).max())
 
 
-def test_monte_carlo_of_the_matched_plant():
-    """On the matched linear plant the replay nodes' mean squared error is the bound: 40 seeds of
-    400 steps at (4, 6, 0.8). The per-seed time averages are independent across seeds, so the
-    mean's standard error comes from their spread; the bound must lie within 4 standard errors
-    (a 6e-5 chance of a false alarm for a normal mean; the time average of 300 correlated
-    squares is close to normal)."""
+@pytest.mark.parametrize("model", ["dc_motor_link", "two_link_arm"])
+def test_monte_carlo_of_the_matched_plant(model):
+    """On the matched linear plant the replay nodes' and the master's mean squared errors are the
+    bounds (per node; centralized for the master, which without late frames *is* the centralized
+    filter and with them is within 1% of it): 40 seeds of 400 steps at (4, 6, 0.8), for one
+    chain and for the arm's two chains with their correlated 2x2 camera covariance. The per-seed
+    time averages are independent across seeds, so the mean's standard error comes from their
+    spread; each bound must lie within 4 standard errors (a 6e-5 chance of a false alarm per
+    entry for a normal mean; the time average of 300 correlated squares is close to normal)."""
     sc = scenario.load("paper")
-    cfgs = [ex.Config(**{**simulate.make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[1], "replay",
+    cfgs = [ex.Config(**{**simulate.make_config(sc, model, 2, 32, "sinusoid", sc.grid[1], "replay",
                                                 "difference", s).__dict__, "duration": 4.0})
             for s in range(40)]
     bound = bounds.row_bound(cfgs)
-    mse = np.array([matched.metrics(c, matched.run(c))["mse_nodes"] for c in cfgs])   # (S, M, n)
-    mean, se = mse.mean(axis=0), mse.std(axis=0, ddof=1) / math.sqrt(len(cfgs))
-    assert np.all(np.abs(mean - bound.var_nodes) < 4 * se), (mean, bound.var_nodes, se)
+    runs = [matched.metrics(c, matched.run(c)) for c in cfgs]
+    for key, expect in (("mse_nodes", bound.var_nodes), ("mse_master", bound.var_central)):
+        mse = np.array([r[key] for r in runs])              # (S, M, n) or (S, n)
+        mean, se = mse.mean(axis=0), mse.std(axis=0, ddof=1) / math.sqrt(len(cfgs))
+        assert mean.shape == expect.shape and mean.shape[-1] == ex._flat(model).n
+        assert np.all(np.abs(mean - expect) < 4 * se), (key, mean, expect, se)
 
 
 def test_simulate_prints_and_writes_the_bounds(tmp_path, capsys):
@@ -122,12 +128,14 @@ def test_simulate_prints_and_writes_the_bounds(tmp_path, capsys):
         assert doc["bounds"][ri]["rmse_nodes"] == expect.rmse_nodes.tolist()
 
 
-@pytest.mark.parametrize("ri, q, low, high", [
-    (0, 20.0, 0.0, 1e-10),       # no late frame: the difference rule *is* the centralized filter
-    (5, 20.0, 1e-3, 1.0),        # late frames: measured gap (1.0e-2 at (25, 30, 0.6))
-    (5, 1e-12, 0.0, 1e-8),       # ... that vanishes with the process noise (O(q): 5e-10 here)
+@pytest.mark.parametrize("model, ri, q, low, high", [
+    ("dc_motor_link", 0, 20.0, 0.0, 1e-10),   # no late frame: the difference rule *is* the centralized filter
+    ("dc_motor_link", 5, 20.0, 1e-3, 1.0),    # late frames: measured gap (1.0e-2 at (25, 30, 0.6))
+    ("dc_motor_link", 5, 1e-12, 0.0, 1e-8),   # ... that vanishes with the process noise (O(q): 5e-10 here)
+    ("two_link_arm", 0, 20.0, 0.0, 1e-10),    # two chains, correlated 2x2 R: the same without delays
+    ("two_link_arm", 5, 1e-12, 0.0, 1e-8),    # ... and with them when q -> 0
 ])
-def test_master_against_the_centralized_riccati_recursion(ri, q, low, high):
+def test_master_against_the_centralized_riccati_recursion(model, ri, q, low, high):
     """Master P of the matched plant (replay + difference) against one filter with both cameras'
     frames as they arrive. Equal to rounding without delays (1e-10: two backward-stable
     recursions of the same 3x3 information sum over 300 steps, ~1e-14 apart). With late frames
@@ -137,7 +145,7 @@ def test_master_against_the_centralized_riccati_recursion(ri, q, low, high):
     below 1e-8 at q = 1e-12 (an algebraic term, far above rounding, so the bounds hold on any
     IEEE machine)."""
     sc = scenario.load("paper")
-    cfg = simulate.make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[ri], "replay", "difference", 1)
+    cfg = simulate.make_config(sc, model, 2, 32, "sinusoid", sc.grid[ri], "replay", "difference", 1)
     cfg = ex.Config(**{**cfg.__dict__, "q": (q,), "duration": 3.0})
     gap = matched.riccati_gap(cfg, matched.run(cfg))
     assert low <= gap < high

@@ -60,21 +60,23 @@ class CanonicalModel:
 
 
 @lru_cache(maxsize=None)
-def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str):
+def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled: bool = False):
     """The filter `kind` ("df", "ekf", "ukf") of one model, built once per process (building its
-    CasADi functions costs far more than a run)."""
+    CasADi functions costs far more than a run); `compiled`: its predict and update as compiled C
+    (physical.compiled_function: the same results, and CPU time per step then measures compiled
+    arithmetic rather than CasADi's interpreter)."""
     flat = ex._flat(spec)
     if kind == "df":
-        return EKF(CanonicalModel(flat, ts, np.array(q)))
-    return FILTERS[kind](PhysicalModel(flat, ts, np.array(q), substeps))
+        return EKF(CanonicalModel(flat, ts, np.array(q)), compiled)
+    return FILTERS[kind](PhysicalModel(flat, ts, np.array(q), substeps), compiled)
 
 
-def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10) -> dict:
+def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled: bool = False) -> dict:
     """Nodes and master of `kind` over a recording: node and master estimates and covariances in
     canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and the CPU seconds of the
     filter loop alone (process time; the maps to canonical coordinates after it are not counted).
     "df" runs the derivative-free filter itself through the same driver (CanonicalModel)."""
-    filt = filter_of(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps, kind)
+    filt = filter_of(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps, kind, compiled)
     pm = filt.model
     inputs = rec.v if kind == "df" else rec.u
     x0, J0 = pm.phi_inv(rec.master_x0)
@@ -116,14 +118,14 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10) -> dict:
     return out
 
 
-def evaluate(res: ex.Result, kind: str) -> dict:
+def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
     """closed_loop.metrics of `kind`'s estimates on `res`'s recording (the plant's tracking error
     is the run's own), plus `us_per_step`, the CPU microseconds per step of the filter loop; a
     run whose filter fails or diverges gives {"failed": reason}."""
     rec = res.recording
     try:
         with np.errstate(all="raise"):
-            out = run_on_recording(rec, kind, res.config.substeps)
+            out = run_on_recording(rec, kind, res.config.substeps, compiled)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return {"failed": f"{kind}: {type(exc).__name__}: {exc}"}
     mine = dataclasses.replace(rec, node_x=out["node_x"], node_P=out["node_P"], x=out["x"], P=out["P"])

@@ -14,13 +14,13 @@ from dfeif_codegen.reference.physical import FusedFilter
 
 
 class UKF(FusedFilter):
-    def __init__(self, model):
+    def __init__(self, model, compiled: bool = False):
         n = model.n
         self.wm = np.full(2 * n + 1, 1 / (2 * n))
         self.wm[0] = 0.0
         self.wc = self.wm.copy()
         self.wc[0] = 2.0
-        super().__init__(model)
+        super().__init__(model, compiled)
 
     def _sigma(self, x, P):
         L = np.sqrt(self.model.n) * ca.chol((P + P.T) / 2).T      # chol gives the upper factor
