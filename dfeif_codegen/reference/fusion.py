@@ -19,7 +19,7 @@ RULES = ("paper", "difference", "ci")
 
 
 def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None = None,
-                                    tolerance: float = CI_TOLERANCE["double"]) -> np.ndarray:
+                                    tolerance: float = CI_TOLERANCE["double"], traces=None) -> np.ndarray:
     """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"), in at
     most `iterations` steps (default ci_iterations(len(Ys)); the master passes its node count, as
     the C): Newton steps on the free weights; when the step would make weights negative, its end is
@@ -29,10 +29,18 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None
     `tolerance` (0: always the full count). A small regulariser (rho/2)|w|^2 keeps the optimum
     unique when two Y_i are equal, so the split of weight between equal nodes is not decided by
     round-off, and makes the weights a Lipschitz function of the Y_i, so that single precision
-    reproduces them (docs/algorithms.md). One node needs no search: its weight is 1."""
+    reproduces them (docs/algorithms.md). The search starts from w_i proportional to 1/tr(P_i)^2
+    (`traces`: the nodes' tr P_i, by default tr Y_i^-1): near the optimum more often than 1/M, it
+    saves ~15% of the steps on sparse node sets (tests/test_ci_weights.py). One node needs no
+    search: its weight is 1."""
     count = len(Ys)
     iterations = ci_iterations(count) if iterations is None else iterations
-    w = np.full(count, 1.0 / count)
+    t = np.array([np.trace(spd_inv(Y)) for Y in Ys] if traces is None else traces, dtype=float)
+    u = (np.min(t) / t) * (np.min(t) / t)   # as the C: no overflow for any scale of P
+    total = 0.0
+    for ui in u:                 # in index order, as the C
+        total += ui
+    w = u / total
     if count == 1:
         return w
     free = np.ones(count, dtype=bool)
@@ -115,7 +123,8 @@ class Master:
                 Y_pred = spd_inv(Pp)
                 Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
         else:
-            w = covariance_intersection_weights(Ys, ci_iterations(self.n_nodes))
+            w = covariance_intersection_weights(Ys, ci_iterations(self.n_nodes),
+                                                traces=[np.trace(P) for _, P, _, _ in usable])
             Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
             y = sum(wi * yi for wi, yi in zip(w, ys))
         self.P = spd_inv(Y)
