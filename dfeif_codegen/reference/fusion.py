@@ -29,14 +29,14 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None
     `tolerance` (0: always the full count). A small regulariser (rho/2)|w|^2 keeps the optimum
     unique when two Y_i are equal, so the split of weight between equal nodes is not decided by
     round-off, and makes the weights a Lipschitz function of the Y_i, so that single precision
-    reproduces them (docs/algorithms.md). The search starts from w_i proportional to 1/tr(P_i)^2
-    (`traces`: the nodes' tr P_i, by default tr Y_i^-1): near the optimum more often than 1/M, it
-    saves ~15% of the steps on sparse node sets (tests/test_ci_weights.py). One node needs no
+    reproduces them (docs/algorithms.md). The search starts from w_i proportional to 1/tr(P_i), the
+    fast-CI weights (`traces`: the nodes' tr P_i, by default tr Y_i^-1): nearer the optimum than
+    1/M, it saves ~10% of the steps on sparse node sets (docs/algorithms.md). One node needs no
     search: its weight is 1."""
     count = len(Ys)
     iterations = ci_iterations(count) if iterations is None else iterations
     t = np.array([np.trace(spd_inv(Y)) for Y in Ys] if traces is None else traces, dtype=float)
-    u = (np.min(t) / t) * (np.min(t) / t)   # as the C: no overflow for any scale of P
+    u = np.min(t) / t            # as the C: <= 1, no overflow for any scale of P
     total = 0.0
     for ui in u:                 # in index order, as the C
         total += ui
