@@ -434,8 +434,8 @@ class _Builder:
                 H[i, j] = 2 * _trace_of_product(W[i], W[j].T)
                 H[j, i] = H[i, j]
         rho = H[0, 0]                # the regulariser rho/2 |w|^2 (reference/fusion.py)
-        for i in range(1, M):        # a compare, not libm's fmax: a NaN reaches the weights anyway
-            rho = ca.if_else(H[i, i] > rho, H[i, i], rho)
+        for i in range(1, M):
+            rho = ca.fmax(rho, H[i, i])
         rho = CI_REGULARISER * rho
         g = g + rho * w
         H = H + rho * ca.SX.eye(M)
