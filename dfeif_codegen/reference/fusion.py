@@ -19,28 +19,19 @@ RULES = ("paper", "difference", "ci")
 
 
 def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None = None,
-                                    tolerance: float = CI_TOLERANCE["double"], traces=None) -> np.ndarray:
+                                    tolerance: float = CI_TOLERANCE["double"]) -> np.ndarray:
     """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"), in at
     most `iterations` steps (default ci_iterations(len(Ys)); the master passes its node count, as
-    the C): Newton steps on the free weights; when the step would make weights negative, its end is
-    projected onto the simplex and the weights at zero are fixed there (several in one step), each
-    freed again once its gradient is below every free one. The search
+    the C): Newton steps on the free weights; a weight the step would make negative stops the step
+    at zero and is fixed there, and is freed again once its gradient is the smallest. The search
     ends early after a full step that froze or freed no weight and moved none by more than
     `tolerance` (0: always the full count). A small regulariser (rho/2)|w|^2 keeps the optimum
     unique when two Y_i are equal, so the split of weight between equal nodes is not decided by
     round-off, and makes the weights a Lipschitz function of the Y_i, so that single precision
-    reproduces them (docs/algorithms.md). The search starts from w_i proportional to 1/tr(P_i), the
-    fast-CI weights (`traces`: the nodes' tr P_i, by default tr Y_i^-1): nearer the optimum than
-    1/M, it saves ~10% of the steps on sparse node sets (docs/algorithms.md). One node needs no
-    search: its weight is 1."""
+    reproduces them (docs/algorithms.md). One node needs no search: its weight is 1."""
     count = len(Ys)
     iterations = ci_iterations(count) if iterations is None else iterations
-    t = np.array([np.trace(spd_inv(Y)) for Y in Ys] if traces is None else traces, dtype=float)
-    u = np.min(t) / t            # as the C: <= 1, no overflow for any scale of P
-    total = 0.0
-    for ui in u:                 # in index order, as the C
-        total += ui
-    w = u / total
+    w = np.full(count, 1.0 / count)
     if count == 1:
         return w
     free = np.ones(count, dtype=bool)
@@ -58,32 +49,17 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None
         kkt = np.block([[H_f, np.ones((f.size, 1))], [np.ones((1, f.size)), np.zeros((1, 1))]])
         d = np.zeros(count)
         d[f] = np.linalg.solve(kkt, np.append(-g[f], 0.0))[:f.size]
-        v = w + d
-        if np.any(v[f] <= 0):
-            w, free = _project(v, free)
+        shrinking = f[d[f] < 0]
+        ratios = w[shrinking] / -d[shrinking]
+        if ratios.size and ratios.min() <= 1.0:
+            blocking = shrinking[np.argmin(ratios)]
+            w = w + ratios.min() * d
+            w[blocking], free[blocking] = 0.0, False
         else:
             w = w + d
             if not freed.any() and np.max(np.abs(d)) <= tolerance:
                 break
     return w
-
-
-def _project(v: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The full step's end v projected onto the simplex of the free weights (the nearest point with
-    w >= 0 and sum 1), and the weights still free (> 0): max(v_i - tau, 0) with tau found by
-    dropping the weights below it until none is (at most one pass per weight; sums in index order,
-    as the C). Every weight the step drives to 0 is fixed in the one step."""
-    keep = free.copy()
-    for _ in range(v.size):
-        total, count = 0.0, 0
-        for i in np.flatnonzero(keep):
-            total, count = total + v[i], count + 1
-        tau = (total - 1.0) / count
-        out = keep & (v - tau <= 0)
-        if not out.any():
-            break
-        keep &= ~out
-    return np.where(keep, v - tau, 0.0), keep
 
 
 class Master:
@@ -123,8 +99,7 @@ class Master:
                 Y_pred = spd_inv(Pp)
                 Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
         else:
-            w = covariance_intersection_weights(Ys, ci_iterations(self.n_nodes),
-                                                traces=[np.trace(P) for _, P, _, _ in usable])
+            w = covariance_intersection_weights(Ys, ci_iterations(self.n_nodes))
             Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
             y = sum(wi * yi for wi, yi in zip(w, ys))
         self.P = spd_inv(Y)
