@@ -90,6 +90,19 @@ def test_twelve_steps_are_not_enough_for_sixteen_nodes():
     assert worst12 > 1e-2 and worst < 1e-12
 
 
+def test_the_early_stop_is_within_reach_of_the_fixed_point():
+    """The search stops after a full step below CI_TOLERANCE; the steps after it would shrink by
+    ~1e-2 each (constants.py), so the weights equal those of 60 steps without the stop to 1e-13
+    (weights are O(1): a few hundred ulps). One node: weight 1 without a search."""
+    rng = np.random.default_rng(3)
+    for M in (2, 4, 8):
+        for _ in range(10):
+            Ys = node_set(rng, M, 3)
+            w = covariance_intersection_weights(Ys)
+            assert np.max(np.abs(w - covariance_intersection_weights(Ys, 60, tolerance=0.0))) <= 1e-13
+    assert covariance_intersection_weights([np.eye(3)]).tolist() == [1.0]
+
+
 def test_two_scalar_nodes_match_the_stationary_point():
     """n = 1, M = 2: f(w) = 1/(w a + (1 - w) b) + rho/2 (w^2 + (1 - w)^2), f'(w) = 0 is the cubic
     rho (2w - 1)(b + w (a - b))^2 = a - b, whose root in [0, 1] is the weight (or a vertex)."""

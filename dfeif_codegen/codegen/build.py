@@ -26,7 +26,7 @@ import sympy as sp
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.codegen import kernels, layout, render
-from dfeif_codegen.constants import ci_iterations
+from dfeif_codegen.constants import CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
 
 GROUP_DOCS = {
@@ -107,7 +107,8 @@ def context(flat, opts: Options) -> dict:
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
-        "ci_iterations": ci_iterations(opts.nodes), "model_hash": model_hash(m), "versions": versions(),
+        "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
+        "model_hash": model_hash(m), "versions": versions(),
         "cmake_version": cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         # the node stores P priors every `check_every` steps (replay recomputes the ones between

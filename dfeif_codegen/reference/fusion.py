@@ -11,24 +11,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from dfeif_codegen.constants import CI_REGULARISER, ci_iterations
+from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.reference.linalg import spd_inv
 from dfeif_codegen.reference.node import Packet
 
 RULES = ("paper", "difference", "ci")
 
 
-def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None = None) -> np.ndarray:
-    """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"), in
-    `iterations` steps (default ci_iterations(len(Ys)); the master passes its node count, as the C):
-    Newton steps on the free weights; a weight the step would make negative stops the step at
-    zero and is fixed there, and is freed again once its gradient is the smallest. A small
-    regulariser (rho/2)|w|^2 keeps the optimum unique when two Y_i are equal, so the split of
-    weight between equal nodes is not decided by round-off, and makes the weights a Lipschitz
-    function of the Y_i, so that single precision reproduces them (docs/algorithms.md)."""
+def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None = None,
+                                    tolerance: float = CI_TOLERANCE["double"]) -> np.ndarray:
+    """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"), in at
+    most `iterations` steps (default ci_iterations(len(Ys)); the master passes its node count, as
+    the C): Newton steps on the free weights; a weight the step would make negative stops the step
+    at zero and is fixed there, and is freed again once its gradient is the smallest. The search
+    ends early after a full step that froze or freed no weight and moved none by more than
+    `tolerance` (0: always the full count). A small regulariser (rho/2)|w|^2 keeps the optimum
+    unique when two Y_i are equal, so the split of weight between equal nodes is not decided by
+    round-off, and makes the weights a Lipschitz function of the Y_i, so that single precision
+    reproduces them (docs/algorithms.md). One node needs no search: its weight is 1."""
     count = len(Ys)
     iterations = ci_iterations(count) if iterations is None else iterations
     w = np.full(count, 1.0 / count)
+    if count == 1:
+        return w
     free = np.ones(count, dtype=bool)
     for _ in range(iterations):
         P = spd_inv(sum(wi * Y for wi, Y in zip(w, Ys)))
@@ -37,7 +42,8 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None
         H = 2 * np.array([[np.trace(a @ Y @ P) for Y in Ys] for a in pyp])
         rho = CI_REGULARISER * np.max(np.diag(H))  # rho/2 |w|^2: a unique, well-conditioned optimum
         g, H = g + rho * w, H + rho * np.eye(count)
-        free |= g < np.min(g[free])
+        freed = ~free & (g < np.min(g[free]))
+        free |= freed
         f = np.flatnonzero(free)
         H_f = H[np.ix_(f, f)]
         kkt = np.block([[H_f, np.ones((f.size, 1))], [np.ones((1, f.size)), np.zeros((1, 1))]])
@@ -51,6 +57,8 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None
             w[blocking], free[blocking] = 0.0, False
         else:
             w = w + d
+            if not freed.any() and np.max(np.abs(d)) <= tolerance:
+                break
     return w
 
 
