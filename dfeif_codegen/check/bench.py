@@ -23,6 +23,7 @@ from pathlib import Path
 from dfeif_codegen import __version__
 from dfeif_codegen.check import bench_peers, harness, target
 from dfeif_codegen.codegen import render
+from dfeif_codegen.constants import ci_iterations
 from dfeif_codegen.errors import CodegenError, SetupError
 
 MODELS = ("dc_motor_link", "two_link_arm")
@@ -45,15 +46,20 @@ def build_times(model: str, repeat: int, work: Path) -> list[float]:
     return out
 
 
-def callgrind(model: harness.ModelDir, work: Path) -> dict[str, float]:
-    """Instructions per call of each section of bench.c.j2."""
+def callgrind(model: harness.ModelDir, work: Path, defines: tuple[str, ...] = ()) -> dict[str, float]:
+    """Instructions per call of each section of bench.c.j2 (`defines`: -D options of the build)."""
     work.mkdir(parents=True, exist_ok=True)
     env = render.environment(model.precision)
     src = work / f"{model.name}_bench.c"
     src.write_text(env.get_template("harness/bench.c.j2").render(
         p=model.name, P=model.name.upper(), banner=render.banner("harness/bench.c.j2", model.name, __version__)))
-    exe = harness.compile_program([*model.sources(), src], work / "bench", [model.path])
+    exe = harness.compile_program([*model.sources(), src], work / "bench", [model.path], [f"-D{d}" for d in defines])
     return harness.callgrind(exe, work)[0]
+
+
+def ci_every_step(model: harness.ModelDir) -> tuple[str, ...]:
+    """The define that makes the CI search run all its steps (no early stop): its worst case."""
+    return (f"{model.name.upper()}_CI_TOL=-1",)
 
 
 def target_sizes(model: harness.ModelDir, work: Path) -> tuple[dict, dict]:
@@ -130,6 +136,8 @@ def _bench_model(name: str, repeat: int, work: Path) -> dict:
     for oosm, fusion in BUILDS:
         md = harness.build_model(name, work / f"{oosm}-{fusion}", "double", oosm, fusion)
         counts[(oosm, fusion)] = callgrind(md, work / f"cg-{oosm}-{fusion}")
+        if fusion == "ci":
+            counts[(oosm, "ci-every-step")] = callgrind(md, work / f"cg-{oosm}-ci-all", ci_every_step(md))
     sizeofs = {}
     for precision in ("float", "double"):
         md = harness.build_model(name, work / f"sizeof-{precision}", precision)
@@ -243,15 +251,19 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
                 f"| node struct, double, N_max = 32 (Cortex-M4F layout) | {sec['sizeof']['double']['node']} B | "
                 "2,560 B (two_link_arm 8,192 B) |", ""]
         out += ["Worst case per entry point (the real-time budget): the generated code is straight-line except "
-                "the window walk of update_delayed (longest at lag = N_max) and a fixed number of CI Newton steps, "
-                "so the count at the longest input is the worst case.", "",
+                "the window walk of update_delayed (longest at lag = N_max) and the CI Newton search (at most "
+                "ci_iterations(M) steps; it stops earlier once converged), so the count at the longest input, "
+                "and for CI with every step run (built with -D<MODEL>_CI_TOL=-1), is the worst case.", "",
                 "| entry point | worst-case instructions |", "|---|---:|"]
         for key, label in (("node_update", "node_update"), ("node_predict", "node_predict"), ("control", "control")):
             out.append(f"| `{label}` | {_fmt(c[key])} |")
         out.append(f"| `node_update_delayed` (replay, lag 32 = N_max) | {_fmt(c['node_update_delayed_lag32'])} |")
         out.append(f"| `node_update_delayed` (retrodict, lag 32 = N_max) | {_fmt(r['node_update_delayed_lag32'])} |")
-        for fusion in ("paper", "difference", "ci"):
+        for fusion in ("paper", "difference"):
             out.append(f"| `master_fuse` ({fusion}, 2 packets) | {_fmt(sec['counts'][('replay', fusion)]['master_fuse'])} |")
+        if ("replay", "ci-every-step") in sec["counts"]:
+            out.append(f"| `master_fuse` (ci, 2 packets, all {ci_iterations(2)} Newton steps) | "
+                       f"{_fmt(sec['counts'][('replay', 'ci-every-step')]['master_fuse_distinct'])} |")
         out.append("")
     sc = comp.get("scaling")
     if sc:
@@ -268,11 +280,21 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
                 f"{bench_peers.growth(ns, [ch[n]['kernel_text'] for n in ns]):.2f} (target: no faster than n^2).", ""]
         nd = sc["nodes"]
         Ms = sorted(nd)
-        out += ["| nodes M (dc_motor_link) | master fuse, difference | master fuse, CI |", "|---:|---:|---:|"]
-        out += [f"| {M} | {_fmt(nd[M]['difference'])} | {_fmt(nd[M]['ci'])} |" for M in Ms]
-        out += ["", f"Fitted growth over M = {Ms[0]}..{Ms[-1]}: difference ~ M^"
+        out += ["| nodes M (dc_motor_link) | master fuse, difference | CI, identical nodes | CI, distinct nodes "
+                "| CI, all steps (worst case) |", "|---:|---:|---:|---:|---:|"]
+        out += [f"| {M} | {_fmt(nd[M]['difference'])} | {_fmt(nd[M]['ci'])} | {_fmt(nd[M]['ci_distinct'])} "
+                f"| {_fmt(nd[M]['ci_every_step'])} |" for M in Ms]
+        out += ["", "Identical nodes: every node sees the same frames with the same noise, so the CI weights "
+                "are 1/M from the start and the search stops after one step. Distinct nodes: node i has "
+                "camera noise (1 + i)^2 R and loses every (i + 3)-th frame, so the weights differ and the "
+                "search runs longer. All steps: the distinct nodes with the early stop off "
+                "(-D<MODEL>_CI_TOL=-1), ci_iterations(M) Newton steps, the worst case.",
+                "", f"Fitted growth over M = {Ms[0]}..{Ms[-1]}: difference ~ M^"
                 f"{bench_peers.growth(Ms, [nd[M]['difference'] for M in Ms]):.2f}, CI ~ M^"
-                f"{bench_peers.growth(Ms, [nd[M]['ci'] for M in Ms]):.2f} (CI target at M = 8: 20,000).", ""]
+                f"{bench_peers.growth(Ms, [nd[M]['ci'] for M in Ms]):.2f} (identical), M^"
+                f"{bench_peers.growth(Ms, [nd[M]['ci_distinct'] for M in Ms]):.2f} (distinct), M^"
+                f"{bench_peers.growth(Ms, [nd[M]['ci_every_step'] for M in Ms]):.2f} (all steps) "
+                "(CI target at M = 8: 20,000).", ""]
         wd = sc["windows"]
         Ns = sorted(wd)
         out += ["| N_max (dc_motor_link) | update_delayed at lag N_max, replay | retrodict | node struct, double [B] |",

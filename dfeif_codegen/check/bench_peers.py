@@ -158,7 +158,11 @@ def scaling(work: Path, callgrind) -> dict:
         row = {}
         for fusion in ("difference", "ci"):
             md = harness.build_model("dc_motor_link", work / f"nodes{M}-{fusion}", "double", "replay", fusion, M)
-            row[fusion] = callgrind(md, work / f"cg-nodes{M}-{fusion}")["master_fuse"]
+            counts = callgrind(md, work / f"cg-nodes{M}-{fusion}")
+            row[fusion] = counts["master_fuse"]
+            row[f"{fusion}_distinct"] = counts["master_fuse_distinct"]
+        every = callgrind(md, work / f"cg-nodes{M}-ci-all", (f"{md.name.upper()}_CI_TOL=-1",))
+        row["ci_every_step"] = every["master_fuse_distinct"]
         out["nodes"][M] = row
     for N in WINDOWS:
         row = {}
