@@ -171,16 +171,22 @@ def test_missing_cross_tool_is_a_setup_error(monkeypatch):
 def test_bench_measures_deterministically(store, run, tmp_path, cross_tools):
     """`codegen bench`'s figures for one build: instruction counts repeat exactly, every section
     is measured, struct sizes come from the target compiler."""
-    from dfeif_codegen.check import bench
+    from dfeif_codegen.check import bench, harness
 
     require_tool("valgrind", "valgrind")
     model = store.library(*run).model
     first, again = bench.callgrind(model, tmp_path / "a"), bench.callgrind(model, tmp_path / "b")
     assert first == again
-    assert set(first) == {"node_update", "node_predict", "master_fuse", "control",
+    assert set(first) == {"node_update", "node_predict", "master_fuse", "master_fuse_distinct", "control",
                           "node_update_delayed_lag1", "node_update_delayed_lag8", "node_update_delayed_lag25",
                           "node_update_delayed_lag32"}
     lags = [first[f"node_update_delayed_lag{lag}"] for lag in (1, 8, 25, 32)]
     assert lags == sorted(lags) and len(set(lags)) == 4   # a longer window replays more steps
+    # the CI search: identical nodes converge in its first step, distinct ones take more, and the
+    # worst-case build (-D<MODEL>_CI_TOL=-1) runs every one of ci_iterations(2) steps
+    ci = harness.build_model("dc_motor_link", tmp_path / "ci", "double", "replay", "ci", 2)
+    normal = bench.callgrind(ci, tmp_path / "ci-a")
+    every = bench.callgrind(ci, tmp_path / "ci-b", bench.ci_every_step(ci))
+    assert normal["master_fuse"] < normal["master_fuse_distinct"] < every["master_fuse_distinct"]
     sizes = bench.target_sizeof(model, tmp_path / "sizeof")
     assert sizes["packet"] == 4 + 4 * (1 + 2 * 3 + 2 * 9)  # step + centre, x, P, x_pred, P_pred in float
