@@ -443,6 +443,26 @@ class _Builder:
         return ca.Function(name, [x, P, xp, Pp, c], [self.packed(Y - Yp), y - yp, ca.vertcat(piv, pivp)],
                            ["x", "P", "xp", "Pp", "c"], ["dY", "dy", "piv"])
 
+    def advance(self, name: str) -> ca.Function:
+        """A stale packet's estimate brought N steps forward at once: x1 = A(N Ts) x + effect and
+        P1 = A(N Ts) P A(N Ts)' + Q_d(N Ts), `effect` the stored inputs' effect over those steps
+        (`input_step`). Exactly the N one-step predictions (sum_i A^i Q A^i' = Q_d(N Ts) for the
+        chains' white-noise model), in the work of one: a packet N_max steps old costs the master
+        one kernel call instead of N_max."""
+        n, m = self.n, self.m
+        N, x, P, e, q = _sym("N"), _sym("x", n), _sym("P", n, n), _sym("effect", n), _sym("q", m)
+        t = N * self.opts.ts
+        A = self.A_of(t)
+        P1 = self.symmetric(ca.mtimes(ca.mtimes(A, self.symmetric(P)), A.T) + self.Q_of(q, t))
+        return ca.Function(name, [N, x, P, e, q], [ca.mtimes(A, x) + e, P1], ["N", "x", "P", "effect", "q"],
+                           ["x1", "P1"])
+
+    def input_step(self, name: str) -> ca.Function:
+        """One stored input's step of that effect: A effect + B v (from 0 at the packet's step)."""
+        e, v = _sym("effect", self.n), _sym("v", self.m)
+        return ca.Function(name, [e, v], [ca.mtimes(self.A, e) + ca.mtimes(self.B, v)], ["effect", "v"],
+                           ["effect1"])
+
     def finish_of(self, Y: ca.SX, y: ca.SX, c: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         Pi, piv = spd_inverse(Y)
         P = self.symmetric(Pi)
@@ -598,6 +618,7 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
         fusion = [b.master_info(name("master_info")), b.fuse_finish(name("fuse_finish"))]
     if opts.fusion == "ci":
         fusion += [b.ci_grad(name("ci_grad")), b.ci_dir(name("ci_dir"))]
+    fusion += [b.advance(name("advance")), b.input_step(name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
     # so its Theta(n^3) straight-line code is not printed twice
     return KernelSet({"filter": filt, "fusion": fusion, "control": [b.control(name("control"))]},

@@ -72,6 +72,8 @@ class Master:
         self.rule, self.n_nodes, self.max_lag = rule, n_nodes, max_lag
         self.A, self.B, _ = flat.discrete(ts)
         self.Q = flat.process_noise(ts, q)
+        self._flat, self._ts, self._q = flat, ts, q
+        self._ahead: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.k = 0
         self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
         self.x_prior, self.P_prior = self.x, self.P
@@ -114,10 +116,16 @@ class Master:
         self.k += 1
 
     def _bring(self, p: Packet):
-        """A packet's (x, P, x_pred, P_pred), predicted from its step to the current one."""
-        x, P, xp, Pp = p.x, p.P, p.x_pred, p.P_pred
+        """A packet's (x, P, x_pred, P_pred) brought from its step to the current one in one step
+        of length N: A(N Ts), Q_d(N Ts) in closed form and the stored inputs' effect (docs/algorithms.md,
+        master 1), equal to N one-step predictions."""
+        N = self.k - p.step
+        if N == 0:
+            return p.x, p.P, p.x_pred, p.P_pred
+        effect = np.zeros_like(p.x)
         for i in range(p.step, self.k):
-            v = self._v[i]
-            x, xp = self.A @ x + self.B @ v, self.A @ xp + self.B @ v
-            P, Pp = self.A @ P @ self.A.T + self.Q, self.A @ Pp @ self.A.T + self.Q
-        return x, P, xp, Pp
+            effect = self.A @ effect + self.B @ self._v[i]
+        if N not in self._ahead:
+            self._ahead[N] = (self._flat.discrete(N * self._ts)[0], self._flat.process_noise(N * self._ts, self._q))
+        A, Q = self._ahead[N]
+        return A @ p.x + effect, A @ p.P @ A.T + Q, A @ p.x_pred + effect, A @ p.P_pred @ A.T + Q

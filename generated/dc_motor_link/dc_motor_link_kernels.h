@@ -42,6 +42,16 @@ int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Pc[9], const dc_moto
                                    dc_motor_link_real x[3], dc_motor_link_real P[9],
                                    dc_motor_link_real piv[6]);
 
+/* dc_motor_link_kern_advance:(N,x[3],P[3x3],effect[3],q)->(x1[3],P1[3x3]) */
+int dc_motor_link_kern_advance(const dc_motor_link_real N[1], const dc_motor_link_real x[3],
+                               const dc_motor_link_real P[9], const dc_motor_link_real effect[3],
+                               const dc_motor_link_real q[1], dc_motor_link_real x1[3],
+                               dc_motor_link_real P1[9]);
+
+/* dc_motor_link_kern_input_step:(effect[3],v)->(effect1[3]) */
+int dc_motor_link_kern_input_step(const dc_motor_link_real effect[3], const dc_motor_link_real v[1],
+                                  dc_motor_link_real effect1[3]);
+
 /* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det,nsat) */
 #define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 13
 int dc_motor_link_kern_control(const dc_motor_link_real x[3], const dc_motor_link_real flags[4],

@@ -53,35 +53,40 @@ static void master_recentre(dc_motor_link_master* master)
     }
 }
 
-/* Predict (x, P) from step j to step k with the stored inputs (in place, through a copy). */
-static int catch_up(const dc_motor_link_master* master, uint32_t j, real* x, real* P)
+/* The stored inputs' effect on an estimate of step j at the master's step k: the sum over
+ * s = j .. k-1 of A^(k-1-s) B v(s), one step per input (from 0). */
+static void inputs_effect(const dc_motor_link_master* master, uint32_t j, real effect[NX])
 {
-    real x1[NX];
-    real P1[NXX];
+    real next[NX];
     uint32_t s;
-    int rc = DC_MOTOR_LINK_OK;
-    for (s = j; (s < master->k) && (rc == DC_MOTOR_LINK_OK); s++) {
-        rc = master_step(x, P, &master->v[input_at(s)], master->q, x1, P1);
-        if (rc == DC_MOTOR_LINK_OK) {
-            (void)memcpy(x, x1, sizeof(x1));
-            (void)memcpy(P, P1, sizeof(P1));
-        }
+    (void)memset(effect, 0, sizeof(real[NX]));
+    for (s = j; s < master->k; s++) {
+        (void)dc_motor_link_kern_input_step(effect, &master->v[input_at(s)], next);
+        (void)memcpy(effect, next, sizeof(next));
     }
-    return rc;
 }
 
 /* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
- * P_in itself when the packet is from this step, else predicted into P_buf; *P_out says which. */
+ * P_in itself when the packet is from this step, else brought forward in one step of length
+ * k - j (effect: the inputs' effect over those steps) into P_buf; *P_out says which. */
 static inline int bring(const dc_motor_link_master* master, const dc_motor_link_packet* pk,
-                        const real* x_in, const real* P_in, real* x, real* P_buf,
-                        const real** P_out)
+                        const real* x_in, const real* P_in, const real* effect, real* x,
+                        real* P_buf, const real** P_out)
 {
+    real x1[NX];
+    uint32_t age;
+    real steps;
     int rc = DC_MOTOR_LINK_OK;
     /* the centres differ by whole steps */
     dc_motor_link_move_origin(x_in, pk->centre, master->centre, x);
     if (pk->step < master->k) {
-        (void)memcpy(P_buf, P_in, sizeof(real[NXX]));
-        rc = catch_up(master, pk->step, x, P_buf);
+        age = master->k - pk->step;
+        steps = (real)age;
+        (void)dc_motor_link_kern_advance(&steps, x, P_in, effect, master->q, x1, P_buf);
+        (void)memcpy(x, x1, sizeof(x1));
+        if ((dc_motor_link_finite(x, NX) == 0) || (dc_motor_link_finite(P_buf, NXX) == 0)) {
+            rc = DC_MOTOR_LINK_ERR_NONFINITE;
+        }
         *P_out = P_buf;
     } else {
         *P_out = P_in;
@@ -183,6 +188,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master,
     real Yacc[NXP];
     real yacc[NX];
     real piv[NPIV];
+    real effect[NX];
     const real* Pk = P;
     real xp[NX];
     real Pp[NXX];
@@ -212,9 +218,12 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master,
         } else if (packet_finite(pk) == 0) {
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
         } else {
-            rc = bring(master, pk, pk->x, pk->P, x, P, &Pk);
+            if (pk->step < master->k) {
+                inputs_effect(master, pk->step, effect);
+            }
+            rc = bring(master, pk, pk->x, pk->P, effect, x, P, &Pk);
             if (rc == DC_MOTOR_LINK_OK) {
-                rc = bring(master, pk, pk->x_pred, pk->P_pred, xp, Pp, &Ppk);
+                rc = bring(master, pk, pk->x_pred, pk->P_pred, effect, xp, Pp, &Ppk);
             }
             if (rc == DC_MOTOR_LINK_OK) {
                 (void)dc_motor_link_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);

@@ -42,6 +42,16 @@ int two_link_arm_kern_fuse_finish(const two_link_arm_real Pc[36], const two_link
                                   two_link_arm_real x[6], two_link_arm_real P[36],
                                   two_link_arm_real piv[12]);
 
+/* two_link_arm_kern_advance:(N,x[6],P[6x6],effect[6],q[2])->(x1[6],P1[6x6]) */
+int two_link_arm_kern_advance(const two_link_arm_real N[1], const two_link_arm_real x[6],
+                              const two_link_arm_real P[36], const two_link_arm_real effect[6],
+                              const two_link_arm_real q[2], two_link_arm_real x1[6],
+                              two_link_arm_real P1[36]);
+
+/* two_link_arm_kern_input_step:(effect[6],v[2])->(effect1[6]) */
+int two_link_arm_kern_input_step(const two_link_arm_real effect[6], const two_link_arm_real v[2],
+                                 two_link_arm_real effect1[6]);
+
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
 #define TWO_LINK_ARM_KERN_CONTROL_SZ_W 54
 int two_link_arm_kern_control(const two_link_arm_real x[6], const two_link_arm_real flags[8],
