@@ -23,7 +23,6 @@ from pathlib import Path
 from dfeif_codegen import __version__
 from dfeif_codegen.check import bench_peers, harness, target
 from dfeif_codegen.codegen import render
-from dfeif_codegen.constants import ci_iterations
 from dfeif_codegen.errors import CodegenError, SetupError
 
 MODELS = ("dc_motor_link", "two_link_arm")
@@ -53,8 +52,27 @@ def callgrind(model: harness.ModelDir, work: Path, defines: tuple[str, ...] = ()
     src = work / f"{model.name}_bench.c"
     src.write_text(env.get_template("harness/bench.c.j2").render(
         p=model.name, P=model.name.upper(), banner=render.banner("harness/bench.c.j2", model.name, __version__)))
-    exe = harness.compile_program([*model.sources(), src], work / "bench", [model.path], [f"-D{d}" for d in defines])
+    exe = harness.compile_program([*model.sources(), src], work / "bench", [model.path],
+                                  [harness.BIND_NOW, *(f"-D{d}" for d in defines)])
     return harness.callgrind(exe, work)[0]
+
+
+def worst_case(model: harness.ModelDir, work: Path, defines: tuple[str, ...] = ()) -> dict[str, dict]:
+    """Per public entry point, the instructions of its costliest call and the median call, over the
+    calls of templates/harness/worst.c.j2, which drives every entry point down its longest path
+    (lag N_max, packets N_max steps stale, distinct nodes, keyed frames of the largest kind)."""
+    work.mkdir(parents=True, exist_ok=True)
+    env = render.environment(model.precision)
+    src = work / f"{model.name}_worst.c"
+    src.write_text(env.get_template("harness/worst.c.j2").render(
+        p=model.name, P=model.name.upper(), banner=render.banner("harness/worst.c.j2", model.name, __version__)))
+    exe = harness.compile_program([*model.sources(), src], work / "worst", [model.path],
+                                  [harness.BIND_NOW, *(f"-D{d}" for d in defines)])
+    calls: dict[str, list[int]] = {}
+    for name, _, total in harness.callgrind_dumps(exe, work)[0]:
+        if name.startswith("worst/"):
+            calls.setdefault(name[len("worst/"):], []).append(total)
+    return {name: {"max": max(c), "median": statistics.median(c), "calls": len(c)} for name, c in calls.items()}
 
 
 def ci_every_step(model: harness.ModelDir) -> tuple[str, ...]:
@@ -132,12 +150,14 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
 
 def _bench_model(name: str, repeat: int, work: Path) -> dict:
     times = build_times(name, repeat, work / "build")
-    counts = {}
+    counts, worst = {}, {}
     for oosm, fusion in BUILDS:
         md = harness.build_model(name, work / f"{oosm}-{fusion}", "double", oosm, fusion)
         counts[(oosm, fusion)] = callgrind(md, work / f"cg-{oosm}-{fusion}")
+        worst[(oosm, fusion)] = worst_case(md, work / f"worst-{oosm}-{fusion}")
         if fusion == "ci":
             counts[(oosm, "ci-every-step")] = callgrind(md, work / f"cg-{oosm}-ci-all", ci_every_step(md))
+            worst[(oosm, "ci-every-step")] = worst_case(md, work / f"worst-{oosm}-ci-all", ci_every_step(md))
     sizeofs = {}
     for precision in ("float", "double"):
         md = harness.build_model(name, work / f"sizeof-{precision}", precision)
@@ -146,7 +166,7 @@ def _bench_model(name: str, repeat: int, work: Path) -> dict:
     sizes, stack = target_sizes(md, work / "os-float-obj")
     md_retro = harness.build_model(name, work / "os-float-retro", "float", "retrodict")
     _, stack_retro = target_sizes(md_retro, work / "os-float-retro-obj")
-    return {"name": name, "times": times, "counts": counts, "sizeof": sizeofs, "sizes": sizes,
+    return {"name": name, "times": times, "counts": counts, "worst": worst, "sizeof": sizeofs, "sizes": sizes,
             "stack": stack, "stack_retro": stack_retro}
 
 
@@ -209,6 +229,30 @@ def _markdown(command: str, sections: list[dict], repeat: int) -> str:
     return "\n".join(out)
 
 
+WORST_BUILDS = ((("replay", "difference"), "replay, difference"), (("retrodict", "difference"), "retrodict, difference"),
+                (("replay", "paper"), "replay, paper"), (("replay", "ci-every-step"), "replay, ci (every Newton step)"))
+
+
+def _worst_table(sec: dict) -> list[str]:
+    """Every public entry point's costliest call per build: the real-time budget."""
+    worst = sec["worst"]
+    builds = [(key, label) for key, label in WORST_BUILDS if key in worst]
+    base = worst[builds[0][0]]
+    out = ["Worst case per entry point (the real-time budget, host -O2, double, 2 nodes, N_max = 32): the "
+           "costliest of every call `templates/harness/worst.c.j2` makes, driving each entry point down its "
+           "longest path: a frame back at lag N_max, the master fusing packets N_max steps stale (brought "
+           "forward in one step each) from distinct nodes (the CI search runs longest; with "
+           "-D<MODEL>_CI_TOL=-1 every Newton step), keyed frames of the largest kind (CRC-32 and "
+           "SipHash-2-4 over the whole frame), estimates that move (the stored values' centre moves). "
+           "The median call is the typical cost.", "",
+           "| entry point | median call | " + " | ".join(label for _, label in builds) + " |",
+           "|---|---:|" + "---:|" * len(builds)]
+    for fn in sorted(base):
+        cells = [_fmt(worst[key][fn]["max"]) if fn in worst[key] else "-" for key, _ in builds]
+        out.append(f"| `{fn}` | {_fmt(base[fn]['median'])} | " + " | ".join(cells) + " |")
+    return out + [""]
+
+
 def _ratio(a, b) -> str:
     return "-" if a is None or b is None else f"{a / b:.2f}"
 
@@ -250,21 +294,7 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
                 " | 1,500 (dc_motor_link) |",
                 f"| node struct, double, N_max = 32 (Cortex-M4F layout) | {sec['sizeof']['double']['node']} B | "
                 "2,560 B (two_link_arm 8,192 B) |", ""]
-        out += ["Worst case per entry point (the real-time budget): the generated code is straight-line except "
-                "the window walk of update_delayed (longest at lag = N_max) and the CI Newton search (at most "
-                "ci_iterations(M) steps; it stops earlier once converged), so the count at the longest input, "
-                "and for CI with every step run (built with -D<MODEL>_CI_TOL=-1), is the worst case.", "",
-                "| entry point | worst-case instructions |", "|---|---:|"]
-        for key, label in (("node_update", "node_update"), ("node_predict", "node_predict"), ("control", "control")):
-            out.append(f"| `{label}` | {_fmt(c[key])} |")
-        out.append(f"| `node_update_delayed` (replay, lag 32 = N_max) | {_fmt(c['node_update_delayed_lag32'])} |")
-        out.append(f"| `node_update_delayed` (retrodict, lag 32 = N_max) | {_fmt(r['node_update_delayed_lag32'])} |")
-        for fusion in ("paper", "difference"):
-            out.append(f"| `master_fuse` ({fusion}, 2 packets) | {_fmt(sec['counts'][('replay', fusion)]['master_fuse'])} |")
-        if ("replay", "ci-every-step") in sec["counts"]:
-            out.append(f"| `master_fuse` (ci, 2 packets, all {ci_iterations(2)} Newton steps) | "
-                       f"{_fmt(sec['counts'][('replay', 'ci-every-step')]['master_fuse_distinct'])} |")
-        out.append("")
+        out += _worst_table(sec)
     sc = comp.get("scaling")
     if sc:
         ch = sc["chains"]

@@ -65,7 +65,7 @@ def _peers_program(spec: str, md: harness.ModelDir, work: Path) -> Path:
         A=[lit(a) for a in np.ravel(A)], B=[lit(b) for b in np.ravel(B)], Q=[lit(q) for q in np.ravel(Q)],
         heads=flat.heads, angles=[int(c.angle) for c in flat.chains],
         banner=render.banner("harness/peers.c.j2", md.name, __version__)))
-    return harness.compile_program([*md.sources(), src], work / "peers", [md.path])
+    return harness.compile_program([*md.sources(), src], work / "peers", [md.path], [harness.BIND_NOW])
 
 
 def c_peers(spec: str, md: harness.ModelDir, work: Path) -> dict:

@@ -66,8 +66,14 @@ def compile_program(sources: Iterable[Path], out: Path, include_dirs: Iterable[P
     return out
 
 
-def callgrind(exe: Path, work: Path) -> tuple[dict[str, float], str]:
-    """Instructions per call of each section a program marks with valgrind client requests
+# Programs whose instructions are counted resolve their library calls (libm's ceil, sin, ...) when
+# they load: bound lazily, the first call of each would count the dynamic linker's lookup (several
+# hundred instructions) as the caller's.
+BIND_NOW = "-Wl,-z,now"
+
+
+def callgrind_dumps(exe: Path, work: Path) -> tuple[list[tuple[str, int, int]], str]:
+    """(section, calls, instructions) of every dump a program makes with valgrind client requests
     (`CALLGRIND_DUMP_STATS_AT("name:calls")`), counted by callgrind (deterministic for the same
     binary and inputs), and the program's stdout."""
     valgrind = shutil.which("valgrind")
@@ -79,14 +85,20 @@ def callgrind(exe: Path, work: Path) -> tuple[dict[str, float], str]:
                            str(exe)], cwd=work, capture_output=True, text=True)
     if proc.returncode != 0:
         raise SetupError(f"callgrind run failed:\n{proc.stderr[-3000:]}")
-    counts = {}
+    dumps = []
     for dump in sorted(work.glob("callgrind.out*")):
         text = dump.read_text(errors="replace")
         desc = re.search(r"^desc: Trigger: Client Request: (\S+):(\d+)$", text, re.M)
         total = re.search(r"^(?:summary|totals): (\d+)", text, re.M)
         if desc and total:
-            counts[desc.group(1)] = int(total.group(1)) / int(desc.group(2))
-    return counts, proc.stdout
+            dumps.append((desc.group(1), int(desc.group(2)), int(total.group(1))))
+    return dumps, proc.stdout
+
+
+def callgrind(exe: Path, work: Path) -> tuple[dict[str, float], str]:
+    """Instructions per call of each section a program marks (`callgrind_dumps`), and its stdout."""
+    dumps, stdout = callgrind_dumps(exe, work)
+    return {name: total / calls for name, calls, total in dumps}, stdout
 
 
 def load(path: Path) -> ctypes.CDLL:
