@@ -286,9 +286,25 @@ class _Builder:
                 out[j, i] = P[i, j]
         return out
 
-    def joseph(self, Pm: ca.SX, K: ca.SX, R: ca.SX) -> ca.SX:
-        IKC = self.I - ca.mtimes(K, self.C)
-        return ca.mtimes(ca.mtimes(IKC, Pm), IKC.T) + ca.mtimes(ca.mtimes(K, R), K.T)
+    def posterior(self, Pm: ca.SX, K: ca.SX, R: ca.SX, used: ca.SX | float = 1) -> ca.SX:
+        """P+ = P - K C P (algorithms.md, node update), each entry (i <= j) computed once and
+        mirrored; an entry in a head's row or column as R K' (= (I - P_HH S^-1) C P exactly),
+        which a precise measurement does not cancel. `used` 0 (and K = 0) gives P back."""
+        n, KCP, RK = self.n, ca.mtimes(K, self.head_rows(Pm)), ca.mtimes(R, K.T)
+        out = ca.SX(n, n)
+        for j in range(n):
+            for i in range(j + 1):
+                if j in self.heads:
+                    a, b = self.heads.index(j), i
+                elif i in self.heads:
+                    a, b = self.heads.index(i), j
+                else:
+                    out[i, j] = Pm[i, j] - KCP[i, j]
+                    out[j, i] = out[i, j]
+                    continue
+                out[i, j] = RK[a, b] if isinstance(used, int) else RK[a, b] + (1 - used) * Pm[i, j]
+                out[j, i] = out[i, j]
+        return out
 
     # kernels ---------------------------------------------------------------------------------
     def predict(self, name: str) -> ca.Function:
@@ -304,17 +320,16 @@ class _Builder:
         posterior packed. A step without one keeps its prior as it is (the node copies it): no
         gamma factor in the gain, so none of its multiplications.
         Prior and posterior are each one vector, x then P (the node stores them so): fewer
-        arguments, all in registers on the host."""
+        arguments, all in registers on the host. The innovation e comes wrapped from the node,
+        whose wrap skips the division and ceil in the common case (a branch, which straight-line
+        code cannot take)."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
-        prior, z, R = _sym("prior", n + npp), _sym("z", m), _sym("R", m, m)
-        x, P, piv = self._update(prior[:n], self.unpack(prior[n:], n), z, 1, R)
-        return ca.Function(name, [prior, z, R], [ca.vertcat(x, self.pack(P)), piv], ["prior", "z", "R"],
+        prior, e, R = _sym("prior", n + npp), _sym("e", m), _sym("R", m, m)
+        Pm = self.unpack(prior[n:], n)
+        _, K, piv = self.gain(Pm, R, 1)
+        x, P = prior[:n] + ca.mtimes(K, e), self.posterior(Pm, K, R)
+        return ca.Function(name, [prior, e, R], [ca.vertcat(x, self.pack(P)), piv], ["prior", "e", "R"],
                            ["post", "piv"])
-
-    def _update(self, xm, Pm, z, gamma, R):
-        e = self.wrap(z - self.head_rows(xm))
-        _, K, piv = self.gain(Pm, R, gamma)
-        return xm + ca.mtimes(K, e), self.joseph(Pm, K, R), piv
 
     def _propagate_P(self, P: ca.SX, q: ca.SX) -> ca.SX:
         """A P A' + Q from the upper triangle of P (the posterior as the node stores it)."""
@@ -380,7 +395,7 @@ class _Builder:
         Phi1 = self.A_of(-N * self.opts.ts)
         AN = self.A_of(N * self.opts.ts)
         _, KN, _ = self.gain(PmN, R, usedN)
-        PN = self.joseph(PmN, KN, R)                  # P(k-N|k-N)
+        PN = self.posterior(PmN, KN, R, usedN)        # P(k-N|k-N)
         wa = -ca.mtimes(Phi1, sw)
         # Q* = Phi1 (Q_d(N Ts) - sum) Phi1': the two nearly cancel, so subtract before Phi1
         # amplifies them (as the reference does), and keep both symmetric (the upper triangle
