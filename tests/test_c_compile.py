@@ -762,12 +762,58 @@ def test_spd_inverse_once_equals_numpy():
         np.testing.assert_allclose(piv_got.ravel(), np.diag(np.linalg.cholesky(S)) ** 2, rtol=1e-10)
 
 
+def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
+    """node_predict and info of a chain of 8 integrators printed as loops (the default above
+    kernels.LOOP_OPS operations) and as straight-line code, double and float: x1 and the Cholesky
+    pivots are the same operations in the same order, so bit-equal (without -ffp-contract, which
+    the library's flags leave at its ISO default, off); P1 sums the same products in another order
+    (each entry of A P A' two sums of at most 8 products, A's rows summing to at most 1.01 here:
+    2 * 8 * 1.01^2 eps relative to max|P|, checked at 1e-13 in double and 1e-5 in float, where
+    eps = 6e-8); Y and y come from substitutions instead of L^-1 (cond(P) < 100, checked:
+    2 n cond eps = 4e-13 double, 1e-4 float, with margin at 1e-11 and 1e-3 of max|Y|, max|y|)."""
+    from dfeif_codegen.check import bench_peers
+    from dfeif_codegen.codegen import kernels
+
+    n = 8
+    spec = tmp_path / "chain8.toml"
+    spec.write_text(bench_peers.chain_model(n))
+    rng = np.random.default_rng(11)
+    G = rng.standard_normal((n, n))
+    P = G @ G.T + 4 * n * np.eye(n)
+    assert np.linalg.cond(P) < 100
+    x, c = rng.standard_normal(n), rng.standard_normal(n)
+    post = np.concatenate([x, [P[i, j] for j in range(n) for i in range(j + 1)]])
+    default = kernels.LOOP_OPS
+    for precision, dtype, tol in (("double", np.float64, (1e-13, 1e-11)), ("float", np.float32, (1e-5, 1e-3))):
+        got = {}
+        for loop_ops in (default, 10 ** 6):
+            monkeypatch.setattr(kernels, "LOOP_OPS", loop_ops)
+            folder = tmp_path / f"{precision}{loop_ops}"
+            mod = build.build(str(spec), folder, precision=precision)
+            lib = shared_library(mod.path, folder)
+            args = [a.astype(dtype) for a in (post, np.array([0.3]), np.array([2.0]), np.zeros(n),
+                                              np.zeros(n * (n + 1) // 2), x, P.ravel(), c, np.zeros(n * n),
+                                              np.zeros(n), np.zeros(n))]
+            ptr = [a.ctypes.data_as(ctypes.c_void_p) for a in args]
+            assert lib.chain8_kern_node_predict(*ptr[:5]) == 0
+            assert lib.chain8_kern_info(*ptr[5:]) == 0
+            got[loop_ops == default] = [args[i].astype(float) for i in (3, 4, 8, 9, 10)]
+        (x1, P1, Y, y, piv), (x1s, P1s, Ys, ys, pivs) = got[True], got[False]
+        assert np.array_equal(x1, x1s) and np.array_equal(piv, pivs), precision
+        for a, b, t in ((P1, P1s, tol[0]), (Y, Ys, tol[1]), (y, ys, tol[1])):
+            np.testing.assert_allclose(a, b, rtol=0, atol=t * np.abs(b).max(), err_msg=precision)
+        assert not np.array_equal(P1, P1s)   # the looped code did run
+
+
 def test_filter_kernels_of_a_long_chain(tmp_path):
-    """A flat chain of 7 integrators (any user model): the master's predict, printed as a call of
-    node_predict on packed copies, equals CasADi's own evaluation of the unshared predict
-    expression (the same operations: bit-equal unless a compiler fuses a*b+c, which moves each
-    entry by at most a few ulps, hence 1e-13), both halves of P1 equal; the info kernel equals
-    numpy's inverse (cond < 1e3 checked: 2 n cond eps = 3e-12, hence 1e-10)."""
+    """A flat chain of 7 integrators (any user model), whose node_predict and info are printed as
+    loops (above kernels.LOOP_OPS operations): the master's predict, a call of node_predict on packed copies,
+    equals CasADi's own evaluation of the unshared predict expression: each entry of A P A' is
+    two sums of at most 7 products in either, A's rows sum to at most 1.01 here, so the two
+    differ by at most 2 * 7 * 1.01^2 eps max|P| = 3.2e-15 max|P1| (max|P1| >= max|P|, as A's
+    diagonal is 1 and Q >= 0), within 1e-13 max|P1| on any IEEE machine; both halves of P1 equal;
+    the info kernel equals numpy's inverse (cond < 1e3 checked: 2 n cond eps = 3e-12, hence
+    1e-10)."""
     from dfeif_codegen.check import bench_peers, harness
     from dfeif_codegen.codegen import kernels
 
@@ -785,8 +831,9 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     assert lib("kern_predict", x, P.ravel().copy(), v, q, x1, P1) == 0
     b = kernels._Builder(flatness.derive(model.load(str(spec))), Options(ts=0.01))
     x1_ref, P1_ref = (np.array(a) for a in b.predict("p")(x, P, v, q))
+    assert {"chain7_kern_node_predict", "chain7_kern_info"} <= set(kernels.build(b.flat, b.opts, "chain7").loops)
     np.testing.assert_allclose(x1, x1_ref.ravel(), rtol=1e-13)
-    np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=1e-13)
+    np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=0, atol=1e-13 * np.abs(P1_ref).max())
     assert np.array_equal(P1.reshape(n, n), P1.reshape(n, n).T)
     c = rng.standard_normal(n)
     Y, y, piv = np.zeros(n * n), np.zeros(n), np.zeros(n)

@@ -250,7 +250,8 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
                 " | 1,500 (dc_motor_link) |",
                 f"| node struct, double, N_max = 32 (Cortex-M4F layout) | {sec['sizeof']['double']['node']} B | "
                 "2,560 B (two_link_arm 8,192 B) |", ""]
-        out += ["Worst case per entry point (the real-time budget): the generated code is straight-line except "
+        out += ["Worst case per entry point (the real-time budget): the generated code runs the same "
+                "instructions on every call (straight-line, or loops of fixed length) except "
                 "the window walk of update_delayed (longest at lag = N_max) and the CI Newton search (at most "
                 "ci_iterations(M) steps; it stops earlier once converged), so the count at the longest input, "
                 "and for CI with every step run (built with -D<MODEL>_CI_TOL=-1), is the worst case.", "",
