@@ -6,7 +6,14 @@ import numpy as np
 
 from conftest import require_tool
 from dfeif_codegen.check import bench_peers, harness
+from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import flatness, model as model_mod
+
+
+def _chain(n: int, folder):
+    path = folder / f"chain{n}.toml"
+    path.write_text(bench_peers.chain_model(n))
+    return path
 
 
 def test_synthetic_chain_is_flat_with_relative_degree_n(tmp_path):
@@ -39,12 +46,13 @@ def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
 def test_kernel_text_splits_the_filter_object_by_kernel(tmp_path):
     """check.kernel_text's per-kernel bytes (nm symbol sizes) add up to the object's .text as
     arm-none-eabi-size counts it (each kernel is its own section: nothing else is in it), the
-    replay build's four filter kernels; the master's predict, a call of node_predict on packed
-    copies, is smaller than node_predict itself once n > 2."""
+    replay build's four filter kernels, the static parts of looped kernels (n = 8) counted with
+    their kernel; the master's predict, a call of node_predict on packed copies, is smaller than
+    node_predict itself once n > 2."""
     require_tool("arm-none-eabi-gcc", "gcc-arm-none-eabi")
     from dfeif_codegen.check import kernel_text
 
-    for n in (2, 4):
+    for n in (2, 4, 8):
         per, text = kernel_text.chain_kernels(n, tmp_path)
         assert set(per) == {"predict", "node_predict", "update", "info"}
         assert sum(per.values()) == text
@@ -72,3 +80,21 @@ def test_worst_case_counts_every_public_entry_point(host_cc, tmp_path):
     # prediction at a time they cost 26 times (measured, 39,001 vs 1,474 instructions)
     assert fuse["max"] < 5 * fuse["median"]
     assert late["max"] > 16 * step["max"]      # 33 steps of the window replayed
+
+
+def test_looped_filter_kernels_grow_as_n_squared(tmp_path):
+    """On chains of 7 integrators and more, node_predict and info are loops over parts of O(n^2)
+    straight-line code (kernels.LOOP_OPS): their Cortex-M4F .text from n = 7 to 10 grows by less than (10/7)^2 =
+    2.04 (lower-order terms only lower the ratio). Their straight-line code, Theta(n^3) bytes,
+    grows by 3.2 over the same step."""
+    require_tool("arm-none-eabi-gcc", "gcc-arm-none-eabi")
+    from dfeif_codegen.check import kernel_text
+    from dfeif_codegen.codegen import kernels
+
+    flat = flatness.derive(model_mod.load(str(_chain(7, tmp_path))))
+    assert len(kernels.build(flat, Options(ts=flat.model.ts), "chain7").loops) == 2
+    size = {}
+    for n in (7, 10):
+        per, _ = kernel_text.chain_kernels(n, tmp_path)
+        size[n] = per["node_predict"] + per["info"]
+    assert size[10] / size[7] < (10 / 7) ** 2

@@ -53,7 +53,7 @@ def short_run():
 def test_nodes_equal_the_replay_filter(short_run):
     """A linear Kalman filter's covariance does not depend on the data, so the replay node filter's
     P in a real closed-loop run at (25, 30, 0.6) is the bound's per-node recursion: two
-    implementations (rewind-and-replay in Joseph form; windowed information form), equal to
+    implementations (rewind-and-replay; windowed information form), equal to
     1e-10 relative (both are backward stable on these well-conditioned 3x3 matrices)."""
     cfg, res = short_run
     A, Q, R, P0, _ = bounds.matched_model(cfg)

@@ -414,9 +414,10 @@ def test_node_matches_numpy(built, tmp_path):
         assert lib("node_update", node, z, gamma) == 0
         got_x, got_P = np.zeros(3), np.zeros(9)
         lib("node_estimate", node, got_x, got_P)
-        # same Joseph-form formula in C and numpy on a 3x3 P: a few dozen flops per entry, each
-        # rounding once (eps = 1.1e-16), so 1e-12 relative is ~100x the worst accumulation on any
-        # IEEE machine; atol covers entries that cancel to ~0
+        # numpy's Joseph form against the C's P - K C P (heads' row R K'): equal in exact
+        # arithmetic, a few dozen flops per entry of a well-conditioned 3x3 P, each rounding once
+        # (eps = 1.1e-16), so 1e-12 relative is ~100x the worst accumulation on any IEEE
+        # machine; atol covers entries that cancel to ~0
         np.testing.assert_allclose(got_x, x, rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(got_P.reshape(3, 3), P, rtol=1e-12, atol=1e-16)
         v = np.array([np.sin(0.3 * k)])
@@ -634,8 +635,8 @@ def test_replay_from_checkpoints_equals_reference(tmp_path):
     (docs/algorithms.md, node storage). Window 6: the lag-6 frames start from the slot furthest
     from its checkpoint at every offset mod 4, and need the flags of steps before the window.
     Each dropped step's frame comes back late (lag 6 or 2), over 60 steps: the C equals the numpy
-    reference filter. The same Joseph-form operations on a 3x3 in both: rounding differs by a
-    few ulps per step and the filter is contracting, so 1e-11 relative holds on any IEEE machine."""
+    reference filter. The same update formula on a 3x3 in both: rounding differs by a few ulps
+    per step and the filter is contracting, so 1e-11 relative holds on any IEEE machine."""
     from dfeif_codegen.check import harness
     from dfeif_codegen.reference.node import NodeFilter
 
@@ -667,6 +668,79 @@ def test_replay_from_checkpoints_equals_reference(tmp_path):
     assert late > 20
 
 
+WRAP_SHIM = """#include "dc_motor_link_internal.h"
+void wrap_all(const real* e, real* out, int n);
+void wrap_all(const real* e, real* out, int n)
+{
+    int i;
+    for (i = 0; i < n; i++) {
+        out[i] = dc_motor_link_wrap(e[i]);
+    }
+}
+"""
+
+
+@pytest.mark.parametrize("variant, dtype", [("dc-double", np.float64), ("dc-float", np.float32)])
+def test_wrap_is_the_formula_bit_for_bit(built, tmp_path, variant, dtype):
+    """The node's angle wrap (a shortcut for |e| <= 3) gives the bits of the formula
+    e - 2 pi ceil((e - pi) / (2 pi)) evaluated in the build's precision, on both sides of 3, of
+    pi and of every multiple of pi up to 9 pi (one ulp either side), on signed zeros, tiny and
+    huge values and a dense grid; non-finite inputs give NaN, as the formula does."""
+    cc = tool("gcc")
+    src = tmp_path / "wrap.c"
+    src.write_text(WRAP_SHIM)
+    so = tmp_path / "libwrap.so"
+    run([cc, "-std=c99", "-O2", "-fPIC", "-shared", "-I", built(variant), src, "-lm", "-o", so])
+    lib = ctypes.CDLL(str(so))
+    edges = [dtype(3), dtype(np.pi)] + [dtype(k * np.pi) for k in range(2, 10)]
+    e = np.concatenate([np.linspace(-30, 30, 20001, dtype=dtype), [0.0, -0.0, 1e-30, -1e-30, 1e30, -1e30]]
+                       + [np.nextafter(np.array([x, x, -x, -x], dtype), np.array([0, 99, 0, -99], dtype))
+                          for x in edges] + [np.array(edges, dtype), -np.array(edges, dtype)]).astype(dtype)
+
+    def wrapped(values: np.ndarray) -> np.ndarray:
+        out = np.zeros_like(values)
+        lib.wrap_all(values.ctypes.data_as(ctypes.c_void_p), out.ctypes.data_as(ctypes.c_void_p),
+                     ctypes.c_int(values.size))
+        return out
+
+    two_pi, pi = dtype(2 * np.pi), dtype(np.pi)
+    want = e - two_pi * np.ceil((e - pi) / two_pi)
+    assert want.dtype == dtype and np.array_equal(wrapped(e).view(np.uint8), want.view(np.uint8))
+    assert np.all(np.isnan(wrapped(np.array([np.inf, -np.inf, np.nan], dtype))))
+
+
+def test_float_update_keeps_a_precise_measurements_variance(built, tmp_path):
+    """A measurement 1e6 times more precise than the prior (R / P_hh = 1e-12): the float node's
+    measured variance is R P_hh / (P_hh + R) to float rounding. Computed as P_hh - K_h P_hh it
+    would cancel to 0 (K_h rounds to 1); the node computes that row as R K' (algorithms.md, the
+    posterior covariance): K_h and R K_h round once each, so 4 eps32 = 4.8e-7 relative holds on
+    any IEEE machine. The whole P equals the double reference's within 1e-5 of sigma_i sigma_j
+    (a few float roundings per entry, eps32 = 6e-8, of a posterior whose correlation matrix has
+    condition number below 10, checked), and stays positive definite over 50 such steps."""
+    from dfeif_codegen.check import loader
+    from dfeif_codegen.reference.node import NodeFilter
+
+    lib = loader.load(built("dc-float"), cache=tmp_path / "cache")
+    flat = _flat("dc_motor_link")
+    G = np.array([[1.0, 0.0, 0.0], [1.0, 3.0, 0.0], [1.0, 2.0, 9.0]])
+    P0, R, q, x0 = G @ G.T, np.array([[1e-12]]), np.array([20.0]), np.zeros(3)
+    node = lib.Node(x0, P0, R, q)
+    ref = NodeFilter(flat, flat.model.ts, q, R, x0, P0)
+    z = np.array([1e-6])
+    node.update(z, 1)
+    ref.update(z, True)
+    P = node.estimate()[1].astype(float)
+    P_hh, R_hh = float(np.float32(P0[0, 0])), float(np.float32(R[0, 0]))
+    assert P[0, 0] == pytest.approx(R_hh * P_hh / (P_hh + R_hh), rel=4.8e-7, abs=0)
+    sigma = np.sqrt(np.diag(ref.P))
+    assert np.linalg.cond(ref.P / np.outer(sigma, sigma)) < 10
+    assert np.max(np.abs(P - ref.P) / np.outer(sigma, sigma)) < 1e-5
+    for k in range(50):
+        node.predict(np.array([0.1]))
+        node.update(np.array([1e-6 * np.cos(k)]), 1)
+        np.linalg.cholesky(node.estimate()[1].astype(float))
+
+
 def test_spd_inverse_once_equals_numpy():
     """The node's information inverse (one division per column, each distinct entry once) against
     numpy's inverse and Cholesky pivots, n = 2..10. Random SPD matrices with cond < 1e3 (checked):
@@ -688,12 +762,58 @@ def test_spd_inverse_once_equals_numpy():
         np.testing.assert_allclose(piv_got.ravel(), np.diag(np.linalg.cholesky(S)) ** 2, rtol=1e-10)
 
 
+def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
+    """node_predict and info of a chain of 8 integrators printed as loops (the default above
+    kernels.LOOP_OPS operations) and as straight-line code, double and float: x1 and the Cholesky
+    pivots are the same operations in the same order, so bit-equal (without -ffp-contract, which
+    the library's flags leave at its ISO default, off); P1 sums the same products in another order
+    (each entry of A P A' two sums of at most 8 products, A's rows summing to at most 1.01 here:
+    2 * 8 * 1.01^2 eps relative to max|P|, checked at 1e-13 in double and 1e-5 in float, where
+    eps = 6e-8); Y and y come from substitutions instead of L^-1 (cond(P) < 100, checked:
+    2 n cond eps = 4e-13 double, 1e-4 float, with margin at 1e-11 and 1e-3 of max|Y|, max|y|)."""
+    from dfeif_codegen.check import bench_peers
+    from dfeif_codegen.codegen import kernels
+
+    n = 8
+    spec = tmp_path / "chain8.toml"
+    spec.write_text(bench_peers.chain_model(n))
+    rng = np.random.default_rng(11)
+    G = rng.standard_normal((n, n))
+    P = G @ G.T + 4 * n * np.eye(n)
+    assert np.linalg.cond(P) < 100
+    x, c = rng.standard_normal(n), rng.standard_normal(n)
+    post = np.concatenate([x, [P[i, j] for j in range(n) for i in range(j + 1)]])
+    default = kernels.LOOP_OPS
+    for precision, dtype, tol in (("double", np.float64, (1e-13, 1e-11)), ("float", np.float32, (1e-5, 1e-3))):
+        got = {}
+        for loop_ops in (default, 10 ** 6):
+            monkeypatch.setattr(kernels, "LOOP_OPS", loop_ops)
+            folder = tmp_path / f"{precision}{loop_ops}"
+            mod = build.build(str(spec), folder, precision=precision)
+            lib = shared_library(mod.path, folder)
+            args = [a.astype(dtype) for a in (post, np.array([0.3]), np.array([2.0]), np.zeros(n),
+                                              np.zeros(n * (n + 1) // 2), x, P.ravel(), c, np.zeros(n * n),
+                                              np.zeros(n), np.zeros(n))]
+            ptr = [a.ctypes.data_as(ctypes.c_void_p) for a in args]
+            assert lib.chain8_kern_node_predict(*ptr[:5]) == 0
+            assert lib.chain8_kern_info(*ptr[5:]) == 0
+            got[loop_ops == default] = [args[i].astype(float) for i in (3, 4, 8, 9, 10)]
+        (x1, P1, Y, y, piv), (x1s, P1s, Ys, ys, pivs) = got[True], got[False]
+        assert np.array_equal(x1, x1s) and np.array_equal(piv, pivs), precision
+        for a, b, t in ((P1, P1s, tol[0]), (Y, Ys, tol[1]), (y, ys, tol[1])):
+            np.testing.assert_allclose(a, b, rtol=0, atol=t * np.abs(b).max(), err_msg=precision)
+        assert not np.array_equal(P1, P1s)   # the looped code did run
+
+
 def test_filter_kernels_of_a_long_chain(tmp_path):
-    """A flat chain of 7 integrators (any user model): the master's predict, printed as a call of
-    node_predict on packed copies, equals CasADi's own evaluation of the unshared predict
-    expression (the same operations: bit-equal unless a compiler fuses a*b+c, which moves each
-    entry by at most a few ulps, hence 1e-13), both halves of P1 equal; the info kernel equals
-    numpy's inverse (cond < 1e3 checked: 2 n cond eps = 3e-12, hence 1e-10)."""
+    """A flat chain of 7 integrators (any user model), whose node_predict and info are printed as
+    loops (above kernels.LOOP_OPS operations): the master's predict, a call of node_predict on packed copies,
+    equals CasADi's own evaluation of the unshared predict expression: each entry of A P A' is
+    two sums of at most 7 products in either, A's rows sum to at most 1.01 here, so the two
+    differ by at most 2 * 7 * 1.01^2 eps max|P| = 3.2e-15 max|P1| (max|P1| >= max|P|, as A's
+    diagonal is 1 and Q >= 0), within 1e-13 max|P1| on any IEEE machine; both halves of P1 equal;
+    the info kernel equals numpy's inverse (cond < 1e3 checked: 2 n cond eps = 3e-12, hence
+    1e-10)."""
     from dfeif_codegen.check import bench_peers, harness
     from dfeif_codegen.codegen import kernels
 
@@ -711,8 +831,9 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     assert lib("kern_predict", x, P.ravel().copy(), v, q, x1, P1) == 0
     b = kernels._Builder(flatness.derive(model.load(str(spec))), Options(ts=0.01))
     x1_ref, P1_ref = (np.array(a) for a in b.predict("p")(x, P, v, q))
+    assert {"chain7_kern_node_predict", "chain7_kern_info"} <= set(kernels.build(b.flat, b.opts, "chain7").loops)
     np.testing.assert_allclose(x1, x1_ref.ravel(), rtol=1e-13)
-    np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=1e-13)
+    np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=0, atol=1e-13 * np.abs(P1_ref).max())
     assert np.array_equal(P1.reshape(n, n), P1.reshape(n, n).T)
     c = rng.standard_normal(n)
     Y, y, piv = np.zeros(n * n), np.zeros(n), np.zeros(n)

@@ -16,7 +16,7 @@ import pytest
 from conftest import require_tool
 from dfeif_codegen.codegen import build, layout
 from dfeif_codegen.symbolic.model import MODEL_NAME_LIMIT
-from test_user_models import FLEX_JOINT, MIXED
+from test_user_models import FLEX_JOINT, LONG_CHAIN, MIXED
 
 VARIANTS = [
     ("dc_motor_link", {}),
@@ -27,6 +27,7 @@ VARIANTS = [
     ("two_link_arm", {"fusion": "ci", "nodes": 4}),
     ("user:flex_joint_link_a", {"oosm": "retrodict", "fusion": "ci"}),
     ("user:mixed_two_input_m", {"precision": "float"}),
+    ("user:long_chain_sevens", {"precision": "float"}),   # kernels printed as loops
 ]
 STYLE = Path(str(resources.files("dfeif_codegen.templates") / ".clang-format"))
 
@@ -37,8 +38,8 @@ def _spec(name: str, tmp: Path):
         return name
     new = name[5:]
     assert len(new) == MODEL_NAME_LIMIT
-    text = FLEX_JOINT if new.startswith("flex") else MIXED
-    old = "flex_joint" if new.startswith("flex") else "mixed"
+    text, old = {"flex": (FLEX_JOINT, "flex_joint"), "mixe": (MIXED, "mixed"),
+                 "long": (LONG_CHAIN, "long_chain")}[new[:4]]
     path = tmp / f"{new}.toml"
     path.write_text(text.replace(f'name = "{old}"', f'name = "{new}"', 1))
     return str(path)

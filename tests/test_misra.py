@@ -15,14 +15,15 @@ import pytest
 from conftest import require_tool
 from dfeif_codegen.check import misra
 from dfeif_codegen.codegen import build
-from test_user_models import MIXED
+from test_user_models import LONG_CHAIN, MIXED
 
 ROOT = Path(__file__).resolve().parents[1]
 # Files (by what follows the model name) that must have no finding at all.
 OWNED = (".h", "_internal.h", "_kernels.h", "_node.c", "_master.c", "_wire.c", "_control.c")
 # The documented built-in variants, and a user MIMO model (two inputs, one flat output an angle).
 VARIANTS = {**misra.VARIANTS, "user model mixed (2 inputs), float, ci": ("user:mixed", {"precision": "float",
-                                                                                         "fusion": "ci"})}
+                                                                                         "fusion": "ci"}),
+            "user model long_chain (7 states: looped kernels)": ("user:long_chain", {})}
 
 
 @pytest.fixture(scope="module")
@@ -30,9 +31,10 @@ def found(tmp_path_factory):
     require_tool("cppcheck", "cppcheck")
     root = tmp_path_factory.mktemp("misra")
     (root / "mixed.toml").write_text(MIXED)
+    (root / "long_chain.toml").write_text(LONG_CHAIN)
     out = {}
     for i, (label, (name, opts)) in enumerate(VARIANTS.items()):
-        spec = str(root / "mixed.toml") if name == "user:mixed" else name
+        spec = str(root / f"{name[5:]}.toml") if name.startswith("user:") else name
         mod = build.build(spec, root / str(i), **opts)
         out[label] = (mod, misra.findings(mod.path, mod.name))
     return out

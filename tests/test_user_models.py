@@ -93,6 +93,14 @@ pos = 0.002
 ang = 0.004
 """
 
+# Seven integrators in one chain: node_predict and info have more than kernels.LOOP_OPS
+# operations, so they are printed as C loops (the format and MISRA tests cover that code).
+LONG_CHAIN = ("[model]\nname = \"long_chain\"\nts = 0.01\n"
+              + "".join(f'[[states]]\nname = "x{i}"\n' for i in range(1, 8))
+              + '[[inputs]]\nname = "u"\n[[parameters]]\nname = "b"\nvalue = 2.0\n[dynamics.f]\n'
+              + "".join(f'x{i} = "x{i + 1}"\n' for i in range(1, 7)) + 'x7 = "0"\n'
+              + '[dynamics.g.u]\nx7 = "b"\n[[outputs]]\nname = "y"\nexpr = "x1"\n[measurement.noise]\ny = 0.01\n')
+
 SCENARIO = """
 [scenario]
 name = "user"

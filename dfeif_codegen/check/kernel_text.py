@@ -17,7 +17,8 @@ from dfeif_codegen.check import bench_peers, harness, target
 
 
 def symbol_sizes(obj: Path) -> dict[str, int]:
-    """Bytes of each function an object defines (`arm-none-eabi-nm -S`, literal pools included)."""
+    """Bytes of each function an object defines, static ones too (`arm-none-eabi-nm -S`, literal
+    pools included)."""
     out = subprocess.run([target.require("arm-none-eabi-nm"), "-S", "--defined-only", str(obj)],
                          capture_output=True, text=True, check=True).stdout
     return {parts[3]: int(parts[1], 16) for parts in (line.split() for line in out.splitlines())
@@ -33,7 +34,11 @@ def chain_kernels(n: int, work: Path) -> tuple[dict[str, int], int]:
     src = [s for s in mf.sources() if s.name == f"chain{n}_kernels_filter.c"]
     obj = target.compile_objects(src, work / f"obj-chain{n}", [mf.path], opt="-Os")[0]
     prefix = f"chain{n}_kern_"
-    per = {name[len(prefix):]: size for name, size in symbol_sizes(obj).items() if name.startswith(prefix)}
+    sizes = {name[len(prefix):]: size for name, size in symbol_sizes(obj).items() if name.startswith(prefix)}
+    per: dict[str, int] = {}
+    for name, size in sorted(sizes.items()):   # a kernel's static parts (kernels.Loop) count as its own
+        owner = max((k for k in sizes if name.startswith(k + "_")), key=len, default=name)
+        per[owner] = per.get(owner, 0) + size
     return per, target.sizes([obj])[obj.name].text
 
 

@@ -90,9 +90,12 @@ def context(flat, opts: Options) -> dict:
     kernel_code, kernel_list = {}, []
     for group, functions in ks.groups.items():
         code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
-                                       local_work=group in ks.local_work, wrappers=ks.wrappers)
+                                       local_work=group in ks.local_work, wrappers=ks.wrappers,
+                                       loops=ks.loops)
+        looped = [k.name[len(p) + 6:] for k in infos if k.name in ks.loops]
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
-                                    + ", ".join(k.name[len(p) + 6:] for k in infos) + ".")
+                                    + ", ".join(k.name[len(p) + 6:] for k in infos) + "."
+                                    + (f" Printed as loops over static parts: {', '.join(looped)}." if looped else ""))
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w, "local_work": k.local_work,
                          "signature": kernels.wrap_comment(_comment(k.signature)),
                          "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real", k.name.upper() + "_SZ_W"),

@@ -4,6 +4,9 @@ Why CasADi: it turns the symbolic model into straight-line C with shared subexpr
 known structure folded away (Brunovsky A_d is constant and sparse, C = e_head picks entries), so
 no generic matrix code ships to the microcontroller. Every kernel is one step of work; loops over
 the late-measurement window, over nodes and over the CI iterations are plain C in the templates.
+Straight-line code of Theta(n^3) operations is Theta(n^3) bytes, so above LOOP_OPS operations,
+node_predict and info are printed as C loops over static straight-line parts of O(n^2) code
+(`Loop`): the same work, a fraction of the bytes.
 
 The sympy model is converted by `symbolic.numeric.to_casadi`, the one sympy -> CasADi bridge.
 The C that CasADi prints is post-processed (`c_source`) into one file per group: internal helpers
@@ -187,9 +190,28 @@ class KernelSet:
     local_work: set[str] = field(default_factory=set)   # groups whose kernels keep work locally
     # kernel -> the kernel it calls on packed copies of its n x n arguments (`packed_wrapper`)
     wrappers: dict[str, str] = field(default_factory=dict)
+    # kernel -> the C loops that compute it instead of its straight-line code (`Loop`)
+    loops: dict[str, "Loop"] = field(default_factory=dict)
 
     def all(self) -> list[ca.Function]:
         return [f for fs in self.groups.values() for f in fs]
+
+
+@dataclass
+class Loop:
+    """A kernel printed as C loops over straight-line parts (`parts`, static in its file, each
+    O(n^2) code) instead of its own straight-line code, which is Theta(n^3) bytes for Theta(n^3)
+    operations. `decls` and `body`: the C between the parameters and the return (`casadi_real`
+    names the real type); the kernel's own ca.Function still gives its signature."""
+
+    parts: list[ca.Function]
+    decls: list[str]
+    body: list[str]
+
+
+def _for(head: str, body: list[str]) -> list[str]:
+    """A C for loop as lines: `for (head) {`, the body indented, `}`."""
+    return [f"for ({head}) {{"] + [INDENT + line for line in body] + ["}"]
 
 
 class _Builder:
@@ -286,9 +308,25 @@ class _Builder:
                 out[j, i] = P[i, j]
         return out
 
-    def joseph(self, Pm: ca.SX, K: ca.SX, R: ca.SX) -> ca.SX:
-        IKC = self.I - ca.mtimes(K, self.C)
-        return ca.mtimes(ca.mtimes(IKC, Pm), IKC.T) + ca.mtimes(ca.mtimes(K, R), K.T)
+    def posterior(self, Pm: ca.SX, K: ca.SX, R: ca.SX, used: ca.SX | float = 1) -> ca.SX:
+        """P+ = P - K C P (algorithms.md, node update), each entry (i <= j) computed once and
+        mirrored; an entry in a head's row or column as R K' (= (I - P_HH S^-1) C P exactly),
+        which a precise measurement does not cancel. `used` 0 (and K = 0) gives P back."""
+        n, KCP, RK = self.n, ca.mtimes(K, self.head_rows(Pm)), ca.mtimes(R, K.T)
+        out = ca.SX(n, n)
+        for j in range(n):
+            for i in range(j + 1):
+                if j in self.heads:
+                    a, b = self.heads.index(j), i
+                elif i in self.heads:
+                    a, b = self.heads.index(i), j
+                else:
+                    out[i, j] = Pm[i, j] - KCP[i, j]
+                    out[j, i] = out[i, j]
+                    continue
+                out[i, j] = RK[a, b] if isinstance(used, int) else RK[a, b] + (1 - used) * Pm[i, j]
+                out[j, i] = out[i, j]
+        return out
 
     # kernels ---------------------------------------------------------------------------------
     def predict(self, name: str) -> ca.Function:
@@ -304,17 +342,16 @@ class _Builder:
         posterior packed. A step without one keeps its prior as it is (the node copies it): no
         gamma factor in the gain, so none of its multiplications.
         Prior and posterior are each one vector, x then P (the node stores them so): fewer
-        arguments, all in registers on the host."""
+        arguments, all in registers on the host. The innovation e comes wrapped from the node,
+        whose wrap skips the division and ceil in the common case (a branch, which straight-line
+        code cannot take)."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
-        prior, z, R = _sym("prior", n + npp), _sym("z", m), _sym("R", m, m)
-        x, P, piv = self._update(prior[:n], self.unpack(prior[n:], n), z, 1, R)
-        return ca.Function(name, [prior, z, R], [ca.vertcat(x, self.pack(P)), piv], ["prior", "z", "R"],
+        prior, e, R = _sym("prior", n + npp), _sym("e", m), _sym("R", m, m)
+        Pm = self.unpack(prior[n:], n)
+        _, K, piv = self.gain(Pm, R, 1)
+        x, P = prior[:n] + ca.mtimes(K, e), self.posterior(Pm, K, R)
+        return ca.Function(name, [prior, e, R], [ca.vertcat(x, self.pack(P)), piv], ["prior", "e", "R"],
                            ["post", "piv"])
-
-    def _update(self, xm, Pm, z, gamma, R):
-        e = self.wrap(z - self.head_rows(xm))
-        _, K, piv = self.gain(Pm, R, gamma)
-        return xm + ca.mtimes(K, e), self.joseph(Pm, K, R), piv
 
     def _propagate_P(self, P: ca.SX, q: ca.SX) -> ca.SX:
         """A P A' + Q from the upper triangle of P (the posterior as the node stores it)."""
@@ -336,6 +373,77 @@ class _Builder:
         x, P, c = _sym("x", n), _sym("P", n, n), _sym("c", n)
         Y, piv = spd_inverse_once(P)
         return ca.Function(name, [x, P, c], [Y, ca.mtimes(Y, x - c), piv], ["x", "P", "c"], ["Y", "y", "piv"])
+
+    def node_predict_loop(self, name: str) -> Loop:
+        """node_predict as loops: G = A P column by column, then row i of A P A' = A (row i of G)',
+        both by the part `A c` (O(nnz A) code); then x1 = A x + B v and P1 = A P A' + Q packed
+        (O(n^2) code). Twice the multiplications of the straight-line code (no symmetry in the
+        products), none of its Theta(n^3) bytes."""
+        n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
+        c = _sym("col", n)
+        a = ca.Function(f"{name}_a", [c], [ca.mtimes(self.A, c)], ["col"], ["Acol"])
+        post, v, q, M = _sym("post", n + npp), _sym("v", m), _sym("q", m), _sym("APA", n * n)
+        x1 = ca.mtimes(self.A, post[:n]) + ca.mtimes(self.B, v)
+        P1 = ca.reshape(M, n, n) + self.Q_of(q)
+        end = ca.Function(f"{name}_end", [post, v, q, M], [x1, self.pack(P1)], ["post", "v", "q", "APA"],
+                          ["x1", "P1"])
+        unpack = ["k = 0;"] + _for(f"j = 0; j < {n}; j++", _for("i = 0; i <= j; i++", [
+            f"P[(j * {n}) + i] = post[{n} + k];", f"P[(i * {n}) + j] = post[{n} + k];", "k++;"]))
+        body = (unpack + _for(f"j = 0; j < {n}; j++", [f"(void){name}_a(&P[j * {n}], &G[j * {n}]);"])
+                + _for(f"i = 0; i < {n}; i++", _for(f"j = 0; j < {n}; j++", [f"g[j] = G[(j * {n}) + i];"])
+                       + [f"(void){name}_a(g, &P[i * {n}]);"])
+                + [f"(void){name}_end(post, v, q, P, x1, P1);"])
+        decls = [f"casadi_real P[{n * n}]; /* P, then A P A' */", f"casadi_real G[{n * n}]; /* A P */",
+                 f"casadi_real g[{n}]; /* a row of A P */", "int i;", "int j;", "int k;"]
+        return Loop([a, end], decls, body)
+
+    def _forward(self, L: ca.SX, r: ca.SX, b: ca.SX) -> list:
+        """z = L^-1 b for the lower-triangular L of `info_loop` (row k at L[k n ...], 1 / L_kk in r),
+        in _chol_reciprocal's order of operations; a row whose r is still 0 gives z = 0."""
+        n, z = self.n, []
+        for k in range(n):
+            s = b[k]
+            for j in range(k):
+                s = s - L[k * n + j] * z[j]
+            z.append(s * r[k])
+        return z
+
+    def info_loop(self, name: str) -> Loop:
+        """info as loops: the Cholesky factor row by row (part `row`: a forward substitution with
+        the rows above, the pivot and 1 / sqrt of it; the same operations as the straight-line
+        factorisation), then each column of Y = P^-1 and y = P^-1 (x - c) by two substitutions
+        (part `solve`). Each part O(n^2) code; the solves take about twice the straight-line
+        code's operations."""
+        n = self.n
+        L, r, b, bii = _sym("L", n * n), _sym("r", n), _sym("b", n), _sym("bii")
+        z = self._forward(L, r, b)
+        d = bii
+        for zk in z:
+            d = d - zk * zk
+        row = ca.Function(f"{name}_row", [L, r, b, bii], [ca.vertcat(*z), d, ca.sqrt(1 / d)],
+                          ["L", "r", "b", "bii"], ["z", "d", "rd"])
+        w = [None] * n
+        z = self._forward(L, r, b)
+        for k in reversed(range(n)):
+            s = z[k]
+            for j in range(k + 1, n):
+                s = s - L[j * n + k] * w[j]
+            w[k] = s * r[k]
+        solve = ca.Function(f"{name}_solve", [L, r, b], [ca.vertcat(*w)], ["L", "r", "b"], ["sol"])
+        body = (_for(f"i = 0; i < {n * n}; i++", ["L[i] = (casadi_real)0;"])
+                + _for(f"i = 0; i < {n}; i++", ["r[i] = (casadi_real)0;", "e[i] = (casadi_real)0;"])
+                + _for(f"i = 0; i < {n}; i++", [
+                    f"(void){name}_row(L, r, &P[i * {n}], &P[(i * {n}) + i], z, &piv[i], &rd);", "r[i] = rd;"]
+                    + _for("j = 0; j < i; j++", [f"L[(i * {n}) + j] = z[j];"]))
+                + _for(f"j = 0; j < {n}; j++", ["e[j] = (casadi_real)1;", f"(void){name}_solve(L, r, e, z);",
+                                              "e[j] = (casadi_real)0;"]
+                       + _for("i = 0; i <= j; i++", [f"Y[(j * {n}) + i] = z[i];", f"Y[(i * {n}) + j] = z[i];"]))
+                + _for(f"i = 0; i < {n}; i++", ["e[i] = x[i] - c[i];"])
+                + [f"(void){name}_solve(L, r, e, y);"])
+        decls = [f"casadi_real L[{n * n}]; /* the Cholesky factor's rows, 0 until computed */",
+                 f"casadi_real r[{n}]; /* 1 / L_ii, 0 until computed */", f"casadi_real e[{n}];",
+                 f"casadi_real z[{n}];", "casadi_real rd;", "int i;", "int j;"]
+        return Loop([row, solve], decls, body)
 
     def retro_step(self, name: str) -> ca.Function:
         """One step n (slot k-n) of the backward recursion of the retrodiction (algorithms.md):
@@ -380,7 +488,7 @@ class _Builder:
         Phi1 = self.A_of(-N * self.opts.ts)
         AN = self.A_of(N * self.opts.ts)
         _, KN, _ = self.gain(PmN, R, usedN)
-        PN = self.joseph(PmN, KN, R)                  # P(k-N|k-N)
+        PN = self.posterior(PmN, KN, R, usedN)        # P(k-N|k-N)
         wa = -ca.mtimes(Phi1, sw)
         # Q* = Phi1 (Q_d(N Ts) - sum) Phi1': the two nearly cancel, so subtract before Phi1
         # amplifies them (as the reference does), and keep both symmetric (the upper triangle
@@ -592,6 +700,12 @@ class _Builder:
 # Cortex-M4F code this halves at n = 10).
 LOCAL_WORK = ("_kern_update", "_kern_node_predict", "_kern_retro_step", "_kern_retro_finish", "_kern_info")
 
+# node_predict and info are printed as loops (`Loop`) when their straight-line code would have
+# more operations than this (CasADi's count): from a chain of 7 integrators on (548 and 601; a
+# chain of 6 has 371 and 410, two_link_arm 196 and 410), where the loops are 32% smaller and
+# the node step 1.8 times slower (Cortex-M4F and host figures in docs/algorithms.md).
+LOOP_OPS = 500
+
 # A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
 # canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
 # quarter (and packing halves it) for at most 3 extra P steps per late measurement.
@@ -608,8 +722,8 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     """All kernels the chosen options need, named `<prefix>_kern_<name>`."""
     b = _Builder(flat, opts)
     name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
-    filt = [b.predict(name("predict")), b.node_predict(name("node_predict")), b.update(name("update")),
-            b.info(name("info"))]
+    node_predict, info = b.node_predict(name("node_predict")), b.info(name("info"))
+    filt = [b.predict(name("predict")), node_predict, b.update(name("update")), info]
     if opts.oosm == "retrodict":
         filt += [b.retro_step(name("retro_step")), b.retro_finish(name("retro_finish"))]
     if opts.fusion == "difference":
@@ -621,8 +735,10 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     fusion += [b.advance(name("advance")), b.input_step(name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
     # so its Theta(n^3) straight-line code is not printed twice
+    loops = {f.name(): loop(f.name()) for f, loop in ((node_predict, b.node_predict_loop), (info, b.info_loop))
+             if f.n_instructions() > LOOP_OPS}
     return KernelSet({"filter": filt, "fusion": fusion, "control": [b.control(name("control"))]},
-                     local_work={"fusion"}, wrappers={name("predict"): name("node_predict")})
+                     local_work={"fusion"}, wrappers={name("predict"): name("node_predict")}, loops=loops)
 
 
 # --- C source ---------------------------------------------------------------------------------
@@ -703,7 +819,8 @@ def _function(head: str, params: list[str], body: list[str]) -> str:
 
 def c_source(functions: list[ca.Function], real: str, precision: str,
              helpers: str = "casadi", local_work: bool = False,
-             wrappers: dict[str, str] | None = None) -> tuple[str, list[KernelC]]:
+             wrappers: dict[str, str] | None = None,
+             loops: dict[str, Loop] | None = None) -> tuple[str, list[KernelC]]:
     """C for a group of kernels: helpers `static`, one typed entry point per kernel
     `int name(const real in1[k1], ..., real out1[j1], ..., real w[SZ_W])`, spaced like clang-format;
     CasADi's helpers (`casadi_sq`, ...) renamed `<helpers>_sq`.
@@ -712,11 +829,15 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
     `arg[]`/`res[]` by position; and no array of pointers is left to get wrong.
     `local_work`: the work is a local array instead of the last parameter; it cannot alias the
     arguments, so the compiler keeps it in registers (the master's kernels use this).
-    `wrappers`: kernels printed as `packed_wrapper` calls of another kernel of the group."""
-    wrappers = wrappers or {}
+    `wrappers`: kernels printed as `packed_wrapper` calls of another kernel of the group.
+    `loops`: kernels printed as C loops over their parts (`Loop`), the parts static."""
+    wrappers, loops = wrappers or {}, loops or {}
+    looped = [f for f in functions if f.name() in loops]
+    parts = {g.name() for f in looped for g in loops[f.name()].parts}
+    functions = functions + [g for f in looped for g in loops[f.name()].parts]
     by_name = {f.name(): f for f in functions}
     wrapped = [f for f in functions if f.name() in wrappers]
-    functions = [f for f in functions if f.name() not in wrappers]
+    functions = [f for f in functions if f.name() not in wrappers and f.name() not in loops]
     cg = ca.CodeGenerator("kernels", {"casadi_int": "int", "casadi_real": "double", "avoid_stack": True,
                                       "main": False, "mex": False, "with_header": False,
                                       "with_export": False, "verbose": False, "include_math": True})
@@ -761,7 +882,7 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
         body = re.sub(r"\bres\[(\d+)\]\[", lambda mt: outs[int(mt.group(1))][0] + "[", body)
         if re.search(r"\b(arg|res)\b", body):
             raise RuntimeError(f"kernel {name}: unexpected CasADi argument pattern")
-        node_local = name.endswith(LOCAL_WORK)   # the node's kernels: one local work array
+        node_local = name.endswith(LOCAL_WORK) or name in parts   # one local work array
         info = KernelC(name, comment[3:-4], max(1, f.sz_w()), ins, outs, local_work or node_local)
         lines = [spaced(line.strip()) for line in body.splitlines() if line.strip()]
         if local_work:   # one scalar per work entry: the compiler keeps them in registers
@@ -771,7 +892,15 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
             lines.insert(0, f"casadi_real w[{info.sz_w}];")
         lines.append("return 0;")
         out.append(f"/* {wrap_comment(info.signature)} */\n"
-                   + _function(f"int {name}", info.parameters(real), lines))
+                   + _function(f"{'static ' if name in parts else ''}int {name}", info.parameters(real), lines))
+        if name not in parts:
+            infos.append(info)
+    for f in looped:
+        loop = loops[f.name()]
+        info = KernelC(f.name(), str(f).rsplit(" ", 1)[0], 1, [(f.name_in(i), f.numel_in(i)) for i in range(f.n_in())],
+                       [(f.name_out(i), f.numel_out(i)) for i in range(f.n_out())], True)
+        out.append(f"/* {wrap_comment(info.signature)} */\n"
+                   + _function(f"int {f.name()}", info.parameters(real), loop.decls + loop.body + ["return 0;"]))
         infos.append(info)
     for f in wrapped:
         info, text = packed_wrapper(f, by_name[wrappers[f.name()]], real)

@@ -55,6 +55,16 @@ def measurement_covariance(R, m: int) -> np.ndarray:
     return R
 
 
+def posterior(P: np.ndarray, K: np.ndarray, R: np.ndarray, heads) -> np.ndarray:
+    """P - K C P (docs/algorithms.md, node update), with the entries in a head's row or column
+    as R K' (equal in exact arithmetic: I - P_HH S^-1 = R S^-1), the upper triangle mirrored."""
+    out = P - K @ P[heads, :]
+    RK = R @ K.T
+    out[heads, :] = RK
+    out[:, heads] = RK.T
+    return np.triu(out) + np.triu(out, 1).T
+
+
 class NodeFilter:
     """Local filter of one node. Per step: `update` once, `update_delayed` any number of times,
     then `predict` with the broadcast input."""
@@ -76,7 +86,6 @@ class NodeFilter:
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])
         self._head_block = np.ix_(self.heads, self.heads)   # hot path: index arrays made once
-        self._eye = np.eye(flat.n, dtype=self.dtype)
         self.k = 0
         self.x = np.array(x0, dtype=self.dtype)
         self.P = np.array(P0, dtype=self.dtype)
@@ -148,15 +157,13 @@ class NodeFilter:
         return self.A @ x + self.B @ v, self.A @ P @ self.A.T + self.Q
 
     def _correct(self, slot: _Slot):
-        """The update of one step from its slot's prior (Joseph form); fills e, S, K, P_post."""
+        """The update of one step from its slot's prior; fills e, S, K, P_post."""
         h, xp, Pp = self.heads, slot.x_prior, slot.P_prior
         slot.e = wrap(slot.z - xp[h], self.angle)
         slot.S = Pp[self._head_block] + self.R
         if slot.gamma:
             slot.K = spd_solve(slot.S, Pp[:, h].T).T
-            ikc = self._eye.copy()
-            ikc[:, h] -= slot.K
-            x, P = xp + slot.K @ slot.e, ikc @ Pp @ ikc.T + slot.K @ self.R @ slot.K.T
+            x, P = xp + slot.K @ slot.e, posterior(Pp, slot.K, self.R, h)
         else:
             slot.K = np.zeros((self.flat.n, self.flat.m), dtype=self.dtype)
             x, P = xp, Pp

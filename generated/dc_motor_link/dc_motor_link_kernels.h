@@ -15,8 +15,8 @@ int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_m
                                     const dc_motor_link_real q[1], dc_motor_link_real x1[3],
                                     dc_motor_link_real P1[6]);
 
-/* dc_motor_link_kern_update:(prior[9],z,R)->(post[9],piv) */
-int dc_motor_link_kern_update(const dc_motor_link_real prior[9], const dc_motor_link_real z[1],
+/* dc_motor_link_kern_update:(prior[9],e,R)->(post[9],piv) */
+int dc_motor_link_kern_update(const dc_motor_link_real prior[9], const dc_motor_link_real e[1],
                               const dc_motor_link_real R[1], dc_motor_link_real post[9],
                               dc_motor_link_real piv[1]);
 

@@ -137,6 +137,12 @@ static inline void recentre(dc_motor_link_node* node, const real* x)
     }
 }
 
+/* The innovation e = z - x[heads] of a state (x first), each angle output's wrapped. */
+static inline void innovation(const real* x, const real* z, real* e)
+{
+    e[0] = dc_motor_link_wrap(z[0] - x[0]);
+}
+
 /* 1 if all pivots of S are strictly positive (and not NaN). */
 static inline int pivots_ok(const real* piv)
 {
@@ -221,6 +227,7 @@ static void put_back_prior(dc_motor_link_node* node)
 int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int gamma)
 {
     real piv[NY];
+    real e[NY];
     real* zk;
     int rc = DC_MOTOR_LINK_OK;
     if ((node == NULL) || ((gamma != 0) && (gamma != 1)) || ((gamma == 1) && (z == NULL))) {
@@ -232,7 +239,8 @@ int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int ga
     if ((rc == DC_MOTOR_LINK_OK) && (gamma == 1)) { /* a non-finite z makes the posterior so */
         zk = &node->ring_z[(int)node->slot];
         centred(node, z, zk);
-        (void)dc_motor_link_kern_update(node->pred, zk, node->R, node->post, piv);
+        innovation(node->pred, zk, e);
+        (void)dc_motor_link_kern_update(node->pred, e, node->R, node->post, piv);
         if (pivots_ok(piv) == 0) {
             rc = DC_MOTOR_LINK_ERR_SINGULAR;
         } else if (finite_state(node->post) == 0) {
@@ -261,9 +269,11 @@ int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int ga
 static int update_step(const real* prior, const real* z, int used, const real* R, real* post)
 {
     real piv[NY];
+    real e[NY];
     int rc = DC_MOTOR_LINK_OK;
     if (used != 0) {
-        (void)dc_motor_link_kern_update(prior, z, R, post, piv);
+        innovation(prior, z, e);
+        (void)dc_motor_link_kern_update(prior, e, R, post, piv);
         if (pivots_ok(piv) == 0) {
             rc = DC_MOTOR_LINK_ERR_SINGULAR;
         } else if (finite_state(post) == 0) {

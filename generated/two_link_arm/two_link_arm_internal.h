@@ -6,6 +6,7 @@
 #ifndef TWO_LINK_ARM_INTERNAL_H
 #define TWO_LINK_ARM_INTERNAL_H
 
+#include <math.h>
 #include <stddef.h>
 #include "two_link_arm.h"
 #include "two_link_arm_kernels.h"
@@ -72,6 +73,19 @@ static inline void two_link_arm_move_origin(const real* x, const real* from, con
     for (i = 0; i < TWO_LINK_ARM_NY; i++) {
         out[two_link_arm_heads[i]] += (to != NULL) ? (from[i] - to[i]) : from[i];
     }
+}
+
+/* An angle output's innovation wrapped into (-pi, pi] by the formula of docs/algorithms.md,
+ * e - 2 pi ceil((e - pi) / (2 pi)), bit for bit. For |e| <= 3 that ceil is of a number in
+ * (-1, 0), so -0, and the formula gives e + 0 (e, a -0 made +0): the common case skips the
+ * division and the ceil. */
+static inline real two_link_arm_wrap(real e)
+{
+    real out = e + (real)0;
+    if ((e < (real)-3) || (e > (real)3)) {
+        out = e - (6.283185307179586 * ceil((e - 3.141592653589793) / 6.283185307179586));
+    }
+    return out;
 }
 
 /* 1 if all n values are finite (x - x is 0 for finite x, NaN otherwise; no math.h macros). */

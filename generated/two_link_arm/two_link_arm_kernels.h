@@ -15,8 +15,8 @@ int two_link_arm_kern_node_predict(const two_link_arm_real post[27], const two_l
                                    const two_link_arm_real q[2], two_link_arm_real x1[6],
                                    two_link_arm_real P1[21]);
 
-/* two_link_arm_kern_update:(prior[27],z[2],R[2x2])->(post[27],piv[2]) */
-int two_link_arm_kern_update(const two_link_arm_real prior[27], const two_link_arm_real z[2],
+/* two_link_arm_kern_update:(prior[27],e[2],R[2x2])->(post[27],piv[2]) */
+int two_link_arm_kern_update(const two_link_arm_real prior[27], const two_link_arm_real e[2],
                              const two_link_arm_real R[4], two_link_arm_real post[27],
                              two_link_arm_real piv[2]);
 

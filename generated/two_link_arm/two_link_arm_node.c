@@ -158,6 +158,13 @@ static inline void recentre(two_link_arm_node* node, const real* x)
     }
 }
 
+/* The innovation e = z - x[heads] of a state (x first), each angle output's wrapped. */
+static inline void innovation(const real* x, const real* z, real* e)
+{
+    e[0] = two_link_arm_wrap(z[0] - x[0]);
+    e[1] = two_link_arm_wrap(z[1] - x[3]);
+}
+
 /* 1 if all pivots of S are strictly positive (and not NaN). */
 static inline int pivots_ok(const real* piv)
 {
@@ -248,6 +255,7 @@ static void put_back_prior(two_link_arm_node* node)
 int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamma)
 {
     real piv[NY];
+    real e[NY];
     real* zk;
     int rc = TWO_LINK_ARM_OK;
     if ((node == NULL) || ((gamma != 0) && (gamma != 1)) || ((gamma == 1) && (z == NULL))) {
@@ -259,7 +267,8 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
     if ((rc == TWO_LINK_ARM_OK) && (gamma == 1)) { /* a non-finite z makes the posterior so */
         zk = &node->ring_z[(int)node->slot * NY];
         centred(node, z, zk);
-        (void)two_link_arm_kern_update(node->pred, zk, node->R, node->post, piv);
+        innovation(node->pred, zk, e);
+        (void)two_link_arm_kern_update(node->pred, e, node->R, node->post, piv);
         if (pivots_ok(piv) == 0) {
             rc = TWO_LINK_ARM_ERR_SINGULAR;
         } else if (finite_state(node->post) == 0) {
@@ -288,9 +297,11 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
 static int update_step(const real* prior, const real* z, int used, const real* R, real* post)
 {
     real piv[NY];
+    real e[NY];
     int rc = TWO_LINK_ARM_OK;
     if (used != 0) {
-        (void)two_link_arm_kern_update(prior, z, R, post, piv);
+        innovation(prior, z, e);
+        (void)two_link_arm_kern_update(prior, e, R, post, piv);
         if (pivots_ok(piv) == 0) {
             rc = TWO_LINK_ARM_ERR_SINGULAR;
         } else if (finite_state(post) == 0) {
