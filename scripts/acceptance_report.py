@@ -76,7 +76,6 @@ def real(model, data):
     get = lambda ri, s, meth, key: np.asarray(data[(ri, s)][meth][key], dtype=float)  # noqa: E731
     bnd = bound_ratios(model, seeds)
     print(f"\n### {model}, real plant, replay + difference, {R} runs (seeds {seeds[0]}–{seeds[-1]}), sinusoid\n")
-    heads = [c.offset for c in flat.chains]
     # delay ratio
     print("| row | master x1 RMSE | ratio to (0,0,0) | exact filter's ratio | met (≤ exact) |")
     print("|---|---|---|---|---|")

@@ -42,7 +42,7 @@ def setup(cfg: ex.Config) -> Setup:
     """The draws of closed_loop.run in the same order (network, noise, initial error)."""
     flat = ex._flat(cfg.model)
     ts = float(cfg.ts or flat.model.ts)
-    n, m, M = flat.n, flat.m, len(cfg.sensor)
+    n, m = flat.n, flat.m
     K = int(round(cfg.duration / ts))
     cams = [ex._camera(cfg.model, float(s), None if std is None else tuple(std))
             for s, std in zip(cfg.noise_scale, cfg.noise_std)]

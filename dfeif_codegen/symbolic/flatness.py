@@ -5,7 +5,6 @@ decoupling matrix, the diffeomorphism `zeta = Phi(x)` and its inverse, and the c
 
 from __future__ import annotations
 
-import random
 from dataclasses import dataclass
 from functools import cached_property
 
