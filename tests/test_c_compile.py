@@ -40,6 +40,9 @@ VARIANTS = {
     "dc-float-retro-ci": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     "arm-double": ("two_link_arm", {}),
     "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
+    # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
+    "free-double": (str(Path(__file__).parent / "data" / "free_cart.toml"), {}),
+    "free-float": (str(Path(__file__).parent / "data" / "free_cart.toml"), {"precision": "float"}),
 }
 FLOAT_VARIANTS = [k for k, (_, o) in VARIANTS.items() if o.get("precision") == "float"]
 
@@ -76,7 +79,7 @@ def built(tmp_path_factory):
     def get(variant: str) -> Path:
         if variant not in cache:
             name, opts = VARIANTS[variant]
-            cache[variant] = build.write_atomic(root / variant, name, render_files(name, **opts))
+            cache[variant] = build.write_atomic(root / variant, _flat(name).model.name, render_files(name, **opts))
         return cache[variant]
     return get
 

@@ -781,13 +781,14 @@ class KernelC:
         (its size is also <NAME>_SZ_W in the kernels header, for the callers; `work` names that
         macro in the prototype, so the header uses every size it defines), unless the kernel
         keeps its work in locals."""
-        return ([f"const {real} {n}[{k}]" for n, k in self.inputs] + [f"{real} {n}[{k}]" for n, k in self.outputs]
+        # a C array has at least one element: an empty input (a model without parameters) is [1]
+        return ([f"const {real} {n}[{max(k, 1)}]" for n, k in self.inputs] + [f"{real} {n}[{k}]" for n, k in self.outputs]
                 + ([] if self.local_work else [f"{real} w[{work or self.sz_w}]"]))
 
 
 def _float_text(text: str) -> str:
     text = _MATH_CALL.sub(lambda mt: mt.group(1) + "f(", text)
-    return _FLOAT_LIT.sub(lambda mt: mt.group(1) + "f", text)
+    return _FLOAT_LIT.sub(lambda mt: layout.single(mt.group(1)), text)
 
 
 def spaced(statement: str) -> str:
@@ -890,6 +891,7 @@ def c_source(functions: list[ca.Function], real: str, precision: str,
                                                                      for line in lines]
         elif node_local:
             lines.insert(0, f"casadi_real w[{info.sz_w}];")
+        lines = [f"(void){n};" for n, k in ins if k == 0] + lines   # an empty input: never read
         lines.append("return 0;")
         out.append(f"/* {wrap_comment(info.signature)} */\n"
                    + _function(f"{'static ' if name in parts else ''}int {name}", info.parameters(real), lines))

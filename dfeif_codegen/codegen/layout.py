@@ -135,3 +135,11 @@ def lay_out(text: str) -> str:
         out.append(_repack(stmt) if ("\n" in stmt or len(stmt) > LIMIT) and "/*" not in stmt else stmt)
         i += 1
     return "\n".join(out)
+
+
+def single(literal: str) -> str:
+    """A decimal literal as single precision: `f` appended, and a value that single precision
+    rounds to zero (below half the least subnormal, 2^-150: a process-noise constant of a long chain
+    at a short period) written as 0, which is what the compiler would make of it, with a warning."""
+    value = float(literal)
+    return ("0.0" if 0.0 < abs(value) <= 2.0 ** -150 else literal) + "f"

@@ -47,7 +47,7 @@ def literal(precision: str):
         text = repr(float(value))
         if "e" not in text and "." not in text and "inf" not in text and "nan" not in text:
             text += ".0"
-        return text + ("f" if precision == "float" else "")
+        return layout.single(text) if precision == "float" else text
     return lit
 
 

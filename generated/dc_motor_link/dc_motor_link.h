@@ -43,6 +43,9 @@ extern "C" {
 #define DC_MOTOR_LINK_NU 1
 /** model parameters (a runtime vector; nominal values in dc_motor_link_params_default) */
 #define DC_MOTOR_LINK_NP 8
+/** length of a parameter array: NP, at least 1 (a C array has at least one element; without
+ * parameters its one entry is unused) */
+#define DC_MOTOR_LINK_NP_SLOTS 8
 /** reference flags: per chain y_d, y_d', ..., y_d^(r) */
 #define DC_MOTOR_LINK_NFLAGS 4
 /** |det G| at the nominal state, nominal parameters */
@@ -225,7 +228,7 @@ typedef struct {
 } dc_motor_link_master;
 
 /** Model parameters at their nominal values (model order, see DC_MOTOR_LINK_P_*). */
-extern const dc_motor_link_real dc_motor_link_params_default[DC_MOTOR_LINK_NP];
+extern const dc_motor_link_real dc_motor_link_params_default[DC_MOTOR_LINK_NP_SLOTS];
 
 /* sizeof, for callers that allocate without this header (e.g. Python ctypes). */
 size_t dc_motor_link_node_size(void);
@@ -434,7 +437,7 @@ int dc_motor_link_command_receive(dc_motor_link_command_rx* rx, const uint8_t* b
 int dc_motor_link_control(const dc_motor_link_real x[DC_MOTOR_LINK_NX],
                           const dc_motor_link_real flags[DC_MOTOR_LINK_NFLAGS],
                           const dc_motor_link_real gains[DC_MOTOR_LINK_NX],
-                          const dc_motor_link_real params[DC_MOTOR_LINK_NP],
+                          const dc_motor_link_real params[DC_MOTOR_LINK_NP_SLOTS],
                           dc_motor_link_real u[DC_MOTOR_LINK_NU],
                           dc_motor_link_real v[DC_MOTOR_LINK_NY], uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:

@@ -12,7 +12,7 @@
 #define NY DC_MOTOR_LINK_NY
 
 /* Nominal parameter values, in model order: L, R, k_e, k_d, J, m, g, l. */
-const real dc_motor_link_params_default[DC_MOTOR_LINK_NP] = {
+const real dc_motor_link_params_default[DC_MOTOR_LINK_NP_SLOTS] = {
     [DC_MOTOR_LINK_P_L] = 0.005, /* [H] */
     [DC_MOTOR_LINK_P_R] = 2.0, /* [ohm] */
     [DC_MOTOR_LINK_P_k_e] = 0.5, /* [N*m/A] */
@@ -30,7 +30,7 @@ const uint8_t dc_motor_link_chain_angle[NY] = DC_MOTOR_LINK_CHAIN_ANGLE;
 const uint8_t dc_motor_link_heads[NY] = DC_MOTOR_LINK_CHAIN_OFFSETS;
 
 int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAGS],
-                          const real gains[NX], const real params[DC_MOTOR_LINK_NP],
+                          const real gains[NX], const real params[DC_MOTOR_LINK_NP_SLOTS],
                           real u[DC_MOTOR_LINK_NU], real v[NY], uint32_t* saturated)
 {
     real ul[NY];

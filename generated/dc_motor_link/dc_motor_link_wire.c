@@ -19,6 +19,10 @@
 #define NMAX DC_MOTOR_LINK_NMAX
 #define HDR DC_MOTOR_LINK_WIRE_HEADER
 #define RS ((size_t)sizeof(real))
+#define PACKET_REALS DC_MOTOR_LINK_PACKET_REALS
+#define PACKET_SIZE DC_MOTOR_LINK_PACKET_WIRE_SIZE
+#define COMMAND_REALS DC_MOTOR_LINK_COMMAND_REALS
+#define COMMAND_SIZE DC_MOTOR_LINK_COMMAND_WIRE_SIZE
 
 /* The model's SHA-256 (hex), and its first 8 bytes: the frames' model field. */
 const char dc_motor_link_model_hash[65] = DC_MOTOR_LINK_MODEL_HASH;
@@ -282,8 +286,7 @@ int dc_motor_link_packet_encode(const dc_motor_link_packet* packet, uint16_t nod
         h.node = node;
         h.step = packet->step;
         h.seq = seq;
-        rc = dc_motor_link_frame_encode(&h, values, DC_MOTOR_LINK_PACKET_REALS, key, buf,
-                                        DC_MOTOR_LINK_PACKET_WIRE_SIZE);
+        rc = dc_motor_link_frame_encode(&h, values, PACKET_REALS, key, buf, PACKET_SIZE);
     }
     return rc;
 }
@@ -328,8 +331,7 @@ int dc_motor_link_command_encode(uint32_t step, const real v[NY], const real u[D
         h.node = DC_MOTOR_LINK_MASTER_ID;
         h.step = step;
         h.seq = seq;
-        rc = dc_motor_link_frame_encode(&h, values, DC_MOTOR_LINK_COMMAND_REALS, key, buf,
-                                        DC_MOTOR_LINK_COMMAND_WIRE_SIZE);
+        rc = dc_motor_link_frame_encode(&h, values, COMMAND_REALS, key, buf, COMMAND_SIZE);
     }
     return rc;
 }

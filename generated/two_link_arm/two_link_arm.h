@@ -43,6 +43,9 @@ extern "C" {
 #define TWO_LINK_ARM_NU 2
 /** model parameters (a runtime vector; nominal values in two_link_arm_params_default) */
 #define TWO_LINK_ARM_NP 11
+/** length of a parameter array: NP, at least 1 (a C array has at least one element; without
+ * parameters its one entry is unused) */
+#define TWO_LINK_ARM_NP_SLOTS 11
 /** reference flags: per chain y_d, y_d', ..., y_d^(r) */
 #define TWO_LINK_ARM_NFLAGS 8
 /** |det G| at the nominal state, nominal parameters */
@@ -231,7 +234,7 @@ typedef struct {
 } two_link_arm_master;
 
 /** Model parameters at their nominal values (model order, see TWO_LINK_ARM_P_*). */
-extern const two_link_arm_real two_link_arm_params_default[TWO_LINK_ARM_NP];
+extern const two_link_arm_real two_link_arm_params_default[TWO_LINK_ARM_NP_SLOTS];
 
 /* sizeof, for callers that allocate without this header (e.g. Python ctypes). */
 size_t two_link_arm_node_size(void);
@@ -437,7 +440,7 @@ int two_link_arm_command_receive(two_link_arm_command_rx* rx, const uint8_t* buf
 int two_link_arm_control(const two_link_arm_real x[TWO_LINK_ARM_NX],
                          const two_link_arm_real flags[TWO_LINK_ARM_NFLAGS],
                          const two_link_arm_real gains[TWO_LINK_ARM_NX],
-                         const two_link_arm_real params[TWO_LINK_ARM_NP],
+                         const two_link_arm_real params[TWO_LINK_ARM_NP_SLOTS],
                          two_link_arm_real u[TWO_LINK_ARM_NU], two_link_arm_real v[TWO_LINK_ARM_NY],
                          uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:

@@ -12,7 +12,7 @@
 #define NY TWO_LINK_ARM_NY
 
 /* Nominal parameter values, in model order: m1, m2, l1, l2, Jm1, Jm2, k_e, k_d, R, L, g. */
-const real two_link_arm_params_default[TWO_LINK_ARM_NP] = {
+const real two_link_arm_params_default[TWO_LINK_ARM_NP_SLOTS] = {
     [TWO_LINK_ARM_P_m1] = 0.4, /* [kg] */
     [TWO_LINK_ARM_P_m2] = 0.2, /* [kg] */
     [TWO_LINK_ARM_P_l1] = 0.25, /* [m] */
@@ -33,7 +33,7 @@ const uint8_t two_link_arm_chain_angle[NY] = TWO_LINK_ARM_CHAIN_ANGLE;
 const uint8_t two_link_arm_heads[NY] = TWO_LINK_ARM_CHAIN_OFFSETS;
 
 int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS],
-                         const real gains[NX], const real params[TWO_LINK_ARM_NP],
+                         const real gains[NX], const real params[TWO_LINK_ARM_NP_SLOTS],
                          real u[TWO_LINK_ARM_NU], real v[NY], uint32_t* saturated)
 {
     real ul[NY];

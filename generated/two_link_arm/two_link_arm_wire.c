@@ -19,6 +19,10 @@
 #define NMAX TWO_LINK_ARM_NMAX
 #define HDR TWO_LINK_ARM_WIRE_HEADER
 #define RS ((size_t)sizeof(real))
+#define PACKET_REALS TWO_LINK_ARM_PACKET_REALS
+#define PACKET_SIZE TWO_LINK_ARM_PACKET_WIRE_SIZE
+#define COMMAND_REALS TWO_LINK_ARM_COMMAND_REALS
+#define COMMAND_SIZE TWO_LINK_ARM_COMMAND_WIRE_SIZE
 
 /* The model's SHA-256 (hex), and its first 8 bytes: the frames' model field. */
 const char two_link_arm_model_hash[65] = TWO_LINK_ARM_MODEL_HASH;
@@ -282,8 +286,7 @@ int two_link_arm_packet_encode(const two_link_arm_packet* packet, uint16_t node,
         h.node = node;
         h.step = packet->step;
         h.seq = seq;
-        rc = two_link_arm_frame_encode(&h, values, TWO_LINK_ARM_PACKET_REALS, key, buf,
-                                       TWO_LINK_ARM_PACKET_WIRE_SIZE);
+        rc = two_link_arm_frame_encode(&h, values, PACKET_REALS, key, buf, PACKET_SIZE);
     }
     return rc;
 }
@@ -328,8 +331,7 @@ int two_link_arm_command_encode(uint32_t step, const real v[NY], const real u[TW
         h.node = TWO_LINK_ARM_MASTER_ID;
         h.step = step;
         h.seq = seq;
-        rc = two_link_arm_frame_encode(&h, values, TWO_LINK_ARM_COMMAND_REALS, key, buf,
-                                       TWO_LINK_ARM_COMMAND_WIRE_SIZE);
+        rc = two_link_arm_frame_encode(&h, values, COMMAND_REALS, key, buf, COMMAND_SIZE);
     }
     return rc;
 }
