@@ -5,29 +5,30 @@ either constant changes the reference and the C together, and the equivalence te
 """
 
 CI_REGULARISER = 1e-2
-"""Covariance intersection minimises tr(P(w)) + rho/2 |w|^2 with rho = CI_REGULARISER * max_i H_ii:
-the quadratic term makes the optimum unique when nodes carry the same information."""
+"""Covariance intersection minimises tr(P(w)) + rho/2 |w|^2 with rho = CI_REGULARISER * max_i H_ii
+at the search's start (w_i = 1/M): the quadratic term makes the optimum unique when nodes carry the
+same information."""
 
-CI_ITERATIONS = 12
-"""The fewest Newton steps of the covariance-intersection weights (see ci_iterations)."""
+CI_ITERATIONS = 10
+"""Newton steps of the covariance-intersection weights, at most (see ci_iterations)."""
 
 
 CI_TOLERANCE = {"double": 1e-12, "float": 0.0}
-"""The search stops early after a full Newton step (no weight fixed at 0 or freed) of at most
-this size in every weight. In the tail the steps shrink by ~1e-2 each (rho follows the iterate,
-docs/algorithms.md), so the weights are then ~1e-2 of the tolerance from the fixed point: 1e-14 in
-double, where the reference and the C stay equal even when one of them stops a step earlier.
-Single precision runs the full count (0: it stops only on a step of exactly 0, after which every
-step is 0): there the steps' rounding floor is ~1e-6, and stopping near it re-draws the rounding
-of the weights at the float CI master's hardest steps (measured: 1e-6 moved a user model's float
-master from within 1e-4 of the reference to 1.48e-4; tests/test_user_models.py)."""
+"""The search stops early after a step that fixed and freed no weight and moved none by more than
+this. rho is fixed for the search, so Newton's steps shrink quadratically in the tail: the step
+after one of 1e-12 is ~1e-24, and the weights are then at the fixed point to rounding, where the
+reference and the C stay equal even when one of them stops a step earlier. Single precision runs
+the full count (0: it stops only on a step of exactly 0, after which every step is 0): there the
+steps' rounding floor is ~1e-6, and stopping near it re-draws the rounding of the weights at the
+float CI master's hardest steps (measured: 1e-6 moved a user model's float master from within
+1e-4 of the reference to 1.48e-4; tests/test_user_models.py)."""
 
 
 def ci_iterations(nodes: int) -> int:
     """Newton steps of the covariance-intersection weights for a master of `nodes` nodes: fixed,
-    so the C's run time is bounded. The active-set search sets at most one weight to 0 per step,
-    so a sparse optimum (most of 16 nodes at weight 0) needs about one step per node plus a few
-    for Newton's convergence: measured, M + 8 steps reach the optimum to 1e-10 on random node
-    sets where 12 steps left tr P 30% above it at M = 16 (tests/test_ci_weights.py). The cap is the worst case;
-most searches stop earlier (CI_TOLERANCE)."""
-    return max(CI_ITERATIONS, nodes + 8)
+    so the C's run time is bounded, and the same for every M, because one step can fix any number
+    of weights at 0 (its active-set pivots): measured on random node sets of M = 2..16 and n = 2..6
+    (tests/test_ci_weights.py draws them), at most 8 steps reach the fixed point to 1e-13 and the
+    early stop comes by step 9. The cap is the worst case; most searches stop earlier."""
+    del nodes
+    return CI_ITERATIONS

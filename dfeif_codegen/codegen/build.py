@@ -26,7 +26,7 @@ import sympy as sp
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.codegen import kernels, layout, render
-from dfeif_codegen.constants import CI_TOLERANCE, ci_iterations
+from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
 
 GROUP_DOCS = {
@@ -111,6 +111,7 @@ def context(flat, opts: Options) -> dict:
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
         "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
+        "ci_regulariser": CI_REGULARISER,
         "model_hash": model_hash(m), "versions": versions(),
         "cmake_version": cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,

@@ -30,7 +30,6 @@ from dfeif_codegen.symbolic import discretize
 from dfeif_codegen.symbolic.numeric import to_casadi
 from dfeif_codegen.codegen import layout
 from dfeif_codegen.codegen.options import Options
-from dfeif_codegen.constants import CI_REGULARISER
 
 # --- symbolic linear algebra on small matrices ------------------------------------------------
 
@@ -598,7 +597,8 @@ class _Builder:
         gradient and Hessian of tr((sum w_i Y_i)^-1), each Y_i packed; absent nodes have w_i = 0
         and Y_i = 0. With S = sum w_i Y_i = L L', P = S^-1 = L^-T L^-1 and W_i = L^-1 Y_i P:
         g_i = -tr(P Y_i P) = -<L^-1, W_i> and H_ij = 2 tr(P Y_i P Y_j P) = 2 <W_i, W_j> (Frobenius),
-        so the Hessian is a Gram matrix: n^2 products per pair instead of forming P Y_i P Y_j P."""
+        so the Hessian is a Gram matrix: n^2 products per pair instead of forming P Y_i P Y_j P.
+        The regulariser, fixed for a search, is added by the caller (master_ci.c.j2)."""
         n, M = self.n, self.opts.nodes
         d = n * (n + 1) // 2
         w = _sym("w", M)
@@ -617,12 +617,6 @@ class _Builder:
             for j in range(i, M):
                 H[i, j] = 2 * _trace_of_product(W[i], W[j].T)
                 H[j, i] = H[i, j]
-        rho = H[0, 0]                # the regulariser rho/2 |w|^2 (reference/fusion.py)
-        for i in range(1, M):
-            rho = ca.fmax(rho, H[i, i])
-        rho = CI_REGULARISER * rho
-        g = g + rho * w
-        H = H + rho * ca.SX.eye(M)
         return ca.Function(name, [w, Y], [g, H, piv], ["wt", "Y"], ["g", "H", "piv"])
 
     def ci_dir(self, name: str) -> ca.Function:

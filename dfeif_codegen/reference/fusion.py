@@ -18,47 +18,60 @@ from dfeif_codegen.reference.node import Packet
 RULES = ("paper", "difference", "ci")
 
 
+def _ci_derivatives(Ys: list[np.ndarray], w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gradient and Hessian of tr((sum w_i Y_i)^-1) in w."""
+    P = spd_inv(sum(wi * Y for wi, Y in zip(w, Ys)))
+    pyp = [P @ Y @ P for Y in Ys]
+    return -np.array([np.trace(a) for a in pyp]), 2 * np.array([[np.trace(a @ Y @ P) for Y in Ys] for a in pyp])
+
+
 def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None = None,
-                                    tolerance: float = CI_TOLERANCE["double"]) -> np.ndarray:
-    """Weights on the simplex minimising tr((sum w_i Y_i)^-1) (docs/algorithms.md, "ci"), in at
-    most `iterations` steps (default ci_iterations(len(Ys)); the master passes its node count, as
-    the C): Newton steps on the free weights; a weight the step would make negative stops the step
-    at zero and is fixed there, and is freed again once its gradient is the smallest. The search
-    ends early after a full step that froze or freed no weight and moved none by more than
-    `tolerance` (0: always the full count). A small regulariser (rho/2)|w|^2 keeps the optimum
-    unique when two Y_i are equal, so the split of weight between equal nodes is not decided by
-    round-off, and makes the weights a Lipschitz function of the Y_i, so that single precision
-    reproduces them (docs/algorithms.md). One node needs no search: its weight is 1."""
+                                    tolerance: float = CI_TOLERANCE["double"],
+                                    start: np.ndarray | None = None) -> np.ndarray:
+    """Weights on the simplex minimising tr((sum w_i Y_i)^-1) + rho/2 |w|^2 (docs/algorithms.md,
+    "ci"), in at most `iterations` Newton steps (default ci_iterations(len(Ys)), as the C) from
+    `start` (the master passes its last weights, renormalised; w_i = 1/M if None or all 0), the
+    weights at 0 fixed. rho = CI_REGULARISER * max_i H_ii at w_i = 1/M, whatever the start: fixed
+    for the search and independent of history, so Newton converges quadratically. The term makes
+    the optimum unique when two Y_i are equal (no split decided by round-off) and the weights a
+    Lipschitz function of the Y_i, so that single precision reproduces them. Each step minimises the quadratic model over
+    the simplex by active-set pivots: a weight the step would make negative stops it at zero and
+    is fixed there, the model's gradient moves with the step and the rest is solved again, so one
+    step can fix several weights; a fixed weight is freed once its gradient is the smallest. The
+    search ends early after a step that froze or freed no weight and moved none by more than
+    `tolerance` (0: always the full count). One node needs no search: its weight is 1."""
     count = len(Ys)
     iterations = ci_iterations(count) if iterations is None else iterations
-    w = np.full(count, 1.0 / count)
+    uniform = np.full(count, 1.0 / count)
     if count == 1:
-        return w
-    free = np.ones(count, dtype=bool)
+        return uniform
+    total = 0.0 if start is None else float(np.sum(start))
+    w = uniform if total <= 0 else np.asarray(start, dtype=float) / total
+    free = w > 0
+    rho = CI_REGULARISER * np.max(np.diag(_ci_derivatives(Ys, uniform)[1]))
     for _ in range(iterations):
-        P = spd_inv(sum(wi * Y for wi, Y in zip(w, Ys)))
-        pyp = [P @ Y @ P for Y in Ys]
-        g = -np.array([np.trace(a) for a in pyp])
-        H = 2 * np.array([[np.trace(a @ Y @ P) for Y in Ys] for a in pyp])
-        rho = CI_REGULARISER * np.max(np.diag(H))  # rho/2 |w|^2: a unique, well-conditioned optimum
+        g, H = _ci_derivatives(Ys, w)
         g, H = g + rho * w, H + rho * np.eye(count)
         freed = ~free & (g < np.min(g[free]))
         free |= freed
-        f = np.flatnonzero(free)
-        H_f = H[np.ix_(f, f)]
-        kkt = np.block([[H_f, np.ones((f.size, 1))], [np.ones((1, f.size)), np.zeros((1, 1))]])
-        d = np.zeros(count)
-        d[f] = np.linalg.solve(kkt, np.append(-g[f], 0.0))[:f.size]
-        shrinking = f[d[f] < 0]
-        ratios = w[shrinking] / -d[shrinking]
-        if ratios.size and ratios.min() <= 1.0:
-            blocking = shrinking[np.argmin(ratios)]
-            w = w + ratios.min() * d
-            w[blocking], free[blocking] = 0.0, False
-        else:
-            w = w + d
-            if not freed.any() and np.max(np.abs(d)) <= tolerance:
+        pivoted = False
+        while True:
+            f = np.flatnonzero(free)
+            kkt = np.block([[H[np.ix_(f, f)], np.ones((f.size, 1))], [np.ones((1, f.size)), np.zeros((1, 1))]])
+            d = np.zeros(count)
+            d[f] = np.linalg.solve(kkt, np.append(-g[f], 0.0))[:f.size]
+            shrinking = f[d[f] < 0]
+            ratios = w[shrinking] / -d[shrinking]
+            if not (ratios.size and ratios.min() <= 1.0):
                 break
+            blocking, r = shrinking[np.argmin(ratios)], ratios.min()
+            w = w + r * d
+            w[blocking], free[blocking] = 0.0, False
+            g = g + r * (H @ d)
+            pivoted = True
+        w = w + d
+        if not (freed.any() or pivoted) and np.max(np.abs(d)) <= tolerance:
+            break
     return w
 
 
@@ -78,13 +91,16 @@ class Master:
         self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
         self.x_prior, self.P_prior = self.x, self.P
         self._v: dict[int, np.ndarray] = {}
+        self.weights = np.zeros(n_nodes)     # the last CI weights, node by node
+        self.weighed = np.zeros(n_nodes, dtype=bool)     # the nodes the last CI fuse used
 
     def fuse(self, packets: list[Packet | None]) -> None:
         """One entry per node, None when its packet is absent; stale packets (at most max_lag
         steps old) are predicted to the current step, older or future ones are ignored."""
         if len(packets) != self.n_nodes:
             raise ValueError(f"expected {self.n_nodes} entries (None for absent), got {len(packets)}")
-        usable = [self._bring(p) for p in packets if p is not None and 0 <= self.k - p.step <= self.max_lag]
+        picked = [i for i, p in enumerate(packets) if p is not None and 0 <= self.k - p.step <= self.max_lag]
+        usable = [self._bring(packets[i]) for i in picked]
         if not usable:
             self.x, self.P = self.x_prior, self.P_prior
             return
@@ -101,7 +117,14 @@ class Master:
                 Y_pred = spd_inv(Pp)
                 Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
         else:
-            w = covariance_intersection_weights(Ys, ci_iterations(self.n_nodes))
+            # from the last fuse's weights if it used every node used now: the nodes' covariances
+            # move little between steps, so the search starts near its optimum (a start on a few
+            # nodes, as after drops, converges slowly: then from 1/M; docs/algorithms.md)
+            warm = bool(np.all(self.weighed[picked]))
+            w = covariance_intersection_weights(Ys, ci_iterations(self.n_nodes),
+                                                start=self.weights[picked] if warm else None)
+            self.weights, self.weighed = np.zeros(self.n_nodes), np.zeros(self.n_nodes, dtype=bool)
+            self.weights[picked], self.weighed[picked] = w, True
             Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
             y = sum(wi * yi for wi, yi in zip(w, ys))
         self.P = spd_inv(Y)

@@ -67,7 +67,7 @@ extern "C" {
 /** sampling period [s] */
 #define DC_MOTOR_LINK_TS 0.01
 /** Newton steps of covariance intersection */
-#define DC_MOTOR_LINK_CI_ITERATIONS 12
+#define DC_MOTOR_LINK_CI_ITERATIONS 10
 #define DC_MOTOR_LINK_PRECISION_FLOAT 0
 /** 0: replay (exact), 1: retrodiction */
 #define DC_MOTOR_LINK_OOSM_RETRODICT 0
