@@ -111,6 +111,9 @@ def context(flat, opts: Options) -> dict:
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
         "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
+        # the CI Hessian's data: H (M x M), or its factor G (M x n^2) when that step is cheaper
+        "ci_factor": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_grad"), 0),
+        "ci_pivots": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_dir"), 0),
         "ci_regulariser": CI_REGULARISER,
         "model_hash": model_hash(m), "versions": versions(),
         "cmake_version": cmake_version(__version__),

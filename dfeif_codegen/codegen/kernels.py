@@ -592,13 +592,14 @@ class _Builder:
         return ca.Function(name, [Pc, dY, dy, c], [x, P, ca.vertcat(pivc, piv)], ["Pc", "dY", "dy", "c"],
                            ["x", "P", "piv"])
 
-    def ci_grad(self, name: str) -> ca.Function:
+    def ci_grad(self, name: str, lowrank: bool) -> ca.Function:
         """Covariance intersection, first half of a Newton step (algorithms.md, master "ci"):
-        gradient and Hessian of tr((sum w_i Y_i)^-1), each Y_i packed; absent nodes have w_i = 0
-        and Y_i = 0. With S = sum w_i Y_i = L L', P = S^-1 = L^-T L^-1 and W_i = L^-1 Y_i P:
-        g_i = -tr(P Y_i P) = -<L^-1, W_i> and H_ij = 2 tr(P Y_i P Y_j P) = 2 <W_i, W_j> (Frobenius),
-        so the Hessian is a Gram matrix: n^2 products per pair instead of forming P Y_i P Y_j P.
-        The regulariser, fixed for a search, is added by the caller (master_ci.c.j2)."""
+        gradient of tr((sum w_i Y_i)^-1) and the Hessian H, each Y_i packed; absent nodes have
+        w_i = 0 and Y_i = 0. With S = sum w_i Y_i = L L', P = S^-1 = L^-T L^-1 and
+        W_i = L^-1 Y_i P: g_i = -tr(P Y_i P) = -<L^-1, W_i> and H_ij = 2 tr(P Y_i P Y_j P) =
+        2 <W_i, W_j> (Frobenius), a Gram matrix. `F` carries H itself (M x M), or with `lowrank`
+        its factor G (row i = sqrt(2) vec W_i, H = G G'), which the step uses without forming H:
+        O(M n^4) instead of O(M^2 n^2). `hd` is H's diagonal (for the regulariser, master_ci.c.j2)."""
         n, M = self.n, self.opts.nodes
         d = n * (n + 1) // 2
         w = _sym("w", M)
@@ -612,29 +613,80 @@ class _Builder:
         P = self.symmetric(ca.mtimes(Li.T, Li))
         W = [ca.mtimes(ca.mtimes(Li, Yi), P) for Yi in Ys]
         g = ca.vertcat(*[-_trace_of_product(Li, Wi.T) for Wi in W])
-        H = ca.SX(M, M)
-        for i in range(M):
-            for j in range(i, M):
-                H[i, j] = 2 * _trace_of_product(W[i], W[j].T)
-                H[j, i] = H[i, j]
-        return ca.Function(name, [w, Y], [g, H, piv], ["wt", "Y"], ["g", "H", "piv"])
+        if lowrank:
+            G = ca.vertcat(*[math.sqrt(2) * ca.reshape(Wi, 1, n * n) for Wi in W])
+            hd = ca.vertcat(*[ca.dot(G[i, :], G[i, :]) for i in range(M)])
+            F = ca.reshape(G.T, M * n * n, 1)                       # row by row
+        else:
+            H = ca.SX(M, M)
+            for i in range(M):
+                for j in range(i, M):
+                    H[i, j] = 2 * _trace_of_product(W[i], W[j].T)
+                    H[j, i] = H[i, j]
+            hd = ca.diag(H)
+            F = ca.reshape(H, M * M, 1)
+        return ca.Function(name, [w, Y], [g, F, hd, piv], ["wt", "Y"], ["g", "F", "hd", "piv"])
 
-    def ci_dir(self, name: str) -> ca.Function:
-        """Second half: the step d_F of `[H_FF, 1; 1', 0] [d; mu] = [-g_F; 0]`
-        over the free set F (mask f), d_i = 0 off F, by the Schur complement of a Cholesky solve
-        (two triangular solves each, no inverse formed). Off F the matrix is the identity and the
-        right-hand side 0, so d_i is exactly 0."""
-        M = self.opts.nodes
-        g, H, f = _sym("g", M), _sym("H", M, M), _sym("free", M)
-        Hf = ca.SX(M, M)
-        for i in range(M):
-            for j in range(M):
-                Hf[i, j] = f[i] * f[j] * H[i, j]
-            Hf[i, i] = Hf[i, i] + (1 - f[i])
-        L, piv = _chol(Hf)
-        u1, u2 = _chol_solve(L, f * g), _chol_solve(L, f)
+    def ci_dir(self, name: str, lowrank: bool) -> ca.Function:
+        """Second half: the step d_F of `[H_FF + rho I, 1; 1', 0] [d; mu] = [-g_F; 0]` over the
+        free set F (mask f), d_i = 0 off F, by the Schur complement: u1 = Hf^-1 (f g),
+        u2 = Hf^-1 f, mu = -f'u1 / f'u2, d = -(u1 + mu u2), with Hf the regularised H on F and
+        the identity off it (there the right-hand sides are 0, so d_i is exactly 0). Hf^-1 by a
+        Cholesky solve of the M x M matrix, or with `lowrank` by Woodbury's identity through the
+        n^2 x n^2 matrix I + G_F' G_F / rho (Hf = D + G_F G_F', D = rho on F and 1 off it; its
+        eigenvalues are >= 1, so it factors in any precision): O(M n^4 + n^6), linear in M."""
+        n, M = self.n, self.opts.nodes
+        g, f, rho = _sym("g", M), _sym("free", M), _sym("rho")
+        if lowrank:
+            q = n * n
+            Fs = _sym("F", M * q)
+            G = ca.reshape(Fs, q, M).T                                  # row i = node i
+            c = f / rho                 # D^-1 on F (the mask is 0 or 1); rows off F drop out
+            cG = ca.diag(c) @ G
+            C = ca.SX(q, q)             # I + G_F' D^-1 G_F, its lower triangle (all _chol reads)
+            for a in range(q):
+                for b in range(a + 1):
+                    C[a, b] = (1 if a == b else 0) + ca.dot(cG[:, a], G[:, b])
+            L, piv = _chol(C)
+
+            def solve(bv):              # bv is 0 off F: D^-1 bv = c bv
+                return c * bv - ca.mtimes(cG, _chol_solve(L, ca.mtimes(cG.T, bv)))
+        else:
+            Fs = _sym("F", M * M)
+            H = ca.reshape(Fs, M, M)
+            Hf = ca.SX(M, M)
+            for i in range(M):
+                for j in range(M):
+                    Hf[i, j] = f[i] * f[j] * H[i, j]
+                Hf[i, i] = Hf[i, i] + f[i] * rho + (1 - f[i])
+            L, piv = _chol(Hf)
+
+            def solve(bv):
+                return _chol_solve(L, bv)
+        u1, u2 = solve(f * g), solve(f)
         mu = -ca.dot(f, u1) / ca.dot(f, u2)
-        return ca.Function(name, [g, H, f], [-(u1 + mu * u2), piv], ["g", "H", "fmask"], ["d", "piv"])
+        return ca.Function(name, [g, Fs, f, rho], [-(u1 + mu * u2), piv], ["g", "F", "fmask", "rho"], ["d", "piv"])
+
+    def ci_hd(self, name: str, lowrank: bool) -> ca.Function:
+        """(H + rho I) d, for the model's gradient along a pivot: G (G' d) + rho d with `lowrank`."""
+        n, M = self.n, self.opts.nodes
+        d, rho = _sym("d", M), _sym("rho")
+        if lowrank:
+            Fs = _sym("F", M * n * n)
+            G = ca.reshape(Fs, n * n, M).T
+            hd = ca.mtimes(G, ca.mtimes(G.T, d))
+        else:
+            Fs = _sym("F", M * M)
+            hd = ca.mtimes(ca.reshape(Fs, M, M), d)
+        return ca.Function(name, [d, Fs, rho], [hd + rho * d], ["d", "F", "rho"], ["hd"])
+
+    def ci_lowrank(self) -> bool:
+        """Whether the low-rank Newton step costs fewer operations than the M x M one for this
+        model and node count (CasADi's count of the two kernels' operations): it does once M
+        outgrows n^2, roughly."""
+        cost = lambda lr: (self.ci_grad("c", lr).n_instructions()              # noqa: E731
+                           + self.ci_dir("c", lr).n_instructions())
+        return cost(True) < cost(False)
 
     def control(self, name: str) -> ca.Function:
         """u and v = F + G u from the estimate, reference flags and gains (algorithms.md)."""
@@ -725,7 +777,9 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     else:
         fusion = [b.master_info(name("master_info")), b.fuse_finish(name("fuse_finish"))]
     if opts.fusion == "ci":
-        fusion += [b.ci_grad(name("ci_grad")), b.ci_dir(name("ci_dir"))]
+        lowrank = b.ci_lowrank()
+        fusion += [b.ci_grad(name("ci_grad"), lowrank), b.ci_dir(name("ci_dir"), lowrank),
+                   b.ci_hd(name("ci_hd"), lowrank)]
     fusion += [b.advance(name("advance")), b.input_step(name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
     # so its Theta(n^3) straight-line code is not printed twice
