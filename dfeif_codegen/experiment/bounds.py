@@ -30,7 +30,7 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment.network import Network
 
 NEVER = np.iinfo(np.int64).max
-BATCH_REALS = 4_000_000   # reals per (B, K, n, n) array of a batched recursion: 32 MB
+BATCH_REALS = 16_000_000  # reals of the (B, K, n, n) result of a batched recursion: 128 MB
 
 
 def arrivals(net: Network, max_lag: int) -> np.ndarray:
@@ -51,6 +51,15 @@ def _spd_inv(P: np.ndarray) -> np.ndarray:
     return (Y + np.swapaxes(Y, -1, -2)) / 2
 
 
+def _information(known: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """sum_c known[:, c] H[:, c]: camera by camera from zero, the order and signed zeros of the
+    einsum the full chains used."""
+    info = np.zeros((len(H), *H.shape[2:]))
+    for c in range(H.shape[1]):
+        info = info + known[:, c, None, None] * H[:, c]
+    return info
+
+
 def posterior_covariances(A, Q, H, P0, arrive) -> np.ndarray:
     """P(k | frames arrived by k) for every step k, (K, n, n); or (B, K, n, n) for a batch.
 
@@ -64,11 +73,10 @@ def posterior_covariances(A, Q, H, P0, arrive) -> np.ndarray:
     single = arrive.ndim == 2
     if single:
         H, arrive = H[None], arrive[None]
-    B, cams, K = arrive.shape
+    B, _, K = arrive.shape
     n = A.shape[0]
     finite = arrive < NEVER
     W = int(max(np.where(finite, arrive - np.arange(K), 0).max(initial=0), 0))
-    settled = np.einsum("bck,bcij->bkij", finite.astype(float), H)   # every frame that ever arrives
     # per chain k (padded by W + 1 steps that are never chains): its first step, the oldest step
     # pending at k (k + 1: none, P(k | k) is the settled one), and the oldest step of a frame
     # arriving at k (on time included)
@@ -100,12 +108,8 @@ def posterior_covariances(A, Q, H, P0, arrive) -> np.ndarray:
         S[begin] = P[b[begin]]
         cont = ~begin
         S[cont] = A @ post[b[cont], was[b[cont], t[cont] + 1]] @ A.T + Q
-        known = arrive[b, :, j] <= (j + t)[:, None]
-        info = np.zeros_like(S)
-        for c in range(cams):   # the order and zeros of the einsum of the settled information
-            info = info + known[:, c, None, None] * H[b, c]
-        post[b, t] = _spd_inv(_spd_inv(S) + info)
-        settled_post = _spd_inv(_spd_inv(P) + settled[:, j])
+        post[b, t] = _spd_inv(_spd_inv(S) + _information(arrive[b, :, j] <= (j + t)[:, None], H[b]))
+        settled_post = _spd_inv(_spd_inv(P) + _information(finite[:, :, j], H))   # every frame that ever arrives
         out[:, j] = settled_post
         now = t == 0
         out[b[now], j] = post[b[now], 0]
