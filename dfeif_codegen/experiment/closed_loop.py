@@ -281,12 +281,16 @@ def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndar
 
 # model files' text by spec, set on workers that may not see the caller's files (sweep.py)
 MODEL_TEXT: dict[str, str] = {}
+# derivations by spec: this process's, or the caller's shipped to a worker (sweep.py), which then
+# spends no second of sympy per process
+FLATS: dict = {}
 
 
-@lru_cache(maxsize=None)
 def _flat(spec: str):
-    text = MODEL_TEXT.get(spec)
-    return flatness.derive(model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec))
+    if spec not in FLATS:
+        text = MODEL_TEXT.get(spec)
+        FLATS[spec] = flatness.derive(model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec))
+    return FLATS[spec]
 
 
 @lru_cache(maxsize=None)

@@ -375,12 +375,9 @@ def _filters_of(filters) -> list[str]:
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
          filters, plot_dir) -> Plan:
     """Load and check everything, then list each distinct run once."""
-    from dfeif_codegen.symbolic.flatness import derive
-    from dfeif_codegen.symbolic.model import load as load_model
-
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
-    flat = derive(load_model(model))
+    flat = ex._flat(model)   # the derivation every run of this process (and its workers) uses
     if plot_dir:                          # a missing matplotlib is said before the runs, not after
         from dfeif_codegen.experiment import figures as figs
         figs.pyplot()

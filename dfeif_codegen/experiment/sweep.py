@@ -68,21 +68,24 @@ def batch(items: list, engine: str, shipped: dict | None = None) -> list:
 
 def _init_worker(shipped: dict) -> None:
     ex.MODEL_TEXT.update(shipped["models"])
+    ex.FLATS.update(shipped["flats"])
     _CODES.update(shipped["codes"])
 
 
 def prepare(configs, engine: str) -> dict:
-    """What every worker needs: the compiled loop of each distinct build (built here, once) and the
-    text of any model file (a worker on another machine cannot read the caller's files)."""
+    """What every worker needs: the compiled loop of each distinct build (built here, once), the
+    text of any model file (a worker on another machine cannot read the caller's files) and the
+    models' derivations."""
     configs = list(dict.fromkeys(configs))
     models = {c.model: Path(c.model).read_text(encoding="utf-8") for c in configs if Path(c.model).is_file()}
+    flats = {c.model: ex._flat(c.model) for c in configs}
     if engine != "c":
-        return {"codes": {}, "models": models}
+        return {"codes": {}, "models": models, "flats": flats}
     from dfeif_codegen.check import closed_loop_c, harness
     harness.host_compiler()
     keys = list(dict.fromkeys(closed_loop_c.build_key(c) for c in configs))
     with ThreadPoolExecutor(max_workers=max(1, min(len(keys), os.cpu_count() or 1))) as pool:  # the compiler runs outside the GIL
-        return {"codes": dict(zip(keys, pool.map(closed_loop_c.compiled, keys))), "models": models}
+        return {"codes": dict(zip(keys, pool.map(closed_loop_c.compiled, keys))), "models": models, "flats": flats}
 
 
 def _chunks(items: list, workers: int) -> list[list]:
