@@ -14,16 +14,18 @@ removes the file.
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import tempfile
 from dataclasses import dataclass
 from functools import lru_cache
+from importlib import resources
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from dfeif_codegen.check import harness
+from dfeif_codegen.check import harness, loader
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment.plant import Camera, Plant, _fixed
 from dfeif_codegen.symbolic import numeric
@@ -109,9 +111,40 @@ def compile_loop(key: tuple) -> Compiled:
 
 
 @lru_cache(maxsize=None)
+def _toolkit_digest() -> bytes:
+    """Every file of this toolkit (code, templates, built-in models): what the library is made of."""
+    digest = hashlib.sha256()
+    for package in ("dfeif_codegen", "dfeif_codegen.templates"):
+        root = Path(str(resources.files(package)))
+        for path in sorted(root.rglob("*")):
+            if path.is_file() and "__pycache__" not in path.parts:
+                digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.digest()
+
+
+@lru_cache(maxsize=None)
 def compiled(key: tuple) -> Compiled:
-    """compile_loop, once per process and key."""
-    return compile_loop(key)
+    """compile_loop, once per process and key, and once per user (the cache of check/loader.py)
+    for as long as the toolkit, the model file and the compiler stay the same: a library is a
+    pure function of those, and building one takes a derivation and two compiler runs (~2 s)."""
+    spec = key[0]
+    text = ex.MODEL_TEXT.get(spec) or (Path(spec).read_text(encoding="utf-8") if Path(spec).is_file() else "")
+    digest = hashlib.sha256(_toolkit_digest())
+    for part in [repr(key), text, harness.host_compiler(), *harness.HOST_CFLAGS]:
+        digest.update(part.encode() + b"\0")
+    path = loader.cache_dir() / f"loop-{digest.hexdigest()[:20]}.so"
+    if path.is_file():
+        return Compiled(key, path.read_bytes())
+    code = compile_loop(key)
+    try:   # a cache that cannot be written costs the next run its build, nothing else
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        with os.fdopen(fd, "wb") as f:
+            f.write(code.blob)
+        os.replace(tmp, path)   # atomic: a concurrent run sees the whole library or none
+    except OSError:
+        pass
+    return code
 
 
 class _Loop:

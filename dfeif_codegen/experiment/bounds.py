@@ -11,8 +11,13 @@ a row is a covariance recursion over that row's network draws (the same seeds as
 
 At step k a frame of step j is known iff its arrival step a(j) <= k. Frames older than the
 largest lag W are all settled, so P(k | k) is the settled prior of step k - W run forward through
-the last W + 1 steps with the flags as known at k. That is vectorized over k: W + 1 batched
-updates of (K, n, n) arrays, milliseconds per row and seed instead of a replayed filter.
+the last W + 1 steps with the flags as known at k (the "chain" of k). Up to the oldest step
+still pending at k the chain is the settled recursion itself, and chain k repeats chain k - 1 up
+to the oldest frame arriving at k: one pass over the steps computes each distinct chain state
+once, batched over seeds, in about a third of the time of every chain in full.
+Each state is the same operations on the same matrices as in the full chain (numpy's batched
+inverse and product work matrix by matrix), so the results are those of the full chains, bit
+for bit.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment.network import Network
 
 NEVER = np.iinfo(np.int64).max
-BATCH_REALS = 4_000_000   # reals per (B, K, n, n) array of a batched recursion: 32 MB
+BATCH_REALS = 16_000_000  # reals of the (B, K, n, n) result of a batched recursion: 128 MB
 
 
 def arrivals(net: Network, max_lag: int) -> np.ndarray:
@@ -46,44 +51,69 @@ def _spd_inv(P: np.ndarray) -> np.ndarray:
     return (Y + np.swapaxes(Y, -1, -2)) / 2
 
 
+def _information(known: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """sum_c known[:, c] H[:, c]: camera by camera from zero, the order and signed zeros of the
+    einsum the full chains used."""
+    info = np.zeros((len(H), *H.shape[2:]))
+    for c in range(H.shape[1]):
+        info = info + known[:, c, None, None] * H[:, c]
+    return info
+
+
 def posterior_covariances(A, Q, H, P0, arrive) -> np.ndarray:
     """P(k | frames arrived by k) for every step k, (K, n, n); or (B, K, n, n) for a batch.
 
     `H[i] = C_i^T R_i^-1 C_i` is camera i's information per frame, `arrive` (cameras, K) the
     arrival step of each frame (NEVER if it never comes). Information form, so several cameras
     and a missing frame (no information) need no special case. A batch (`H` (B, cameras, n, n),
-    `arrive` (B, cameras, K): seeds, node subsets) runs as one recursion, which is what makes a
-    hundred seeds cost about what one does."""
+    `arrive` (B, cameras, K): seeds, node subsets) runs as one recursion over the steps, which is
+    what makes a hundred seeds cost about what one does."""
     H = np.asarray(H, dtype=float)
     arrive = np.asarray(arrive, dtype=np.int64)
     single = arrive.ndim == 2
     if single:
         H, arrive = H[None], arrive[None]
-    B, cams, K = arrive.shape
+    B, _, K = arrive.shape
     n = A.shape[0]
     finite = arrive < NEVER
     W = int(max(np.where(finite, arrive - np.arange(K), 0).max(initial=0), 0))
-    settled = np.einsum("bck,bcij->bkij", finite.astype(float), H)   # every frame that ever arrives
-    prior = np.empty((B, K, n, n))
-    P = np.broadcast_to(np.asarray(P0, dtype=float), (B, n, n)).copy()
-    for k in range(K):
-        prior[:, k] = P
-        post = _spd_inv(_spd_inv(P) + settled[:, k])
-        P = A @ post @ A.T + Q
+    # per chain k (padded by W + 1 steps that are never chains): its first step, the oldest step
+    # pending at k (k + 1: none, P(k | k) is the settled one), and the oldest step of a frame
+    # arriving at k (on time included)
     steps = np.arange(K)
-    start = np.maximum(steps - W, 0)
-    P = prior[:, start]
-    out = np.empty_like(P)
-    for t in range(W + 1):
-        j = start + t                                   # the step each k is at, (K,)
-        live = j <= steps
-        jj = np.minimum(j, K - 1)
-        known = (arrive[:, :, jj] <= steps) & live                      # (B, cams, K)
-        Y = _spd_inv(P) + np.einsum("bck,bcij->bkij", known.astype(float), H)
-        post = _spd_inv(Y)
-        done = j == steps
-        out[:, done] = post[:, done]
-        P = np.where(live[:, None, None], A @ post @ A.T + Q, P)
+    last = np.where(finite, arrive, -1).max(axis=1)
+    first = np.full((B, K + W + 1), K + W + 1)
+    first[:, :K] = steps + 1
+    oldest = np.full((B, K + W + 1), K + W + 1)
+    for lag in range(W + 1):
+        k, j = steps[lag:], steps[:K - lag]
+        first[:, lag:K] = np.where(last[:, :K - lag] > k, j, first[:, lag:K])
+        oldest[:, lag:K] = np.where((arrive[:, :, :K - lag] == k).any(axis=1), j, oldest[:, lag:K])
+    moved = np.ones_like(first, dtype=bool)
+    moved[:, 1:] = first[:, 1:] != first[:, :-1]
+    behind = np.arange(W + 1)                       # chain k = j + behind at step j
+    out = np.empty((B, K, n, n))
+    P = np.broadcast_to(np.asarray(P0, dtype=float), (B, n, n)).copy()
+    post, fresh = np.empty((B, W + 1, n, n)), np.zeros((B, W + 1), dtype=bool)
+    for j in range(K):
+        # the states of step j that chain k - 1 does not have: chain k's last step, after a frame
+        # of step j or older arrived at k, or when the chain's first step moved
+        win = slice(j, j + W + 1)
+        was = np.where(fresh, behind, -1)
+        np.maximum.accumulate(was, axis=1, out=was)  # at j - 1: the chain whose state chain k shares
+        fresh = (first[:, win] <= j) & ((behind == 0) | (oldest[:, win] <= j) | moved[:, win])
+        b, t = np.nonzero(fresh)
+        begin = first[b, j + t] == j
+        S = np.empty((len(b), n, n))
+        S[begin] = P[b[begin]]
+        cont = ~begin
+        S[cont] = A @ post[b[cont], was[b[cont], t[cont] + 1]] @ A.T + Q
+        post[b, t] = _spd_inv(_spd_inv(S) + _information(arrive[b, :, j] <= (j + t)[:, None], H[b]))
+        settled_post = _spd_inv(_spd_inv(P) + _information(finite[:, :, j], H))   # every frame that ever arrives
+        out[:, j] = settled_post
+        now = t == 0
+        out[b[now], j] = post[b[now], 0]
+        P = A @ settled_post @ A.T + Q
     return out[0] if single else out
 
 

@@ -281,12 +281,16 @@ def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndar
 
 # model files' text by spec, set on workers that may not see the caller's files (sweep.py)
 MODEL_TEXT: dict[str, str] = {}
+# derivations by spec: this process's, or the caller's shipped to a worker (sweep.py), which then
+# spends no second of sympy per process
+FLATS: dict = {}
 
 
-@lru_cache(maxsize=None)
 def _flat(spec: str):
-    text = MODEL_TEXT.get(spec)
-    return flatness.derive(model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec))
+    if spec not in FLATS:
+        text = MODEL_TEXT.get(spec)
+        FLATS[spec] = flatness.derive(model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec))
+    return FLATS[spec]
 
 
 @lru_cache(maxsize=None)
@@ -394,17 +398,14 @@ def prepare(cfg: Config) -> Setup:
     oosm = cfg.method if cfg.method in OOSM else "replay"
     # which frame each update takes, and the late frames applied: fixed by the network alone
     upd = np.where(net.lag == 0, 0, -1)
-    late = []
-    for i, events in enumerate(net.late):
-        for k, arriving in events.items():
-            if upd[i, k] < 0 and cfg.method == "as-current":
-                upd[i, k] = min(arriving)
-            if cfg.method in OOSM:
-                late += [(k, i, lag) for lag in arriving]
-    late.sort(key=lambda e: (e[0], e[1]))   # by step, then node; stable: arrival order kept
+    if cfg.method == "as-current":   # a step without its frame takes the freshest late one arriving
+        step, node, lag = net.events.T
+        freshest = np.full_like(upd, K)
+        np.minimum.at(freshest, (node, step), lag)
+        upd = np.where((upd < 0) & (freshest < K), freshest, upd)
+    late = net.events if cfg.method in OOSM else np.zeros((0, 3), dtype=int)
     return Setup(cfg, flat, ts, K, t, ref, net, cams, noise, flat.phi_inv_num(zeta0), q, gains, R, oosm,
-                 np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1)), x_hat0, P0, upd,
-                 np.array(late, dtype=int).reshape(-1, 3))
+                 np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1)), x_hat0, P0, upd, late)
 
 
 def run(cfg: Config) -> Result:

@@ -13,6 +13,7 @@ on-time update. Items arriving at the same step come in a random (seeded) order.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -51,7 +52,10 @@ class Network:
     """One realization for M nodes over `steps` steps.
 
     `lag[i, k]`: what happened to node i's camera frame of step k.
-    `late[i][k]`: lags of the frames arriving late at node i at step k, in arrival order.
+    `events`: (E, 3) the late frames arriving within the run as (arrival step, node, lag), by
+    step, then node, then arrival order: the order the filters apply them (one array, not a
+    Python loop per frame: a run draws thousands of them and takes milliseconds in C).
+    `late[i][k]`: the same lags per node and arrival step, in arrival order.
     `source[i, k]`: the source step of node i's packet the master fuses at step k (-1: none) —
     the freshest packet arriving at k that is newer than the last one fused from that node.
     """
@@ -60,17 +64,13 @@ class Network:
         self.steps, self.nodes = steps, len(sensor)
         draws = [link.draw(steps, rng) for link in sensor]
         self.lag = np.array([lag for lag, _ in draws], dtype=int).reshape(self.nodes, steps)
-        self.late: list[dict[int, list[int]]] = []
-        for lag, key in draws:
-            src = np.nonzero(lag > 0)[0]
-            arrive = src + lag[src]
-            keep = arrive < steps
-            src, arrive = src[keep], arrive[keep]
-            order = np.lexsort((key[src], arrive))
-            events: dict[int, list[int]] = {}
-            for s, a in zip(src[order], arrive[order]):
-                events.setdefault(int(a), []).append(int(a - s))
-            self.late.append(events)
+        key = np.array([k for _, k in draws]).reshape(self.nodes, steps)
+        node, src = np.nonzero(self.lag > 0)
+        arrive = src + self.lag[node, src]
+        keep = arrive < steps
+        node, src, arrive = node[keep], src[keep], arrive[keep]
+        order = np.lexsort((key[node, src], node, arrive))
+        self.events = np.stack([arrive[order], node[order], (arrive - src)[order]], axis=1)
         self.up_lag = np.array([link.draw(steps, rng)[0] for link in uplink], dtype=int).reshape(self.nodes, steps)
         self.source = np.full((self.nodes, steps), -1, dtype=int)
         for i in range(self.nodes):
@@ -83,3 +83,10 @@ class Network:
             # fused at k when newer than every packet fused before (the running maximum)
             before = np.concatenate([[-1], np.maximum.accumulate(best)[:-1]])
             self.source[i] = np.where(best > before, best, -1)
+
+    @cached_property
+    def late(self) -> list[dict[int, list[int]]]:
+        out: list[dict[int, list[int]]] = [{} for _ in range(self.nodes)]
+        for k, i, lag in self.events.tolist():
+            out[i].setdefault(k, []).append(lag)
+        return out

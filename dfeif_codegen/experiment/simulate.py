@@ -20,9 +20,7 @@ from __future__ import annotations
 import json
 import math
 import sys
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from statistics import NormalDist
@@ -377,12 +375,9 @@ def _filters_of(filters) -> list[str]:
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
          filters, plot_dir) -> Plan:
     """Load and check everything, then list each distinct run once."""
-    from dfeif_codegen.symbolic.flatness import derive
-    from dfeif_codegen.symbolic.model import load as load_model
-
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
-    flat = derive(load_model(model))
+    flat = ex._flat(model)   # the derivation every run of this process (and its workers) uses
     if plot_dir:                          # a missing matplotlib is said before the runs, not after
         from dfeif_codegen.experiment import figures as figs
         figs.pyplot()
@@ -431,11 +426,13 @@ class Outcome:
     reused: int
     distinct: int
     elapsed: float
+    bound: list              # per row, bounds.RowBound
 
 
 def execute(p: Plan, engine: str, need_series: bool, workers, scheduler, results_file, resume,
             quiet: bool) -> Outcome:
-    """Run every distinct run of the plan (reusing a --resume file's), collecting per key."""
+    """Run every distinct run of the plan (reusing a --resume file's), collecting per key, and the
+    exact bound of every row alongside (it needs only the network draws)."""
     if resume and results_file and Path(resume) != Path(results_file):
         raise ScenarioError("--resume FILE continues FILE: give --results the same file or leave it out")
     previous = sweep.read_records(resume) if resume else {}
@@ -457,7 +454,7 @@ def execute(p: Plan, engine: str, need_series: bool, workers, scheduler, results
         raise
     records = sweep.Records(resume or results_file, keep_existing=bool(resume))
     progress = Progress(len(todo), not quiet and sys.stderr.isatty())
-    out = Outcome({}, {}, [], [], "", workers, len(reused), len(todo), 0.0)
+    out = Outcome({}, {}, [], [], "", workers, len(reused), len(todo), 0.0, [])
     started = time.monotonic()
 
     def collect(rid, value, fresh=True):
@@ -478,8 +475,11 @@ def execute(p: Plan, engine: str, need_series: bool, workers, scheduler, results
 
     for rid, metrics in reused:
         collect(rid, metrics, fresh=False)
+    rows = [[make_config(p.sc, p.model, p.nodes, p.max_lag, p.refs[0], row, "replay", "difference", s)
+             for s in p.seeds] for row in p.rows]
     try:
-        out.where = sweep.execute(todo, engine, shipped, workers, client, collect)
+        out.where, out.bound = sweep.execute(todo, engine, shipped, workers, client, collect,
+                                             [(bounds.row_bound, (cfgs,)) for cfgs in rows])
     finally:
         records.close()
         progress.close()
@@ -551,20 +551,8 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
     out = out or sys.stdout
     _check_outputs(json_path, plot)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
-    # the exact bounds need only the network draws: computed in a thread while the runs go on
-    # (numpy's batched inverses leave the interpreter lock; the main process would only wait)
-    row_cfgs = [[make_config(p.sc, model, p.nodes, max_lag, p.refs[0], row, "replay", "difference", s)
-                 for s in p.seeds] for row in p.rows]
-    bounds.matched_model(row_cfgs[0][0])   # derived here, so the thread only does numpy
-    stop = threading.Event()   # set when the runs fail or are interrupted: the thread ends after its row
-    with ThreadPoolExecutor(1) as pool:
-        pending = pool.submit(lambda: [None if stop.is_set() else bounds.row_bound(cfgs) for cfgs in row_cfgs])
-        try:
-            o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
-        except BaseException:
-            stop.set()
-            raise
-        bound = pending.result()
+    o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
+    bound = o.bound
     if csv:
         sweep.write_csv(csv, o.per_run, p.flat.n, nodes=p.nodes)
     groups = {(ref, m, f): [summarize(o.results.get((ref, m, f, ri), []), p.flat.n) for ri in range(len(p.rows))]

@@ -68,21 +68,24 @@ def batch(items: list, engine: str, shipped: dict | None = None) -> list:
 
 def _init_worker(shipped: dict) -> None:
     ex.MODEL_TEXT.update(shipped["models"])
+    ex.FLATS.update(shipped["flats"])
     _CODES.update(shipped["codes"])
 
 
 def prepare(configs, engine: str) -> dict:
-    """What every worker needs: the compiled loop of each distinct build (built here, once) and the
-    text of any model file (a worker on another machine cannot read the caller's files)."""
+    """What every worker needs: the compiled loop of each distinct build (built here, once), the
+    text of any model file (a worker on another machine cannot read the caller's files) and the
+    models' derivations."""
     configs = list(dict.fromkeys(configs))
     models = {c.model: Path(c.model).read_text(encoding="utf-8") for c in configs if Path(c.model).is_file()}
+    flats = {c.model: ex._flat(c.model) for c in configs}
     if engine != "c":
-        return {"codes": {}, "models": models}
+        return {"codes": {}, "models": models, "flats": flats}
     from dfeif_codegen.check import closed_loop_c, harness
     harness.host_compiler()
     keys = list(dict.fromkeys(closed_loop_c.build_key(c) for c in configs))
     with ThreadPoolExecutor(max_workers=max(1, min(len(keys), os.cpu_count() or 1))) as pool:  # the compiler runs outside the GIL
-        return {"codes": dict(zip(keys, pool.map(closed_loop_c.compiled, keys))), "models": models}
+        return {"codes": dict(zip(keys, pool.map(closed_loop_c.compiled, keys))), "models": models, "flats": flats}
 
 
 def _chunks(items: list, workers: int) -> list[list]:
@@ -104,35 +107,45 @@ def connect(scheduler: str | None):
         raise SetupError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
 
 
-def execute(items: list, engine: str, shipped: dict, workers: int, client, done) -> str:
-    """Run every item, calling `done(run id, value)` as results arrive; returns where they ran.
-    `client`: a Dask client (see connect), closed here, or None for local processes."""
+def _side(fn, args: tuple, shipped: dict | None = None):
+    if shipped is not None:
+        _init_worker(shipped)
+    return fn(*args)
+
+
+def execute(items: list, engine: str, shipped: dict, workers: int, client, done, side=()) -> tuple[str, list]:
+    """Run every item, calling `done(run id, value)` as results arrive, and each `side` task
+    (function, arguments) alongside, submitted first (a long task last would run alone); returns
+    where they ran and the side tasks' results. `client`: a Dask client (see connect), closed
+    here, or None for local processes."""
+    if not items:
+        if client is not None:
+            client.close()
+        return "nothing to run", [_side(fn, args) for fn, args in side]
     if client is not None:
         from dask.distributed import as_completed as dask_completed
 
         scheduler = getattr(client.scheduler, "address", "?")
         with client:
-            if not items:
-                return "nothing to run"
             cores = sum(client.ncores().values()) or 1
             [shared] = client.scatter([shipped], broadcast=True, hash=False)
+            extra = [client.submit(_side, fn, args, shared, pure=False) for fn, args in side]
             futures = [client.submit(batch, chunk, engine, shared, pure=False) for chunk in _chunks(items, cores)]
             for fut in dask_completed(futures):
                 for rid, value in fut.result():
                     done(rid, value)
-        return f"Dask cluster {scheduler} ({cores} threads)"
-    if not items:
-        return "nothing to run"
+            return f"Dask cluster {scheduler} ({cores} threads)", [fut.result() for fut in extra]
     if workers == 1:
         for rid, value in batch(items, engine, shipped):
             done(rid, value)
-        return "1 process"
+        return "1 process", [_side(fn, args) for fn, args in side]
     with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(shipped,)) as pool:
+        extra = [pool.submit(_side, fn, args) for fn, args in side]
         futures = [pool.submit(batch, chunk, engine) for chunk in _chunks(items, workers)]
         for fut in as_completed(futures):
             for rid, value in fut.result():
                 done(rid, value)
-    return f"{workers} processes"
+        return f"{workers} processes", [fut.result() for fut in extra]
 
 
 def default_workers(requested: int | None, jobs: int) -> int:
