@@ -349,6 +349,8 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
                 f"compilation included; {p['cpu_s']:.1f} CPU-s in all, so at best {p['cpu_s'] / p['workers']:.1f} s on "
                 f"{p['workers']} otherwise idle cores), {p['loop_s']:.1f} s of runs on {p['workers']} processes "
                 f"(target 60 s). "
-                f"At {per_run * 1000:.1f} CPU-ms per run, a 64-core cluster would take about "
-                f"{p['runs'] * per_run / 64:.1f} s for the runs plus the start-up.", ""]
+                f"At {per_run * 1000:.1f} CPU-ms per run (the rows' exact bounds included), 64 cores would "
+                f"share the work in {p['runs'] * per_run / 64:.1f} s, but the longest single task, a row's "
+                f"exact bound, takes {p['longest_task_s']:.1f} CPU-s: a 64-core cluster would take about "
+                f"{max(p['runs'] * per_run / 64, p['longest_task_s']):.1f} s plus the start-up.", ""]
     return "\n".join(out)

@@ -206,7 +206,8 @@ def monte_carlo(work: Path, seeds_c: int = 2, seeds_ref: int = 1) -> dict:
     t0, cpu0 = time.perf_counter(), _children_cpu()
     doc = _simulate(work, ["--runs", "100"])
     table = {"wall_s": time.perf_counter() - t0, "cpu_s": _children_cpu() - cpu0, "runs": doc["settings"]["distinct_runs"],
-             "loop_s": doc["settings"]["elapsed_s"], "workers": doc["settings"]["workers"]}
+             "loop_s": doc["settings"]["elapsed_s"], "workers": doc["settings"]["workers"],
+             "longest_task_s": doc["settings"]["longest_bound_cpu_s"]}
     return {"rates": results, "paper100": table}
 
 

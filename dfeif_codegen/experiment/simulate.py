@@ -427,6 +427,7 @@ class Outcome:
     distinct: int
     elapsed: float
     bound: list              # per row, bounds.RowBound
+    longest_side: float = 0.0    # CPU seconds of the longest row bound (one task: a cluster's floor)
 
 
 def execute(p: Plan, engine: str, need_series: bool, workers, scheduler, results_file, resume,
@@ -478,8 +479,10 @@ def execute(p: Plan, engine: str, need_series: bool, workers, scheduler, results
     rows = [[make_config(p.sc, p.model, p.nodes, p.max_lag, p.refs[0], row, "replay", "difference", s)
              for s in p.seeds] for row in p.rows]
     try:
-        out.where, out.bound = sweep.execute(todo, engine, shipped, workers, client, collect,
-                                             [(bounds.row_bound, (cfgs,)) for cfgs in rows])
+        out.where, side = sweep.execute(todo, engine, shipped, workers, client, collect,
+                                        [(bounds.row_bound, (cfgs,)) for cfgs in rows])
+        out.bound = [b for b, _ in side]
+        out.longest_side = max((t for _, t in side), default=0.0)
     finally:
         records.close()
         progress.close()
@@ -497,7 +500,7 @@ def _settings(p: Plan, o: Outcome, engine: str) -> dict:
            "seeds": [p.seed, p.seed + p.runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
            "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": engine, "ran_on": o.where,
-           "runs_resumed": o.reused, "distinct_runs": o.distinct}
+           "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3)}
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]

@@ -20,6 +20,7 @@ import hashlib
 import json
 import math
 import os
+import time
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from pathlib import Path
 
@@ -108,16 +109,18 @@ def connect(scheduler: str | None):
 
 
 def _side(fn, args: tuple, shipped: dict | None = None):
+    """A side task's result and its CPU seconds: the longest one bounds a sweep on any cluster."""
     if shipped is not None:
         _init_worker(shipped)
-    return fn(*args)
+    start = time.process_time()
+    return fn(*args), time.process_time() - start
 
 
 def execute(items: list, engine: str, shipped: dict, workers: int, client, done, side=()) -> tuple[str, list]:
     """Run every item, calling `done(run id, value)` as results arrive, and each `side` task
     (function, arguments) alongside, submitted first (a long task last would run alone); returns
-    where they ran and the side tasks' results. `client`: a Dask client (see connect), closed
-    here, or None for local processes."""
+    where they ran and the side tasks' (result, CPU seconds). `client`: a Dask client (see
+    connect), closed here, or None for local processes."""
     if not items:
         if client is not None:
             client.close()
