@@ -35,7 +35,7 @@ VARIANTS = {
     "dc-retro-ci": ("dc_motor_link", {"oosm": "retrodict", "fusion": "ci"}),
     "dc-ci3": ("dc_motor_link", {"fusion": "ci", "nodes": 3}),
     "dc-ci16": ("dc_motor_link", {"fusion": "ci", "nodes": 16}),
-    # 16 nodes: the CI step through the Hessian's factor (kernels.py ci_lowrank), in single precision
+    # 16 nodes: the CI step through the Hessian's factor (kernels.py ci_kernels), in single precision
     "dc-float-ci16": ("dc_motor_link", {"precision": "float", "fusion": "ci", "nodes": 16}),
     "dc-float-retro-ci3": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci", "nodes": 3}),
     "dc-float-paper": ("dc_motor_link", {"precision": "float", "fusion": "paper", "max_lag": 5}),

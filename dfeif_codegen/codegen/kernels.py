@@ -680,13 +680,14 @@ class _Builder:
             hd = ca.mtimes(ca.reshape(Fs, M, M), d)
         return ca.Function(name, [d, Fs, rho], [hd + rho * d], ["d", "F", "rho"], ["hd"])
 
-    def ci_lowrank(self) -> bool:
-        """Whether the low-rank Newton step costs fewer operations than the M x M one for this
-        model and node count (CasADi's count of the two kernels' operations): it does once M
-        outgrows n^2, roughly."""
-        cost = lambda lr: (self.ci_grad("c", lr).n_instructions()              # noqa: E731
-                           + self.ci_dir("c", lr).n_instructions())
-        return cost(True) < cost(False)
+    def ci_kernels(self, name) -> list[ca.Function]:
+        """ci_grad, ci_dir and ci_hd in the form whose Newton step costs fewer operations for this
+        model and node count (CasADi's count; the M x M form on a tie): the low-rank one once M
+        outgrows n^2, roughly. `name(kernel)` gives a kernel's C name."""
+        forms = [(self.ci_grad(name("ci_grad"), lowrank), self.ci_dir(name("ci_dir"), lowrank), lowrank)
+                 for lowrank in (False, True)]
+        grad, step, lowrank = min(forms, key=lambda f: f[0].n_instructions() + f[1].n_instructions())
+        return [grad, step, self.ci_hd(name("ci_hd"), lowrank)]
 
     def control(self, name: str) -> ca.Function:
         """u and v = F + G u from the estimate, reference flags and gains (algorithms.md)."""
@@ -777,9 +778,7 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     else:
         fusion = [b.master_info(name("master_info")), b.fuse_finish(name("fuse_finish"))]
     if opts.fusion == "ci":
-        lowrank = b.ci_lowrank()
-        fusion += [b.ci_grad(name("ci_grad"), lowrank), b.ci_dir(name("ci_dir"), lowrank),
-                   b.ci_hd(name("ci_hd"), lowrank)]
+        fusion += b.ci_kernels(name)
     fusion += [b.advance(name("advance")), b.input_step(name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
     # so its Theta(n^3) straight-line code is not printed twice

@@ -48,9 +48,10 @@ def covariance_intersection_weights(Ys: list[np.ndarray], iterations: int | None
     total = 0.0 if start is None else float(np.sum(start))
     w = uniform if total <= 0 else np.asarray(start, dtype=float) / total
     free = w > 0
-    rho = CI_REGULARISER * np.max(np.diag(_ci_derivatives(Ys, uniform)[1]))
-    for _ in range(iterations):
-        g, H = _ci_derivatives(Ys, w)
+    at_uniform = _ci_derivatives(Ys, uniform)
+    rho = CI_REGULARISER * np.max(np.diag(at_uniform[1]))
+    for step in range(iterations):
+        g, H = at_uniform if step == 0 and w is uniform else _ci_derivatives(Ys, w)
         g, H = g + rho * w, H + rho * np.eye(count)
         freed = ~free & (g < np.min(g[free]))
         free |= freed
