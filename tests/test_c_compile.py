@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dfeif_codegen import angles
 from dfeif_codegen.codegen import build, render
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import discretize, flatness, model
@@ -569,7 +570,8 @@ def test_ci_weights_on_simplex(built, tmp_path):
 def test_ci_weights_match_reference_active_set(built, tmp_path, variant, nodes, trials):
     """M nodes (3 of them, or 16 with 3 packets absent), random informations (some far worse,
     so weights hit 0 and the active set works): the C's weights, read back as w = Y x from
-    packets with y_i = e_i (one entry per present node; 16 nodes > n = 3, so x is a sum), equal
+    packets with y_i = Y_i x_i (x_i's angle head on the master's branch; one entry per present
+    node; 16 nodes > n = 3, so x is a sum), equal
     the reference's covariance_intersection_weights with the master's iteration count."""
     from dfeif_codegen.constants import ci_iterations
     from dfeif_codegen.reference.fusion import covariance_intersection_weights
@@ -596,6 +598,10 @@ def test_ci_weights_match_reference_active_set(built, tmp_path, variant, nodes, 
             pk = lib.new("packet")
             assert lib("node_packet", _fake_node(lib, P @ probes[i], P), pk) == 0
             ctypes.memmove(ctypes.addressof(packets) + i * psize, pk, psize)
+            # the master takes the angle head on the branch nearest its prior 0 (whole turns)
+            x_i = P @ probes[i]
+            x_i[0] = angles.wrap_np(x_i[0])
+            probes[i] = Y @ x_i
         assert lib("master_fuse", master, packets, present) == 0
         x, P = np.zeros(3), np.zeros(9)
         lib("master_estimate", master, x, P)
@@ -687,10 +693,11 @@ void wrap_all(const real* e, real* out, int n)
 
 @pytest.mark.parametrize("variant, dtype", [("dc-double", np.float64), ("dc-float", np.float32)])
 def test_wrap_is_the_formula_bit_for_bit(built, tmp_path, variant, dtype):
-    """The node's angle wrap (a shortcut for |e| <= 3) gives the bits of the formula
-    e - 2 pi ceil((e - pi) / (2 pi)) evaluated in the build's precision, on both sides of 3, of
-    pi and of every multiple of pi up to 9 pi (one ulp either side), on signed zeros, tiny and
-    huge values and a dense grid; non-finite inputs give NaN, as the formula does."""
+    """The node's angle wrap (a shortcut for e in (-pi, pi]) gives the bits of the reference's
+    (dfeif_codegen/angles.py, fmod and one exact correction) in the build's precision, on both
+    sides of 3, of pi and of every multiple of pi up to 9 pi (one ulp either side), on signed
+    zeros, tiny and huge values and a dense grid; non-finite inputs give NaN, as fmod does.
+    (tests/test_angles.py checks the range and exactness to 3e38 and 1e308.)"""
     cc = tool("gcc")
     src = tmp_path / "wrap.c"
     src.write_text(WRAP_SHIM)
@@ -708,8 +715,7 @@ def test_wrap_is_the_formula_bit_for_bit(built, tmp_path, variant, dtype):
                      ctypes.c_int(values.size))
         return out
 
-    two_pi, pi = dtype(2 * np.pi), dtype(np.pi)
-    want = e - two_pi * np.ceil((e - pi) / two_pi)
+    want = angles.wrap_np(e)
     assert want.dtype == dtype and np.array_equal(wrapped(e).view(np.uint8), want.view(np.uint8))
     assert np.all(np.isnan(wrapped(np.array([np.inf, -np.inf, np.nan], dtype))))
 

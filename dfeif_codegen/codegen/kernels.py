@@ -26,6 +26,7 @@ from math import factorial
 import casadi as ca
 import numpy as np
 
+from dfeif_codegen import angles
 from dfeif_codegen.symbolic import discretize
 from dfeif_codegen.symbolic.numeric import to_casadi
 from dfeif_codegen.codegen import layout
@@ -267,7 +268,7 @@ class _Builder:
         for j in range(self.m):
             ej = e[j]
             if self.angles[j]:
-                ej = ej - 2 * math.pi * ca.ceil((ej - math.pi) / (2 * math.pi))
+                ej = angles.wrap_sx(ej)
             out.append(ej)
         return ca.vertcat(*out)
 
@@ -342,7 +343,7 @@ class _Builder:
         gamma factor in the gain, so none of its multiplications.
         Prior and posterior are each one vector, x then P (the node stores them so): fewer
         arguments, all in registers on the host. The innovation e comes wrapped from the node,
-        whose wrap skips the division and ceil in the common case (a branch, which straight-line
+        whose wrap skips the fmod in the common case (a branch, which straight-line
         code cannot take)."""
         n, m, npp = self.n, self.m, self.n * (self.n + 1) // 2
         prior, e, R = _sym("prior", n + npp), _sym("e", m), _sym("R", m, m)
@@ -738,7 +739,7 @@ class _Builder:
 
     @staticmethod
     def wrap_one(e: ca.SX) -> ca.SX:
-        return e - 2 * math.pi * ca.ceil((e - math.pi) / (2 * math.pi))
+        return angles.wrap_sx(e)
 
 
 # Kernels whose work array is a local of the kernel, not a parameter: then no store into it can

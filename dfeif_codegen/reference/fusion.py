@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
-from dfeif_codegen.reference.linalg import spd_inv
+from dfeif_codegen.reference.linalg import spd_inv, wrap
 from dfeif_codegen.reference.node import Packet
 
 RULES = ("paper", "difference", "ci")
@@ -87,6 +87,8 @@ class Master:
         self.A, self.B, _ = flat.discrete(ts)
         self.Q = flat.process_noise(ts, q)
         self._flat, self._ts, self._q = flat, ts, q
+        self.heads = np.array(flat.heads)
+        self.angle = np.array([c.angle for c in flat.chains])
         self._ahead: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.k = 0
         self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
@@ -101,13 +103,13 @@ class Master:
         if len(packets) != self.n_nodes:
             raise ValueError(f"expected {self.n_nodes} entries (None for absent), got {len(packets)}")
         picked = [i for i, p in enumerate(packets) if p is not None and 0 <= self.k - p.step <= self.max_lag]
-        usable = [self._bring(packets[i]) for i in picked]
+        c = self.x_prior
+        usable = [self._on_branch(self._bring(packets[i]), c) for i in picked]
         if not usable:
             self.x, self.P = self.x_prior, self.P_prior
             return
         # information about the master's prior c: y = Y (x - c), x = c + P y; the same in exact
         # arithmetic as y = Y x, without cancelling large Y x terms (docs/algorithms.md)
-        c = self.x_prior
         Ys = [spd_inv(P) for _, P, _, _ in usable]
         ys = [Y @ (x - c) for Y, (x, _, _, _) in zip(Ys, usable)]
         if self.rule == "paper":
@@ -138,6 +140,20 @@ class Master:
         self.x_prior = self.A @ self.x + self.B @ v
         self.P_prior = self.A @ self.P @ self.A.T + self.Q
         self.k += 1
+
+    def _on_branch(self, item, c: np.ndarray):
+        """A node's (x, P, x_pred, P_pred) with each angle head moved by whole turns to the branch
+        nearest the master's prediction c (x and x_pred by the same turns, so a node's gain is
+        kept): 6.383 and 0.1 are the same angle and fuse as such (docs/algorithms.md, master)."""
+        if not np.any(self.angle):
+            return item
+        x, P, xp, Pp = item
+        d = x[self.heads] - c[self.heads]
+        turns = np.where(self.angle, d - wrap(d, self.angle), 0.0)
+        x, xp = x.copy(), xp.copy()
+        x[self.heads] -= turns
+        xp[self.heads] -= turns
+        return x, P, xp, Pp
 
     def _bring(self, p: Packet):
         """A packet's (x, P, x_pred, P_pred) brought from its step to the current one in one step

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dfeif_codegen import angles
+
 
 class SingularMatrixError(ArithmeticError):
     """A matrix that must be symmetric positive definite is not (a non-positive Cholesky pivot)."""
@@ -30,8 +32,7 @@ def spd_inv(a: np.ndarray) -> np.ndarray:
 
 
 def wrap(e: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Wrap the entries of `e` flagged in `angle` to (-pi, pi]."""
+    """Wrap the entries of `e` flagged in `angle` to (-pi, pi] (dfeif_codegen/angles.py)."""
     if not np.any(angle):
         return e
-    wrapped = e - 2 * np.pi * np.ceil((e - np.pi) / (2 * np.pi))
-    return np.where(angle, wrapped, e)
+    return np.where(angle, angles.wrap_np(e), e)

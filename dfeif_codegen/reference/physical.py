@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
+from dfeif_codegen import angles
 from dfeif_codegen.reference.linalg import spd_inv
 from dfeif_codegen.symbolic import numeric
 from dfeif_codegen.reference.node import measurement_covariance
@@ -79,8 +80,8 @@ class PhysicalModel:
         return _unpack(self._phi_inv(zeta), self.n)
 
     def wrap_sx(self, e: ca.SX) -> ca.SX:
-        """linalg.wrap on SX: the same formula on the angle outputs, the others untouched."""
-        return ca.vertcat(*[e[i] - 2 * np.pi * ca.ceil((e[i] - np.pi) / (2 * np.pi)) if a else e[i]
+        """linalg.wrap on SX: the same wrap on the angle outputs, the others untouched."""
+        return ca.vertcat(*[angles.wrap_sx(e[i]) if a else e[i]
                             for i, a in enumerate(self.angle_out)])
 
 

@@ -75,15 +75,25 @@ static inline void two_link_arm_move_origin(const real* x, const real* from, con
     }
 }
 
-/* An angle output's innovation wrapped into (-pi, pi] by the formula of docs/algorithms.md,
- * e - 2 pi ceil((e - pi) / (2 pi)), bit for bit. For |e| <= 3 that ceil is of a number in
- * (-1, 0), so -0, and the formula gives e + 0 (e, a -0 made +0): the common case skips the
- * division and the ceil. */
+/* An angle output's innovation wrapped into (-pi, pi] as dfeif_codegen/angles.py does it (and
+ * docs/algorithms.md): r = fmod(e, 2 pi) is exact for any finite e, then r - 2 pi when r > pi or
+ * r + 2 pi when r <= -pi, both exact (Sterbenz), so the result is in (-pi, pi] however large e
+ * is, and the same bits as the reference. The common case, e already in (-pi, pi], returns e
+ * (what fmod and no correction give) without the call. */
 static inline real two_link_arm_wrap(real e)
 {
-    real out = e + (real)0;
-    if ((e < (real)-3) || (e > (real)3)) {
-        out = e - (6.283185307179586 * ceil((e - 3.141592653589793) / 6.283185307179586));
+    const real pi = 3.141592653589793;
+    const real two_pi = 6.283185307179586;
+    real out = e;
+    if (!((e > -pi) && (e <= pi))) {
+        out = fmod(e, two_pi);
+        if (out > pi) {
+            out = out - two_pi;
+        } else if (out <= -pi) {
+            out = out + two_pi;
+        } else {
+            /* already in (-pi, pi] */
+        }
     }
     return out;
 }

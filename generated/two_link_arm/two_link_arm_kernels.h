@@ -53,7 +53,7 @@ int two_link_arm_kern_input_step(const two_link_arm_real effect[6], const two_li
                                  two_link_arm_real effect1[6]);
 
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
-#define TWO_LINK_ARM_KERN_CONTROL_SZ_W 54
+#define TWO_LINK_ARM_KERN_CONTROL_SZ_W 55
 int two_link_arm_kern_control(const two_link_arm_real x[6], const two_link_arm_real flags[8],
                               const two_link_arm_real gains[6], const two_link_arm_real params[11],
                               two_link_arm_real u[2], two_link_arm_real v[2],

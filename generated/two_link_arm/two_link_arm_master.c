@@ -94,6 +94,29 @@ static inline int bring(const two_link_arm_master* master, const two_link_arm_pa
     return rc;
 }
 
+/* x's angle heads moved by whole turns (turns[j], 0 for the other outputs). */
+static void turn(real* x, const real turns[NY])
+{
+    int j;
+    for (j = 0; j < NY; j++) {
+        x[two_link_arm_heads[j]] -= turns[j];
+    }
+}
+
+/* Each angle head of a node's x (relative to the master's centre) moved by whole turns to the
+ * branch nearest the master's prediction, the turns into turns[] for the node's x_pred: 6.383
+ * and 0.1 are the same angle and fuse as such (docs/algorithms.md, master). */
+static void on_branch(const two_link_arm_master* master, real* x, real turns[NY])
+{
+    real d;
+    (void)memset(turns, 0, sizeof(real[NY]));
+    d = x[0] - master->x_prior[0];
+    turns[0] = d - two_link_arm_wrap(d);
+    d = x[3] - master->x_prior[3];
+    turns[1] = d - two_link_arm_wrap(d);
+    turn(x, turns);
+}
+
 /* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN
  * (v * 0 is NaN for those, and a NaN stays in the sum). One test at the end instead of a
  * branch per value. */
@@ -189,6 +212,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
     real piv[NPIV];
     real effect[NX];
     const real* Pk = P;
+    real turns[NY];
     real xp[NX];
     real Pp[NXX];
     const real* Ppk = Pp;
@@ -221,8 +245,10 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
                 inputs_effect(master, pk->step, effect);
             }
             rc = bring(master, pk, pk->x, pk->P, effect, x, P, &Pk);
+            on_branch(master, x, turns);
             if (rc == TWO_LINK_ARM_OK) {
                 rc = bring(master, pk, pk->x_pred, pk->P_pred, effect, xp, Pp, &Ppk);
+                turn(xp, turns);   /* the turns of the node's x: its gain is kept */
             }
             if (rc == TWO_LINK_ARM_OK) {
                 (void)two_link_arm_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
