@@ -258,3 +258,79 @@ def test_programs_strict_compile(libs, tmp_path, cc, precision):
                               str(paths[name]), "-o", str(tmp_path / (name + ".o"))], capture_output=True, text=True)
         assert out.returncode == 0, out.stderr
     assert shutil.which(compiler)
+
+
+def bad_covariances(lay) -> dict[str, np.ndarray]:
+    """Packets whose numbers are finite but whose covariances the master cannot take, by cause."""
+    n, m = lay.n, lay.m
+    at = {"P": m + n, "P_pred": m + n + n * n + n}
+    out = {}
+    v = good_packet(lay, 0)
+    v[at["P"]] = -0.005                                   # P not positive definite
+    out["covariance: P indefinite"] = v
+    v = good_packet(lay, 0)
+    v[at["P"] + 1] = 1e-4                                 # P(0, 1) without P(1, 0): asymmetric
+    out["covariance: P asymmetric"] = v
+    v = good_packet(lay, 0)
+    v[at["P_pred"] + n * n - 1] = 0.0                     # P_pred singular
+    out["covariance: P_pred singular"] = v
+    v = good_packet(lay, 0, scale=3.0)                    # P = 0.015 I > P_pred = 0.01 I
+    out["gain: P above P_pred"] = v
+    return out
+
+
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_a_bad_packet_costs_only_its_node(libs, precision):
+    """Forged packets from node 0 with finite but unusable covariances are each refused at
+    receive, counted by cause, and leave node 0's genuine packet for the step acceptable; the
+    fuse equals master_fuse of the two genuine packets. A packet that passes those checks but
+    still cannot be fused (P = 1e-320 or 1e-44: its information overflows) is dropped at
+    fuse_inbox (counted: unfused) and the other node's packet is fused alone. Before: the bad
+    packet was staged, every fuse failed with ERR_SINGULAR and node 0's real packet was a
+    duplicate."""
+    lib = libs("dc_motor_link", precision)
+    lay = lib.layout
+    k = 40
+    ms = Master(lib, k)
+    before = ms.m.raw
+    bad = bad_covariances(lay)
+    for what, values in bad.items():
+        assert ms.receive(frame(lay, k, values=values)) == wire.ERRORS[what.split(":")[0]], what
+    assert ms.m.raw == before
+    counts = {c: v for c, v in lib.rejected(inbox=ms.inbox).items() if v}
+    assert counts == {"covariance": 3, "gain": 1}
+    assert ms.receive(frame(lay, k, node=0)) == 0 and ms.receive(frame(lay, k, node=1)) == 0
+    assert lib.fn("master_fuse_inbox")(ms.m, ms.inbox) == 0
+    ref = Master(lib, k)
+    pks = (lib.Packet * 2)(lib.packet(good_packet(lay, k), k), lib.packet(good_packet(lay, k), k))
+    assert lib.fn("master_fuse")(ref.m, pks, (ctypes.c_uint8 * 2)(1, 1)) == 0
+    assert all(np.array_equal(a, b) for a, b in zip(ms.estimate(), ref.estimate()))
+    # master_fuse itself refuses each of them, and is left as it was
+    for what, values in bad.items():
+        one = (lib.Packet * 2)(lib.packet(values, k), lib.packet(good_packet(lay, k), k))
+        state = ref.m.raw
+        assert lib.fn("master_fuse")(ref.m, one, (ctypes.c_uint8 * 2)(1, 1)) == -4, what   # ERR_SINGULAR
+        assert ref.m.raw == state
+    # an unfusable packet passes receive, then is dropped at the fuse: node 1 fused alone
+    for m_ in (ms, ref):
+        assert lib.fn("master_predict")(m_.m, lib.reals(np.zeros(lay.m))) == 0
+    tiny = good_packet(lay, 0, scale=(1e-320 if precision == "double" else 1e-44) / 0.005)
+    assert ms.receive(frame(lay, k + 1, node=0, values=tiny)) == 0
+    assert ms.receive(frame(lay, k + 1, node=1)) == 0
+    assert lib.fn("master_fuse_inbox")(ms.m, ms.inbox) == 0
+    assert lib.rejected(inbox=ms.inbox)["unfused"] == 1
+    pks = (lib.Packet * 2)(lib.packet(good_packet(lay, k), k + 1), lib.packet(good_packet(lay, k), k + 1))
+    assert lib.fn("master_fuse")(ref.m, pks, (ctypes.c_uint8 * 2)(0, 1)) == 0
+    assert all(np.array_equal(a, b) for a, b in zip(ms.estimate(), ref.estimate()))
+
+
+def test_gains_refuse_unstable_poles(libs):
+    """lambda <= 0 places a pole at 0 or in the right half-plane: ERR_ARG, gains untouched."""
+    lib = libs("dc_motor_link", "double")
+    lay = lib.layout
+    out = lib.reals(np.full(lay.n, 7.0))
+    for lam in (-5.0, 0.0, -0.0):
+        assert lib.fn("gains")(lib.reals([lam] * lay.m), out) == -1, lam
+        assert list(out) == [7.0] * lay.n
+    assert lib.fn("gains")(lib.reals([2.0] * lay.m), out) == 0
+    assert np.allclose(list(out), [6.0, 12.0, 8.0])      # (s + 2)^3 = s^3 + 6 s^2 + 12 s + 8

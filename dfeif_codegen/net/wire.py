@@ -27,12 +27,12 @@ MASTER_ID = 0xFFFF
 # decode failures, named as the C's return codes (P_ERR_WIRE_* and P_ERR_NONFINITE)
 ERRORS = {"length": -10, "crc": -11, "format": -12, "version": -13, "model": -14, "tag": -15,
           "node": -16, "duplicate": -17, "old": -18, "future": -19, "replay": -20, "outdated": -21,
-          "nonfinite": -3}
+          "nonfinite": -3, "covariance": -22, "gain": -23}
 
 
 # the C's wire_counters fields, in order
 COUNTERS = ("length", "crc", "format", "version", "model", "tag", "node", "duplicate", "old", "future", "replay",
-            "outdated", "nonfinite", "other")
+            "outdated", "nonfinite", "covariance", "gain", "unfused", "other")
 
 
 class WireError(ValueError):

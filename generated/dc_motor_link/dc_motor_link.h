@@ -272,6 +272,8 @@ int dc_motor_link_master_init(dc_motor_link_master* master,
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
  * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
  * With no packet the estimate is the master's prediction. May be called again in the same step.
+ * A present packet whose P or P_pred is not symmetric positive definite, or (difference rule)
+ * whose P exceeds P_pred on the diagonal, refuses the call (ERR_SINGULAR).
  */
 int dc_motor_link_master_fuse(dc_motor_link_master* master,
                               const dc_motor_link_packet packets[DC_MOTOR_LINK_NNODES],
@@ -330,6 +332,10 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
 #define DC_MOTOR_LINK_ERR_WIRE_REPLAY (-20)
 /** older than a packet already received from that node */
 #define DC_MOTOR_LINK_ERR_WIRE_OUTDATED (-21)
+/** A packet's P or P_pred is not symmetric positive definite. */
+#define DC_MOTOR_LINK_ERR_WIRE_COVARIANCE (-22)
+/** A packet's P exceeds its P_pred on the diagonal (difference rule: its gain would be negative). */
+#define DC_MOTOR_LINK_ERR_WIRE_GAIN (-23)
 
 typedef struct {
     uint8_t kind;
@@ -353,6 +359,9 @@ typedef struct {
     uint32_t replay;
     uint32_t outdated;
     uint32_t nonfinite;
+    uint32_t covariance;
+    uint32_t gain;
+    uint32_t unfused; /* staged, but the fuse could not use it (dropped, the others fused) */
     uint32_t other;
 } dc_motor_link_wire_counters;
 
@@ -407,11 +416,14 @@ int dc_motor_link_command_decode(const uint8_t* buf, size_t len, const uint8_t* 
                                  dc_motor_link_frame_header* header);
 /** key NULL: CRC only; base: global step of the master's step 0. */
 int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], uint32_t base);
-/** Check a received frame (integrity, identity, window, duplicates, replay) and stage it for the
- * next fuse; a rejected frame is counted per cause and changes nothing else. */
+/** Check a received frame (integrity, identity, window, duplicates, replay, then the packet's
+ * covariances as master_fuse needs them) and stage it for the next fuse; a rejected frame is
+ * counted per cause and changes nothing else (its node's packet for that step is still taken). */
 int dc_motor_link_master_receive(const dc_motor_link_master* master, dc_motor_link_inbox* inbox,
                                  const uint8_t* buf, size_t len);
-/** Fuse the staged packets (master_fuse), then clear them. */
+/** Fuse the staged packets (master_fuse), then clear them. If that fails (ERR_SINGULAR or
+ * ERR_NONFINITE), each staged packet the master cannot fuse even alone is dropped (counted:
+ * unfused) and the rest are fused: one bad packet costs only its own node. */
 int dc_motor_link_master_fuse_inbox(dc_motor_link_master* master, dc_motor_link_inbox* inbox);
 size_t dc_motor_link_inbox_size(void);
 size_t dc_motor_link_command_rx_size(void);
@@ -441,7 +453,7 @@ int dc_motor_link_control(const dc_motor_link_real x[DC_MOTOR_LINK_NX],
                           dc_motor_link_real u[DC_MOTOR_LINK_NU],
                           dc_motor_link_real v[DC_MOTOR_LINK_NY], uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:
- * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. */
+ * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int dc_motor_link_gains(const dc_motor_link_real lambda[DC_MOTOR_LINK_NY],
                         dc_motor_link_real gains[DC_MOTOR_LINK_NX]);
 

@@ -84,6 +84,13 @@ int dc_motor_link_gains(const real lambda[NY], real gains[NX])
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     } else {
         for (j = 0; j < NY; j++) {
+            if (!(lambda[j] > (real)0)) { /* poles at -lambda: 0 or below is not stable */
+                rc = DC_MOTOR_LINK_ERR_ARG;
+            }
+        }
+    }
+    if (rc == DC_MOTOR_LINK_OK) {
+        for (j = 0; j < NY; j++) {
             real binom = (real)1;
             real power = (real)1;
             for (i = 1; i <= degree[j]; i++) { /* k_i = C(r, i) lambda^i */

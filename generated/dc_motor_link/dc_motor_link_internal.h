@@ -169,5 +169,11 @@ static inline int dc_motor_link_spd(const real* A, int n)
 
 /* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */
 int dc_motor_link_cov_ok(const real* A);
+/* OK, or why the master cannot take a packet's covariances (ERR_WIRE_COVARIANCE, _GAIN). */
+int dc_motor_link_packet_check(const dc_motor_link_packet* pk);
+/* master_fuse, writing the master only if commit (0: would it fuse?). */
+int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
+                                  const dc_motor_link_packet packets[DC_MOTOR_LINK_NNODES],
+                                  const uint8_t present[DC_MOTOR_LINK_NNODES], int commit);
 
 #endif /* DC_MOTOR_LINK_INTERNAL_H */

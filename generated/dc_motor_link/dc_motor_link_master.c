@@ -167,6 +167,23 @@ static int present_ok(const uint8_t present[NNODES])
     return ok;
 }
 
+int dc_motor_link_packet_check(const dc_motor_link_packet* pk)
+{
+    int rc = DC_MOTOR_LINK_OK;
+    int i;
+    if ((dc_motor_link_cov_ok(pk->P) == 0) || (dc_motor_link_cov_ok(pk->P_pred) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_COVARIANCE;
+    }
+    /* an update only shrinks P: P_ii <= P_pred_ii, to the rounding of the node's subtraction */
+    for (i = 0; (rc == DC_MOTOR_LINK_OK) && (i < NX); i++) {
+        real d = pk->P_pred[(i * NX) + i];
+        if (pk->P[(i * NX) + i] > (d + (d * 1.4210854715202004e-14))) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_GAIN;
+        }
+    }
+    return rc;
+}
+
 int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], const real P0[NXX],
                               const real q[NY])
 {
@@ -204,6 +221,13 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master,
                               const dc_motor_link_packet packets[NNODES],
                               const uint8_t present[NNODES])
 {
+    return dc_motor_link_master_fuse_try(master, packets, present, 1);
+}
+
+int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
+                                  const dc_motor_link_packet packets[NNODES],
+                                  const uint8_t present[NNODES], int commit)
+{
     real x[NX];
     real P[NXX];
     real Yacc[NXP];
@@ -239,6 +263,8 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master,
             ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
+        } else if (dc_motor_link_packet_check(pk) != DC_MOTOR_LINK_OK) {
+            rc = DC_MOTOR_LINK_ERR_SINGULAR; /* P or P_pred not SPD, or P above P_pred (difference) */
         } else {
             if (pk->step < master->k) {
                 inputs_effect(master, pk->step, effect);
@@ -290,7 +316,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master,
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
         }
     }
-    if (rc == DC_MOTOR_LINK_OK) {
+    if ((rc == DC_MOTOR_LINK_OK) && (commit != 0)) {
         (void)memcpy(master->x, x, sizeof(x));
         (void)memcpy(master->P, P, sizeof(P));
         master->health.fusions++;

@@ -424,6 +424,12 @@ static void count_reject(dc_motor_link_wire_counters* c, int rc)
     case DC_MOTOR_LINK_ERR_NONFINITE:
         c->nonfinite++;
         break;
+    case DC_MOTOR_LINK_ERR_WIRE_COVARIANCE:
+        c->covariance++;
+        break;
+    case DC_MOTOR_LINK_ERR_WIRE_GAIN:
+        c->gain++;
+        break;
     default:
         c->other++;
         break;
@@ -467,7 +473,7 @@ static int check_packet(const dc_motor_link_master* master, const dc_motor_link_
         } else if ((inbox->seen[h->node] != 0u) && (h->step < inbox->last_step[h->node])) {
             rc = DC_MOTOR_LINK_ERR_WIRE_OUTDATED;
         } else {
-            rc = DC_MOTOR_LINK_OK;
+            rc = dc_motor_link_packet_check(pk); /* last: a bad packet leaves its node's step open */
         }
     }
     return rc;
@@ -496,11 +502,33 @@ int dc_motor_link_master_receive(const dc_motor_link_master* master, dc_motor_li
     return rc;
 }
 
+/* After a failed fuse: each staged packet that cannot be fused even alone is dropped and
+ * counted (unfused), so that one bad packet costs only its own node. */
+static void drop_unfusable(dc_motor_link_master* master, dc_motor_link_inbox* inbox)
+{
+    uint8_t one[NNODES];
+    int i;
+    for (i = 0; i < NNODES; i++) {
+        if (inbox->present[i] != 0u) {
+            (void)memset(one, 0, sizeof(one));
+            one[i] = 1u;
+            if (dc_motor_link_master_fuse_try(master, inbox->staged, one, 0) != DC_MOTOR_LINK_OK) {
+                inbox->present[i] = 0u;
+                inbox->rejected.unfused++;
+            }
+        }
+    }
+}
+
 int dc_motor_link_master_fuse_inbox(dc_motor_link_master* master, dc_motor_link_inbox* inbox)
 {
     int rc = DC_MOTOR_LINK_ERR_ARG;
     if ((master != NULL) && (inbox != NULL)) {
         rc = dc_motor_link_master_fuse(master, inbox->staged, inbox->present);
+        if ((rc == DC_MOTOR_LINK_ERR_SINGULAR) || (rc == DC_MOTOR_LINK_ERR_NONFINITE)) {
+            drop_unfusable(master, inbox);
+            rc = dc_motor_link_master_fuse(master, inbox->staged, inbox->present);
+        }
         if (rc == DC_MOTOR_LINK_OK) {
             (void)memset(inbox->present, 0, sizeof(inbox->present));
         }

@@ -276,6 +276,8 @@ int two_link_arm_master_init(two_link_arm_master* master,
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
  * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
  * With no packet the estimate is the master's prediction. May be called again in the same step.
+ * A present packet whose P or P_pred is not symmetric positive definite, or (difference rule)
+ * whose P exceeds P_pred on the diagonal, refuses the call (ERR_SINGULAR).
  */
 int two_link_arm_master_fuse(two_link_arm_master* master,
                              const two_link_arm_packet packets[TWO_LINK_ARM_NNODES],
@@ -334,6 +336,10 @@ int two_link_arm_master_estimate(const two_link_arm_master* master,
 #define TWO_LINK_ARM_ERR_WIRE_REPLAY (-20)
 /** older than a packet already received from that node */
 #define TWO_LINK_ARM_ERR_WIRE_OUTDATED (-21)
+/** A packet's P or P_pred is not symmetric positive definite. */
+#define TWO_LINK_ARM_ERR_WIRE_COVARIANCE (-22)
+/** A packet's P exceeds its P_pred on the diagonal (difference rule: its gain would be negative). */
+#define TWO_LINK_ARM_ERR_WIRE_GAIN (-23)
 
 typedef struct {
     uint8_t kind;
@@ -357,6 +363,9 @@ typedef struct {
     uint32_t replay;
     uint32_t outdated;
     uint32_t nonfinite;
+    uint32_t covariance;
+    uint32_t gain;
+    uint32_t unfused; /* staged, but the fuse could not use it (dropped, the others fused) */
     uint32_t other;
 } two_link_arm_wire_counters;
 
@@ -411,11 +420,14 @@ int two_link_arm_command_decode(const uint8_t* buf, size_t len, const uint8_t* k
                                 two_link_arm_frame_header* header);
 /** key NULL: CRC only; base: global step of the master's step 0. */
 int two_link_arm_inbox_init(two_link_arm_inbox* inbox, const uint8_t key[16], uint32_t base);
-/** Check a received frame (integrity, identity, window, duplicates, replay) and stage it for the
- * next fuse; a rejected frame is counted per cause and changes nothing else. */
+/** Check a received frame (integrity, identity, window, duplicates, replay, then the packet's
+ * covariances as master_fuse needs them) and stage it for the next fuse; a rejected frame is
+ * counted per cause and changes nothing else (its node's packet for that step is still taken). */
 int two_link_arm_master_receive(const two_link_arm_master* master, two_link_arm_inbox* inbox,
                                 const uint8_t* buf, size_t len);
-/** Fuse the staged packets (master_fuse), then clear them. */
+/** Fuse the staged packets (master_fuse), then clear them. If that fails (ERR_SINGULAR or
+ * ERR_NONFINITE), each staged packet the master cannot fuse even alone is dropped (counted:
+ * unfused) and the rest are fused: one bad packet costs only its own node. */
 int two_link_arm_master_fuse_inbox(two_link_arm_master* master, two_link_arm_inbox* inbox);
 size_t two_link_arm_inbox_size(void);
 size_t two_link_arm_command_rx_size(void);
@@ -444,7 +456,7 @@ int two_link_arm_control(const two_link_arm_real x[TWO_LINK_ARM_NX],
                          two_link_arm_real u[TWO_LINK_ARM_NU], two_link_arm_real v[TWO_LINK_ARM_NY],
                          uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:
- * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. */
+ * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int two_link_arm_gains(const two_link_arm_real lambda[TWO_LINK_ARM_NY],
                        two_link_arm_real gains[TWO_LINK_ARM_NX]);
 

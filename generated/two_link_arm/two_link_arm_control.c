@@ -86,6 +86,13 @@ int two_link_arm_gains(const real lambda[NY], real gains[NX])
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     } else {
         for (j = 0; j < NY; j++) {
+            if (!(lambda[j] > (real)0)) { /* poles at -lambda: 0 or below is not stable */
+                rc = TWO_LINK_ARM_ERR_ARG;
+            }
+        }
+    }
+    if (rc == TWO_LINK_ARM_OK) {
+        for (j = 0; j < NY; j++) {
             real binom = (real)1;
             real power = (real)1;
             for (i = 1; i <= degree[j]; i++) { /* k_i = C(r, i) lambda^i */

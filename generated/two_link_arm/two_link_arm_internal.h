@@ -169,5 +169,11 @@ static inline int two_link_arm_spd(const real* A, int n)
 
 /* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */
 int two_link_arm_cov_ok(const real* A);
+/* OK, or why the master cannot take a packet's covariances (ERR_WIRE_COVARIANCE, _GAIN). */
+int two_link_arm_packet_check(const two_link_arm_packet* pk);
+/* master_fuse, writing the master only if commit (0: would it fuse?). */
+int two_link_arm_master_fuse_try(two_link_arm_master* master,
+                                 const two_link_arm_packet packets[TWO_LINK_ARM_NNODES],
+                                 const uint8_t present[TWO_LINK_ARM_NNODES], int commit);
 
 #endif /* TWO_LINK_ARM_INTERNAL_H */

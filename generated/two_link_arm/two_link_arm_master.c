@@ -169,6 +169,23 @@ static int present_ok(const uint8_t present[NNODES])
     return ok;
 }
 
+int two_link_arm_packet_check(const two_link_arm_packet* pk)
+{
+    int rc = TWO_LINK_ARM_OK;
+    int i;
+    if ((two_link_arm_cov_ok(pk->P) == 0) || (two_link_arm_cov_ok(pk->P_pred) == 0)) {
+        rc = TWO_LINK_ARM_ERR_WIRE_COVARIANCE;
+    }
+    /* an update only shrinks P: P_ii <= P_pred_ii, to the rounding of the node's subtraction */
+    for (i = 0; (rc == TWO_LINK_ARM_OK) && (i < NX); i++) {
+        real d = pk->P_pred[(i * NX) + i];
+        if (pk->P[(i * NX) + i] > (d + (d * 1.4210854715202004e-14))) {
+            rc = TWO_LINK_ARM_ERR_WIRE_GAIN;
+        }
+    }
+    return rc;
+}
+
 int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], const real P0[NXX],
                              const real q[NY])
 {
@@ -205,6 +222,13 @@ int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], con
 int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_packet packets[NNODES],
                              const uint8_t present[NNODES])
 {
+    return two_link_arm_master_fuse_try(master, packets, present, 1);
+}
+
+int two_link_arm_master_fuse_try(two_link_arm_master* master,
+                                 const two_link_arm_packet packets[NNODES],
+                                 const uint8_t present[NNODES], int commit)
+{
     real x[NX];
     real P[NXX];
     real Yacc[NXP];
@@ -240,6 +264,8 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
             ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
+        } else if (two_link_arm_packet_check(pk) != TWO_LINK_ARM_OK) {
+            rc = TWO_LINK_ARM_ERR_SINGULAR; /* P or P_pred not SPD, or P above P_pred (difference) */
         } else {
             if (pk->step < master->k) {
                 inputs_effect(master, pk->step, effect);
@@ -291,7 +317,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master, const two_link_arm_pac
             rc = TWO_LINK_ARM_ERR_NONFINITE;
         }
     }
-    if (rc == TWO_LINK_ARM_OK) {
+    if ((rc == TWO_LINK_ARM_OK) && (commit != 0)) {
         (void)memcpy(master->x, x, sizeof(x));
         (void)memcpy(master->P, P, sizeof(P));
         master->health.fusions++;

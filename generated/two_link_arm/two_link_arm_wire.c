@@ -423,6 +423,12 @@ static void count_reject(two_link_arm_wire_counters* c, int rc)
     case TWO_LINK_ARM_ERR_NONFINITE:
         c->nonfinite++;
         break;
+    case TWO_LINK_ARM_ERR_WIRE_COVARIANCE:
+        c->covariance++;
+        break;
+    case TWO_LINK_ARM_ERR_WIRE_GAIN:
+        c->gain++;
+        break;
     default:
         c->other++;
         break;
@@ -466,7 +472,7 @@ static int check_packet(const two_link_arm_master* master, const two_link_arm_in
         } else if ((inbox->seen[h->node] != 0u) && (h->step < inbox->last_step[h->node])) {
             rc = TWO_LINK_ARM_ERR_WIRE_OUTDATED;
         } else {
-            rc = TWO_LINK_ARM_OK;
+            rc = two_link_arm_packet_check(pk); /* last: a bad packet leaves its node's step open */
         }
     }
     return rc;
@@ -495,11 +501,33 @@ int two_link_arm_master_receive(const two_link_arm_master* master, two_link_arm_
     return rc;
 }
 
+/* After a failed fuse: each staged packet that cannot be fused even alone is dropped and
+ * counted (unfused), so that one bad packet costs only its own node. */
+static void drop_unfusable(two_link_arm_master* master, two_link_arm_inbox* inbox)
+{
+    uint8_t one[NNODES];
+    int i;
+    for (i = 0; i < NNODES; i++) {
+        if (inbox->present[i] != 0u) {
+            (void)memset(one, 0, sizeof(one));
+            one[i] = 1u;
+            if (two_link_arm_master_fuse_try(master, inbox->staged, one, 0) != TWO_LINK_ARM_OK) {
+                inbox->present[i] = 0u;
+                inbox->rejected.unfused++;
+            }
+        }
+    }
+}
+
 int two_link_arm_master_fuse_inbox(two_link_arm_master* master, two_link_arm_inbox* inbox)
 {
     int rc = TWO_LINK_ARM_ERR_ARG;
     if ((master != NULL) && (inbox != NULL)) {
         rc = two_link_arm_master_fuse(master, inbox->staged, inbox->present);
+        if ((rc == TWO_LINK_ARM_ERR_SINGULAR) || (rc == TWO_LINK_ARM_ERR_NONFINITE)) {
+            drop_unfusable(master, inbox);
+            rc = two_link_arm_master_fuse(master, inbox->staged, inbox->present);
+        }
         if (rc == TWO_LINK_ARM_OK) {
             (void)memset(inbox->present, 0, sizeof(inbox->present));
         }
