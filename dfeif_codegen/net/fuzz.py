@@ -60,7 +60,9 @@ def run(exe: Path, corpus: Path, work: Path, seconds: int) -> FuzzResult:
 
 def seed_corpus(layout: wire.Layout, max_lag: int) -> dict[str, bytes]:
     """A few valid starting points: good frames for the master (plain, keyed, CRC-fixed mode),
-    and node operation sequences (updates, late measurements, predictions, packets, commands)."""
+    frames whose covariances the master cannot take (not positive definite, asymmetric, above the
+    prediction, information that overflows), node operation sequences (updates, late
+    measurements, predictions, packets, commands; huge angles) and huge values for the wrap."""
     n, m = layout.n, layout.m
     key = bytes(range(1, 17))
     pkt = np.concatenate([np.zeros(m), np.zeros(n), (0.005 * np.eye(n)).ravel(), np.zeros(n), (0.01 * np.eye(n)).ravel()])
@@ -81,6 +83,28 @@ def seed_corpus(layout: wire.Layout, max_lag: int) -> dict[str, bytes]:
             ops += bytes([1]) + reals([0.02] * m) + struct.pack("<i", 1)
         ops += bytes([4]) + reals([0.1] * m) + struct.pack("<I", k + 1) + bytes([2]) + reals([0.1] * m)
     out["node-steps"] = bytes(ops)
+    huge = [1e17, -3e18, 2.0 ** 60, 3.0e38, -3.0e38, 1e9 + 0.5, 3.141592653589793, -3.141592653589793]
+    if layout.precision == "double":
+        huge += [1e300, -1.7e308, 1e16 + 2]
+    ops = bytearray([2])
+    for k, value in enumerate(huge):
+        ops += bytes([0]) + reals([value] * m) + bytes([1]) + reals([-value] * m) + struct.pack("<i", 1)
+        ops += bytes([2]) + reals([0.0] * m) + bytes([3])
+    out["node-huge-angles"] = bytes(ops)
+    out["angles-huge"] = bytes([3]) + reals(huge)
+    bad = {"indefinite": (m + n, -0.005), "asymmetric": (m + n + 1, 1e-4), "above": None,
+           "unfusable": None}
+    for name, patch in bad.items():
+        vals = pkt.copy()
+        if patch is not None:
+            vals[patch[0]] = patch[1]
+        elif name == "above":
+            vals[m + n:m + n + n * n] *= 3.0
+        else:
+            vals[m + n:m + n + n * n] *= (1e-320 if layout.precision == "double" else 1e-44) / 0.005
+        good_1 = wire.encode(layout, wire.KIND_PACKET, 1, 0, 1, pkt)
+        out[f"master-{name}"] = bytes([0]) + frame(2, wire.encode(layout, wire.KIND_PACKET, 0, 0, 1, vals)) + \
+            frame(2, good_1) + bytes([1])
     out["node-late-limits"] = bytes([2, 0]) + reals([0.0] * m) + bytes([1]) + reals([0.0] * m) + \
         struct.pack("<i", max_lag + 1) + bytes([1]) + reals([float("nan")] * m) + struct.pack("<i", 1)
     return out

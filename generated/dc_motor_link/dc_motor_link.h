@@ -422,8 +422,9 @@ int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], 
 int dc_motor_link_master_receive(const dc_motor_link_master* master, dc_motor_link_inbox* inbox,
                                  const uint8_t* buf, size_t len);
 /** Fuse the staged packets (master_fuse), then clear them. If that fails (ERR_SINGULAR or
- * ERR_NONFINITE), each staged packet the master cannot fuse even alone is dropped (counted:
- * unfused) and the rest are fused: one bad packet costs only its own node. */
+ * ERR_NONFINITE), the packets are added one by one in node order, each one whose addition
+ * cannot be fused is dropped (counted: unfused), and the rest are fused: one bad packet costs
+ * only its own node. */
 int dc_motor_link_master_fuse_inbox(dc_motor_link_master* master, dc_motor_link_inbox* inbox);
 size_t dc_motor_link_inbox_size(void);
 size_t dc_motor_link_command_rx_size(void);

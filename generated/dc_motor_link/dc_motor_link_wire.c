@@ -502,17 +502,19 @@ int dc_motor_link_master_receive(const dc_motor_link_master* master, dc_motor_li
     return rc;
 }
 
-/* After a failed fuse: each staged packet that cannot be fused even alone is dropped and
- * counted (unfused), so that one bad packet costs only its own node. */
+/* After a failed fuse: the staged packets are taken one by one in node order, and one whose
+ * addition the master cannot fuse is dropped and counted (unfused). What is left fuses (it is
+ * the last set tried, or none), so one bad packet costs only its own node. */
 static void drop_unfusable(dc_motor_link_master* master, dc_motor_link_inbox* inbox)
 {
-    uint8_t one[NNODES];
+    uint8_t keep[NNODES];
     int i;
+    (void)memset(keep, 0, sizeof(keep));
     for (i = 0; i < NNODES; i++) {
         if (inbox->present[i] != 0u) {
-            (void)memset(one, 0, sizeof(one));
-            one[i] = 1u;
-            if (dc_motor_link_master_fuse_try(master, inbox->staged, one, 0) != DC_MOTOR_LINK_OK) {
+            keep[i] = 1u;
+            if (dc_motor_link_master_fuse_try(master, inbox->staged, keep, 0) != DC_MOTOR_LINK_OK) {
+                keep[i] = 0u;
                 inbox->present[i] = 0u;
                 inbox->rejected.unfused++;
             }

@@ -426,8 +426,9 @@ int two_link_arm_inbox_init(two_link_arm_inbox* inbox, const uint8_t key[16], ui
 int two_link_arm_master_receive(const two_link_arm_master* master, two_link_arm_inbox* inbox,
                                 const uint8_t* buf, size_t len);
 /** Fuse the staged packets (master_fuse), then clear them. If that fails (ERR_SINGULAR or
- * ERR_NONFINITE), each staged packet the master cannot fuse even alone is dropped (counted:
- * unfused) and the rest are fused: one bad packet costs only its own node. */
+ * ERR_NONFINITE), the packets are added one by one in node order, each one whose addition
+ * cannot be fused is dropped (counted: unfused), and the rest are fused: one bad packet costs
+ * only its own node. */
 int two_link_arm_master_fuse_inbox(two_link_arm_master* master, two_link_arm_inbox* inbox);
 size_t two_link_arm_inbox_size(void);
 size_t two_link_arm_command_rx_size(void);

@@ -501,17 +501,19 @@ int two_link_arm_master_receive(const two_link_arm_master* master, two_link_arm_
     return rc;
 }
 
-/* After a failed fuse: each staged packet that cannot be fused even alone is dropped and
- * counted (unfused), so that one bad packet costs only its own node. */
+/* After a failed fuse: the staged packets are taken one by one in node order, and one whose
+ * addition the master cannot fuse is dropped and counted (unfused). What is left fuses (it is
+ * the last set tried, or none), so one bad packet costs only its own node. */
 static void drop_unfusable(two_link_arm_master* master, two_link_arm_inbox* inbox)
 {
-    uint8_t one[NNODES];
+    uint8_t keep[NNODES];
     int i;
+    (void)memset(keep, 0, sizeof(keep));
     for (i = 0; i < NNODES; i++) {
         if (inbox->present[i] != 0u) {
-            (void)memset(one, 0, sizeof(one));
-            one[i] = 1u;
-            if (two_link_arm_master_fuse_try(master, inbox->staged, one, 0) != TWO_LINK_ARM_OK) {
+            keep[i] = 1u;
+            if (two_link_arm_master_fuse_try(master, inbox->staged, keep, 0) != TWO_LINK_ARM_OK) {
+                keep[i] = 0u;
                 inbox->present[i] = 0u;
                 inbox->rejected.unfused++;
             }
