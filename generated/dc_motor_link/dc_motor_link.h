@@ -334,7 +334,7 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
 #define DC_MOTOR_LINK_ERR_WIRE_OUTDATED (-21)
 /** A packet's P or P_pred is not symmetric positive definite. */
 #define DC_MOTOR_LINK_ERR_WIRE_COVARIANCE (-22)
-/** A packet's P exceeds its P_pred on the diagonal (difference rule: its gain would be negative). */
+/** A packet's P exceeds its P_pred on the diagonal (difference rule: a negative gain). */
 #define DC_MOTOR_LINK_ERR_WIRE_GAIN (-23)
 
 typedef struct {

@@ -177,7 +177,8 @@ int dc_motor_link_packet_check(const dc_motor_link_packet* pk)
     /* an update only shrinks P: P_ii <= P_pred_ii, to the rounding of the node's subtraction */
     for (i = 0; (rc == DC_MOTOR_LINK_OK) && (i < NX); i++) {
         real d = pk->P_pred[(i * NX) + i];
-        if (pk->P[(i * NX) + i] > (d + (d * 1.4210854715202004e-14))) {
+        real slack = d * 1.4210854715202004e-14;
+        if (pk->P[(i * NX) + i] > (d + slack)) {
             rc = DC_MOTOR_LINK_ERR_WIRE_GAIN;
         }
     }
@@ -264,7 +265,8 @@ int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
         } else if (packet_finite(pk) == 0) {
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
         } else if (dc_motor_link_packet_check(pk) != DC_MOTOR_LINK_OK) {
-            rc = DC_MOTOR_LINK_ERR_SINGULAR; /* P or P_pred not SPD, or P above P_pred (difference) */
+            /* P or P_pred not SPD, or P above P_pred (difference rule) */
+            rc = DC_MOTOR_LINK_ERR_SINGULAR;
         } else {
             if (pk->step < master->k) {
                 inputs_effect(master, pk->step, effect);
@@ -273,7 +275,7 @@ int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
             on_branch(master, x, turns);
             if (rc == DC_MOTOR_LINK_OK) {
                 rc = bring(master, pk, pk->x_pred, pk->P_pred, effect, xp, Pp, &Ppk);
-                turn(xp, turns);   /* the turns of the node's x: its gain is kept */
+                turn(xp, turns); /* the turns of the node's x: its gain is kept */
             }
             if (rc == DC_MOTOR_LINK_OK) {
                 (void)dc_motor_link_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);

@@ -473,7 +473,8 @@ static int check_packet(const dc_motor_link_master* master, const dc_motor_link_
         } else if ((inbox->seen[h->node] != 0u) && (h->step < inbox->last_step[h->node])) {
             rc = DC_MOTOR_LINK_ERR_WIRE_OUTDATED;
         } else {
-            rc = dc_motor_link_packet_check(pk); /* last: a bad packet leaves its node's step open */
+            /* last: a packet refused here leaves its node's step open for the real one */
+            rc = dc_motor_link_packet_check(pk);
         }
     }
     return rc;
@@ -512,8 +513,10 @@ static void drop_unfusable(dc_motor_link_master* master, dc_motor_link_inbox* in
     (void)memset(keep, 0, sizeof(keep));
     for (i = 0; i < NNODES; i++) {
         if (inbox->present[i] != 0u) {
+            int rc;
             keep[i] = 1u;
-            if (dc_motor_link_master_fuse_try(master, inbox->staged, keep, 0) != DC_MOTOR_LINK_OK) {
+            rc = dc_motor_link_master_fuse_try(master, inbox->staged, keep, 0);
+            if (rc != DC_MOTOR_LINK_OK) {
                 keep[i] = 0u;
                 inbox->present[i] = 0u;
                 inbox->rejected.unfused++;

@@ -338,7 +338,7 @@ int two_link_arm_master_estimate(const two_link_arm_master* master,
 #define TWO_LINK_ARM_ERR_WIRE_OUTDATED (-21)
 /** A packet's P or P_pred is not symmetric positive definite. */
 #define TWO_LINK_ARM_ERR_WIRE_COVARIANCE (-22)
-/** A packet's P exceeds its P_pred on the diagonal (difference rule: its gain would be negative). */
+/** A packet's P exceeds its P_pred on the diagonal (difference rule: a negative gain). */
 #define TWO_LINK_ARM_ERR_WIRE_GAIN (-23)
 
 typedef struct {

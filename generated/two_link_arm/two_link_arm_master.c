@@ -179,7 +179,8 @@ int two_link_arm_packet_check(const two_link_arm_packet* pk)
     /* an update only shrinks P: P_ii <= P_pred_ii, to the rounding of the node's subtraction */
     for (i = 0; (rc == TWO_LINK_ARM_OK) && (i < NX); i++) {
         real d = pk->P_pred[(i * NX) + i];
-        if (pk->P[(i * NX) + i] > (d + (d * 1.4210854715202004e-14))) {
+        real slack = d * 1.4210854715202004e-14;
+        if (pk->P[(i * NX) + i] > (d + slack)) {
             rc = TWO_LINK_ARM_ERR_WIRE_GAIN;
         }
     }
@@ -265,7 +266,8 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
         } else if (packet_finite(pk) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
         } else if (two_link_arm_packet_check(pk) != TWO_LINK_ARM_OK) {
-            rc = TWO_LINK_ARM_ERR_SINGULAR; /* P or P_pred not SPD, or P above P_pred (difference) */
+            /* P or P_pred not SPD, or P above P_pred (difference rule) */
+            rc = TWO_LINK_ARM_ERR_SINGULAR;
         } else {
             if (pk->step < master->k) {
                 inputs_effect(master, pk->step, effect);
@@ -274,7 +276,7 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
             on_branch(master, x, turns);
             if (rc == TWO_LINK_ARM_OK) {
                 rc = bring(master, pk, pk->x_pred, pk->P_pred, effect, xp, Pp, &Ppk);
-                turn(xp, turns);   /* the turns of the node's x: its gain is kept */
+                turn(xp, turns); /* the turns of the node's x: its gain is kept */
             }
             if (rc == TWO_LINK_ARM_OK) {
                 (void)two_link_arm_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);

@@ -472,7 +472,8 @@ static int check_packet(const two_link_arm_master* master, const two_link_arm_in
         } else if ((inbox->seen[h->node] != 0u) && (h->step < inbox->last_step[h->node])) {
             rc = TWO_LINK_ARM_ERR_WIRE_OUTDATED;
         } else {
-            rc = two_link_arm_packet_check(pk); /* last: a bad packet leaves its node's step open */
+            /* last: a packet refused here leaves its node's step open for the real one */
+            rc = two_link_arm_packet_check(pk);
         }
     }
     return rc;
@@ -511,8 +512,10 @@ static void drop_unfusable(two_link_arm_master* master, two_link_arm_inbox* inbo
     (void)memset(keep, 0, sizeof(keep));
     for (i = 0; i < NNODES; i++) {
         if (inbox->present[i] != 0u) {
+            int rc;
             keep[i] = 1u;
-            if (two_link_arm_master_fuse_try(master, inbox->staged, keep, 0) != TWO_LINK_ARM_OK) {
+            rc = two_link_arm_master_fuse_try(master, inbox->staged, keep, 0);
+            if (rc != TWO_LINK_ARM_OK) {
                 keep[i] = 0u;
                 inbox->present[i] = 0u;
                 inbox->rejected.unfused++;
