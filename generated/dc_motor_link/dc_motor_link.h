@@ -391,7 +391,9 @@ typedef struct {
     dc_motor_link_wire_counters rejected;
 } dc_motor_link_command_rx;
 
+/** CRC-32 of len bytes (data NULL: 0, the CRC of none). */
 uint32_t dc_motor_link_crc32(const uint8_t* data, size_t len);
+/** SipHash-2-4 of len bytes under key (key NULL, or data NULL with len > 0: 0). */
 uint64_t dc_motor_link_siphash24(const uint8_t key[16], const uint8_t* data, size_t len);
 /** Any frame: header fields, `count` reals; key NULL = CRC only. buf holds FRAME_SIZE(count)
  * bytes. */

@@ -395,7 +395,9 @@ typedef struct {
     two_link_arm_wire_counters rejected;
 } two_link_arm_command_rx;
 
+/** CRC-32 of len bytes (data NULL: 0, the CRC of none). */
 uint32_t two_link_arm_crc32(const uint8_t* data, size_t len);
+/** SipHash-2-4 of len bytes under key (key NULL, or data NULL with len > 0: 0). */
 uint64_t two_link_arm_siphash24(const uint8_t key[16], const uint8_t* data, size_t len);
 /** Any frame: header fields, `count` reals; key NULL = CRC only. buf holds FRAME_SIZE(count)
  * bytes. */

@@ -39,7 +39,8 @@ uint32_t two_link_arm_crc32(const uint8_t* data, size_t len)
                                             0x9B64C2B0u, 0x86D3D2D4u, 0xA00AE278u, 0xBDBDF21Cu};
     uint32_t c = 0xFFFFFFFFu;
     size_t i;
-    for (i = 0; i < len; i++) {
+    size_t n = (data != NULL) ? len : 0u; /* NULL: the CRC of no bytes, 0 */
+    for (i = 0; i < n; i++) {
         c ^= data[i];
         c = (c >> 4) ^ crc_nibble[c & 15u];
         c = (c >> 4) ^ crc_nibble[c & 15u];
@@ -111,7 +112,8 @@ static void sip_round(uint64_t v[4])
     v[2] = ROTL(v[2], 32u);
 }
 
-uint64_t two_link_arm_siphash24(const uint8_t key[16], const uint8_t* data, size_t len)
+/* The tag itself; key and data are not NULL. */
+static uint64_t siphash24(const uint8_t key[16], const uint8_t* data, size_t len)
 {
     uint64_t k0 = get64(key);
     uint64_t k1 = get64(&key[8]);
@@ -146,6 +148,15 @@ uint64_t two_link_arm_siphash24(const uint8_t key[16], const uint8_t* data, size
     sip_round(v);
     sip_round(v);
     return v[0] ^ v[1] ^ v[2] ^ v[3];
+}
+
+uint64_t two_link_arm_siphash24(const uint8_t key[16], const uint8_t* data, size_t len)
+{
+    uint64_t tag = 0u; /* no key, or no data for a nonzero length: 0 */
+    if ((key != NULL) && ((data != NULL) || (len == 0u))) {
+        tag = siphash24(key, (data != NULL) ? data : key, len);
+    }
+    return tag;
 }
 
 /* A real's bit pattern through character pointers (as memcpy would copy it, with no type
@@ -450,6 +461,14 @@ int two_link_arm_inbox_init(two_link_arm_inbox* inbox, const uint8_t key[16], ui
     return rc;
 }
 
+/* A keyed sequence number newer than the last accepted one, in serial-number arithmetic
+ * (RFC 1982): up to 2^31 - 1 ahead, so that 0xFFFFFFFF is followed by 0 and locks no one out. */
+static int seq_fresh(uint32_t seq, uint32_t last)
+{
+    uint32_t ahead = seq - last;
+    return ((ahead != 0u) && (ahead < 0x80000000u)) ? 1 : 0;
+}
+
 static int check_packet(const two_link_arm_master* master, const two_link_arm_inbox* inbox,
                         const uint8_t* buf, size_t len, two_link_arm_packet* pk,
                         two_link_arm_frame_header* h)
@@ -461,7 +480,7 @@ static int check_packet(const two_link_arm_master* master, const two_link_arm_in
         if (h->node >= (uint16_t)NNODES) {
             rc = TWO_LINK_ARM_ERR_WIRE_NODE;
         } else if ((inbox->keyed != 0u) && (inbox->seen[h->node] != 0u) &&
-                   (h->seq <= inbox->last_seq[h->node])) {
+                   (seq_fresh(h->seq, inbox->last_seq[h->node]) == 0)) {
             rc = TWO_LINK_ARM_ERR_WIRE_REPLAY;
         } else if (h->step > now) {
             rc = TWO_LINK_ARM_ERR_WIRE_FUTURE;
@@ -567,7 +586,7 @@ int two_link_arm_command_receive(two_link_arm_command_rx* rx, const uint8_t* buf
             rc = TWO_LINK_ARM_ERR_WIRE_NODE;
         }
         if ((rc == TWO_LINK_ARM_OK) && (rx->keyed != 0u) && (rx->seen != 0u) &&
-            (h.seq <= rx->last_seq)) {
+            (seq_fresh(h.seq, rx->last_seq) == 0)) {
             rc = TWO_LINK_ARM_ERR_WIRE_REPLAY;
         }
         if (rc != TWO_LINK_ARM_OK) {
