@@ -131,3 +131,23 @@ def test_cli_network_passes_and_rejects_bad_input(capsys, host_cc):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--row 99" in err
     assert cli.main(["network", "--key", "abc"]) == 2
+
+
+def test_a_process_that_ended_early_is_named(tmp_path):
+    """When a run does not finish, the message names each process that had already ended, how,
+    and the last line of its stderr (a killed node was 'did not finish in time', nothing more)."""
+    import signal
+    import time
+
+    dead = run._Proc("node1", ["sh", "-c", "echo 'node 1: nothing received in time, exiting' >&2; exit 3"], tmp_path)
+    killed = run._Proc("node0", ["sleep", "30"], tmp_path)
+    alive = run._Proc("master", ["sleep", "30"], tmp_path)
+    killed.p.send_signal(signal.SIGKILL)
+    time.sleep(0.5)
+    early = {p.name: p.ended() for p in (dead, killed, alive)}
+    assert early == {"node1": 3, "node0": -9, "master": None}
+    msg = run._who_ended(early, tmp_path)
+    assert "node1 ended early (exit 3: node 1: nothing received in time, exiting)" in msg
+    assert "node0 ended early (killed by signal 9)" in msg and "master" not in msg
+    for p in (dead, killed, alive):
+        p.reap(0)

@@ -334,3 +334,21 @@ def test_gains_refuse_unstable_poles(libs):
         assert list(out) == [7.0] * lay.n
     assert lib.fn("gains")(lib.reals([2.0] * lay.m), out) == 0
     assert np.allclose(list(out), [6.0, 12.0, 8.0])      # (s + 2)^3 = s^3 + 6 s^2 + 12 s + 8
+
+
+def test_null_arguments_and_sequence_wrap(libs):
+    """crc32(NULL, 16) and siphash24(NULL key, ...) return 0 instead of reading address 0; a keyed
+    sequence number 0xFFFFFFFF is followed by 0 (serial-number arithmetic), and the older one is
+    then a replay: before, 0xFFFFFFFF locked the node out for good."""
+    lib = libs("dc_motor_link", "double")
+    lay = lib.layout
+    assert lib.fn("crc32", ctypes.c_uint32)(None, ctypes.c_size_t(16)) == 0
+    assert lib.fn("siphash24", ctypes.c_uint64)(None, b"abcdefgh", ctypes.c_size_t(8)) == 0
+    assert lib.fn("siphash24", ctypes.c_uint64)(lib.key(KEY), None, ctypes.c_size_t(8)) == 0
+    assert lib.fn("siphash24", ctypes.c_uint64)(lib.key(KEY), None, ctypes.c_size_t(0)) == \
+        siphash24(KEY, b"")
+    ms = Master(lib, 40, key=DEPLOY)
+    assert ms.receive(frame(lay, 38, node=0, seq=0xFFFFFFFF, key=DEPLOY)) == 0
+    assert ms.receive(frame(lay, 39, node=0, seq=0, key=DEPLOY)) == 0
+    assert ms.receive(frame(lay, 40, node=0, seq=0xFFFFFFFF, key=DEPLOY)) == wire.ERRORS["replay"]
+    assert ms.receive(frame(lay, 40, node=0, seq=1, key=DEPLOY)) == 0

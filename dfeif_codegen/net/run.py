@@ -117,6 +117,16 @@ class _Proc:
         self.p = subprocess.Popen([str(c) for c in cmd], stderr=self.err, **kw)
         self.cpu = None
 
+    def ended(self) -> int | None:
+        """The exit code if the process has ended (not reaped, so reap still collects its CPU)."""
+        try:
+            info = os.waitid(os.P_PID, self.p.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+        except ChildProcessError:
+            return self.p.returncode
+        if info is None:
+            return None
+        return -info.si_status if info.si_code in (os.CLD_KILLED, os.CLD_DUMPED) else info.si_status
+
     def reap(self, timeout: float) -> int:
         deadline = time.monotonic() + timeout
         while self.cpu is None and self.p.returncode is None:
@@ -134,6 +144,21 @@ class _Proc:
                 time.sleep(0.01)
         self.err.close()
         return self.p.returncode
+
+
+def _who_ended(early: dict, work: Path) -> str:
+    """The processes that ended before the run did, by name with exit code or signal and the last
+    line each wrote to stderr (a killed node, a master that gave up): what to look at first."""
+    dead = [(name, rc) for name, rc in early.items() if rc is not None]
+    if not dead:
+        return f": every process still running (see {work}/*.err)"
+    parts = []
+    for name, rc in dead:
+        err = sorted(work.glob(f"{name}*.err"))
+        last = (err[-1].read_text().strip().splitlines() or [""])[-1] if err else ""
+        how = f"killed by signal {-rc}" if rc < 0 else f"exit {rc}"
+        parts.append(f"{name} ended early ({how}{': ' + last if last else ''})")
+    return ": " + "; ".join(parts) + f" (see {work}/*.err)"
 
 
 def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
@@ -214,13 +239,14 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
                     time.sleep(0.05)
             plant.p.stdin.write("\n")
             plant.p.stdin.flush()
+    early = {} if finished else {name: pr.ended() for name, pr in {**procs, "plant": plant}.items()}
     plant.p.stdin.close()
     rcs = {"plant": plant.reap(5 if finished else 0)}
     for name, pr in procs.items():
         rcs[name] = pr.reap(10 if finished else 0)
     wall = time.monotonic() - t0
     if not finished:
-        raise SetupError(f"codegen network: the run did not finish in time (see {work}/*.err)")
+        raise SetupError("codegen network: the run did not finish in time" + _who_ended(early, work))
     n, m = s.flat.n, s.flat.m
     nodes = [session.parse_node_log(work / f"node{i}.{restarts.get(f'node{i}', 0)}.log", n) for i in range(M)]
     for i in range(M):
