@@ -34,7 +34,22 @@ def _mapped() -> int:
         return 0
 
 
-def _child(conn, fn, args, max_memory) -> None:
+def _die_with(parent_pid: int) -> None:
+    """Linux: the kernel kills this child with SIGKILL when its parent dies (a parent killed by
+    SIGTERM or SIGKILL runs no cleanup), so no derivation outlives the build that started it."""
+    try:
+        import ctypes
+        import signal
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))   # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent_pid:     # the parent died before the line above
+        os._exit(1)
+
+
+def _child(conn, theirs, parent_pid, fn, args, max_memory) -> None:
+    theirs.close()      # the parent's read end: held here, it would keep the pipe open
+    _die_with(parent_pid)
     try:
         import resource
         limit = int(_mapped() + max_memory)  # on top of what is mapped already (libraries, BLAS)
@@ -74,7 +89,7 @@ def bounded(fn, args: tuple, max_seconds: float, max_memory: float, what: str):
         return fn(*args, progress=None)
     ctx = mp.get_context("fork")
     parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child, fn, args, max_memory), daemon=True)
+    proc = ctx.Process(target=_child, args=(child, parent, os.getpid(), fn, args, max_memory), daemon=True)
     proc.start()
     child.close()
     stage, deadline = "starting", time.monotonic() + max_seconds

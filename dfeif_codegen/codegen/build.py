@@ -210,15 +210,65 @@ def check_target(out_root: Path, name: str, force: bool = False) -> None:
                          "move it away or use --force")
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def clean_stale(out_root: Path, name: str) -> None:
+    """Temp folders `.NAME.PID.*.new|old` of builds whose process is gone (killed mid-write):
+    an old output whose replacement never arrived is put back, the rest removed."""
+    if not out_root.is_dir():
+        return
+    target = out_root / name
+    for p in sorted(out_root.glob(f".{name}.*.*")):
+        parts = p.name[len(name) + 2:].split(".")
+        if len(parts) != 3 or parts[2] not in ("new", "old") or not parts[0].isdigit() or _alive(int(parts[0])):
+            continue
+        if parts[2] == "old" and not (target.exists() or target.is_symlink()):
+            os.rename(p, target)
+        elif p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def _swap(target: Path, tmp: Path, old: Path | None) -> None:
+    """target -> old, tmp -> target with SIGINT and SIGTERM held off between the two renames (a
+    signal there would leave no output folder, only the hidden old one); delivered after."""
+    import signal
+    held = {signal.SIGINT, signal.SIGTERM}
+    masked = hasattr(signal, "pthread_sigmask")
+    if masked:
+        before = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        if old is not None:
+            os.rename(target, old)
+        try:
+            os.rename(tmp, target)
+        except OSError:
+            if old is not None and not (target.exists() or target.is_symlink()):
+                os.rename(old, target)
+            raise
+    finally:
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
 def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool = False,
                  check=None) -> Path:
     """Write files into out_root/name by rendering into a sibling temp folder and renaming.
-    `check(folder)` may refuse the new files (BuildError) before they replace the old ones."""
+    `check(folder)` may refuse the new files (BuildError) before they replace the old ones.
+    Temp folders carry this process's id, so a later build removes those of a killed one."""
     check_target(out_root, name, force)
     try:
         out_root.mkdir(parents=True, exist_ok=True)
         target = out_root / name
-        tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".new", dir=out_root))
+        clean_stale(out_root, name)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{name}.{os.getpid()}.", suffix=".new", dir=out_root))
     except OSError as exc:
         raise BuildError(f"{out_root}: cannot write output ({exc.strerror})") from None
     old = None
@@ -229,17 +279,16 @@ def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool =
         if check is not None:
             check(tmp)
         if target.exists() or target.is_symlink():
-            old = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".old", dir=out_root))
+            old = Path(tempfile.mkdtemp(prefix=f".{name}.{os.getpid()}.", suffix=".old", dir=out_root))
             os.rmdir(old)
-            os.rename(target, old)
-        os.rename(tmp, target)
+        _swap(target, tmp, old)
     except OSError as exc:
-        if old is not None and (old.exists() or old.is_symlink()) and not target.exists():
-            os.rename(old, target)
         shutil.rmtree(tmp, ignore_errors=True)
         raise BuildError(f"{out_root / name}: cannot write output ({exc.strerror})") from None
-    except BaseException:
+    except BaseException:       # an interrupt: delivered after the swap, or before it
         shutil.rmtree(tmp, ignore_errors=True)
+        if old is not None and old.is_dir() and not old.is_symlink() and target.is_dir():
+            shutil.rmtree(old, ignore_errors=True)
         raise
     if old is not None:
         if old.is_dir() and not old.is_symlink():
