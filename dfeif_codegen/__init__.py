@@ -24,7 +24,7 @@ _API = {
     "inspect": ("dfeif_codegen.symbolic.inspect_model", "inspect"),
     "verify": ("dfeif_codegen.check.verify", "verify"),
     "bench": ("dfeif_codegen.check.bench", "bench"),
-    "simulate": ("dfeif_codegen.experiment.simulate", "simulate"),
+    "simulate": ("dfeif_codegen.api", "simulate"),
     "scenario": ("dfeif_codegen.experiment.starter", "scenario"),
     "network": ("dfeif_codegen.net.run", "network"),
     "CError": ("dfeif_codegen.check.loader", "CError"),

@@ -201,13 +201,19 @@ def verify(args: argparse.Namespace) -> int:
 
 
 def simulate(args: argparse.Namespace) -> int:
-    from dfeif_codegen.experiment import simulate
+    """`codegen simulate`: the tables (or the JSON with `--json -`); exit 1 when a run failed or diverged."""
+    from dfeif_codegen import api
 
-    return simulate.simulate(
+    result = api.simulate(
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
         results=args.results, csv=args.csv, resume=args.resume)
+    print(result.to_json() if args.json == "-" else result.report())
+    if result.failures:  # a run that failed or diverged is a result to act on, not a footnote
+        print(f"codegen simulate: {result.failure_line()}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def bench(args: argparse.Namespace) -> int:
