@@ -12,7 +12,6 @@ benchmarks that model alone.
 
 from __future__ import annotations
 
-import re
 import statistics
 import subprocess
 import sys
@@ -86,22 +85,6 @@ def target_sizes(model: harness.ModelDir, work: Path) -> tuple[dict, dict]:
     return target.sizes(objs), target.public_functions(model.name, stack)
 
 
-def target_sizeof(model: harness.ModelDir, work: Path) -> dict[str, int]:
-    """sizeof the state structs as arm-none-eabi-gcc lays them out (read from its assembly)."""
-    work.mkdir(parents=True, exist_ok=True)
-    src = work / "sizeof.c"
-    kinds = ("node", "master", "packet")
-    src.write_text(f'#include "{model.name}.h"\nconst unsigned sizes[] = {{'
-                   + ", ".join(f"sizeof({model.name}_{k})" for k in kinds) + "};\n")
-    gcc = target.require("arm-none-eabi-gcc")
-    proc = subprocess.run([gcc, *target.CPU_FLAGS, "-O2", f"-I{model.path}", "-S", "-o", "-", str(src)],
-                          capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SetupError(f"sizeof probe failed:\n{proc.stderr[-2000:]}")
-    words = [int(w) for w in re.findall(r"\.word\s+(\d+)", proc.stdout)]
-    return dict(zip(kinds, words))
-
-
 NETWORK_MARK = "<!-- codegen network --bench -->"
 
 
@@ -161,7 +144,7 @@ def _bench_model(name: str, repeat: int, work: Path) -> dict:
     sizeofs = {}
     for precision in ("float", "double"):
         md = harness.build_model(name, work / f"sizeof-{precision}", precision)
-        sizeofs[precision] = target_sizeof(md, work / f"sizeof-{precision}-probe")
+        sizeofs[precision] = target.struct_sizes(md, work / f"sizeof-{precision}-probe")
     md = harness.build_model(name, work / "os-float", "float")
     sizes, stack = target_sizes(md, work / "os-float-obj")
     md_retro = harness.build_model(name, work / "os-float-retro", "float", "retrodict")
