@@ -40,13 +40,30 @@ def modules() -> dict[str, Path]:
     return {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
 
 
+def _runnable(tree: ast.AST):
+    """Every node except the bodies of `if TYPE_CHECKING:`, which never run (the package root
+    names its lazily loaded API there for type checkers)."""
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        yield node
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            todo.extend(node.orelse)
+            continue
+        todo.extend(ast.iter_child_nodes(node))
+
+
 def imports(path: Path, known: set[str]) -> list[tuple[str, int]]:
-    """(module of the package, line) for every import statement of `path`, wherever it stands;
-    `from pkg import name` counts as importing pkg.name when that is a module."""
     here = module_name(path)
-    package = here if path.name == "__init__.py" else here.rsplit(".", 1)[0]
+    return imports_in(path.read_text(encoding="utf-8"), here if path.name == "__init__.py" else here.rsplit(".", 1)[0],
+                      known)
+
+
+def imports_in(text: str, package: str, known: set[str]) -> list[tuple[str, int]]:
+    """(module of the package, line) for every import statement of a module of `package`,
+    wherever it stands; `from pkg import name` counts as importing pkg.name when that is a module."""
     out = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in _runnable(ast.parse(text)):
         if isinstance(node, ast.Import):
             out += [(a.name, node.lineno) for a in node.names if a.name.split(".")[0] == "dfeif_codegen"]
         elif isinstance(node, ast.ImportFrom):
@@ -142,3 +159,29 @@ def test_the_checks_find_a_cycle_and_an_upward_import():
     edges = {"a": [("b", 1)], "b": [("c", 1)], "c": [("a", 1)], "d": [("a", 1)], "e": [("e", 1)]}
     assert cycles(edges) == [["a", "b", "c"], ["e"]]
     assert RANK[stage("dfeif_codegen.check.harness")] > RANK[stage("dfeif_codegen.experiment.sweep")]
+
+
+def test_imports_are_read_inside_functions_and_outside_type_checking():
+    text = ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from dfeif_codegen.net import run\n"
+            "def f():\n    from dfeif_codegen.check import harness\n    from . import plan\n")
+    found = imports_in(text, "dfeif_codegen.experiment", {"dfeif_codegen.check.harness", "dfeif_codegen.experiment.plan"})
+    assert sorted(found) == [("dfeif_codegen.check.harness", 5), ("dfeif_codegen.experiment.plan", 6)]
+
+
+# Functions longer than a reader holds at once, each with the change that removes it.
+FUNCTION_LIMIT = 80
+LONG_FUNCTIONS = {
+    "dfeif_codegen/codegen/kernels.py c_source": "the kernels split (issue 21, deliverable 1) moves and splits it",
+}
+
+
+def test_no_function_is_longer_than_the_limit():
+    """scripts/code_size.py measures a function from its `def` to its last line."""
+    import sys
+    sys.path.insert(0, str(PACKAGE.parent / "scripts"))
+    import code_size
+
+    _, functions, _ = code_size.sizes(PACKAGE)
+    long = {f"{where.split(':')[0]} {where.split()[-1]}": lines for lines, where in functions if lines > FUNCTION_LIMIT}
+    assert set(long) - set(LONG_FUNCTIONS) == set(), long
+    assert set(LONG_FUNCTIONS) - set(long) == set(), "remove the exceptions that no longer hold"

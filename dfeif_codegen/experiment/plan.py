@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.symbolic.flatness import FlatSystem
 
 FILTERS = ("df", "ekf", "ukf")
 
@@ -48,8 +49,8 @@ def _canonical(cfg: ex.Config) -> ex.Config:
 class Plan:
     """Everything `simulate` will run, known (and checked) before the first run starts."""
 
-    sc: object
-    flat: object
+    sc: scenario_mod.Scenario
+    flat: FlatSystem
     model: str
     nodes: int
     max_lag: int

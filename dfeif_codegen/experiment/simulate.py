@@ -17,6 +17,7 @@ text and the JSON made from it. `dc.simulate` (dfeif_codegen/api.py) picks the e
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import sweep
@@ -32,7 +33,7 @@ __all__ = ["simulate", "SimulationResult", "Table", "Plan", "plan", "execute", "
 
 def _settings(p: Plan, o: Outcome) -> dict:
     sc = p.sc
-    out = {"scenario": sc.name, "source": sc.source, "model": p.flat.model.name, "nodes": p.nodes,
+    out: dict[str, Any] = {"scenario": sc.name, "source": sc.source, "model": p.flat.model.name, "nodes": p.nodes,
            "max_lag": p.max_lag, "ts": sc.ts or p.flat.model.ts, "duration": sc.duration, "runs": p.runs,
            "seeds": [p.seed, p.seed + p.runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
@@ -50,10 +51,10 @@ def _figures(p: Plan, o: Outcome) -> dict:
     figures = {}
     method, rule = p.configs[0]
     for ref in p.refs:
-        pair = [o.series.get((ref, method, rule, ri, p.seed)) for ri in (0, len(p.rows) - 1)]
-        if all(x is not None for x in pair):
-            figures[ref] = {"no_delay": {**pair[0], "row": row_label(p.rows[0])},
-                            "delay": {**pair[1], "row": row_label(p.rows[-1]).strip()},
+        first, last = (o.series.get((ref, method, rule, ri, p.seed)) for ri in (0, len(p.rows) - 1))
+        if first is not None and last is not None:
+            figures[ref] = {"no_delay": {**first, "row": row_label(p.rows[0])},
+                            "delay": {**last, "row": row_label(p.rows[-1]).strip()},
                             "method": method, "fusion": rule}
     return figures
 
