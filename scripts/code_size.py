@@ -3,7 +3,7 @@
     python scripts/code_size.py [--top N]
 
 A function's lines run from its `def` (decorators excluded) to its last line, docstring and
-nested functions included: the size a reader has to hold at once. tests/test_layering.py uses
+nested functions included: the size a reader has to hold at once. tests/test_layout.py uses
 `largest_functions` to keep every function of the package under FUNCTION_LIMIT lines.
 """
 
