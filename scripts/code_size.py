@@ -4,7 +4,7 @@
 
 A function's lines run from its `def` (decorators excluded) to its last line, docstring and
 nested functions included: the size a reader has to hold at once. tests/test_layout.py uses
-`largest_functions` to keep every function of the package under FUNCTION_LIMIT lines.
+`sizes` to keep every function of the package under FUNCTION_LIMIT lines.
 """
 
 from __future__ import annotations
