@@ -170,11 +170,11 @@ def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", re
     node -> master packets late or lost; `sensor_drop` adds camera frame drops."""
     import dataclasses
 
-    from dfeif_codegen.experiment import scenario, simulate
+    from dfeif_codegen.experiment import plan, scenario
     from dfeif_codegen.experiment import closed_loop as experiment
 
     sc = scenario.load(scenario_spec)
-    cfg = simulate.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
+    cfg = plan.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
     changes: dict[str, Any] = {}
     if duration is not None:
         changes["duration"] = duration

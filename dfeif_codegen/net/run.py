@@ -80,13 +80,13 @@ class Outcome:
 
 
 def make_config(o: Options) -> ex.Config:
-    from dfeif_codegen.experiment import scenario, simulate
+    from dfeif_codegen.experiment import plan, scenario
 
     sc = scenario.load(o.scenario)
     sc.check_model(ex._flat(o.model))
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
-    cfg = simulate.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed)
+    cfg = plan.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed)
     if o.duration is not None:
         cfg = dataclasses.replace(cfg, duration=o.duration, metrics_from=min(cfg.metrics_from, o.duration / 2))
     return cfg
