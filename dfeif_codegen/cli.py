@@ -142,8 +142,9 @@ def parser() -> argparse.ArgumentParser:
         _model_arg(p)
         return p
 
-    for name, options in (("build", _build_arguments), ("verify", _verify_arguments), ("simulate", _simulate_arguments)):
-        options(add(name))
+    _build_arguments(add("build"))
+    _verify_arguments(add("verify"))
+    _simulate_arguments(add("simulate"))
     p = add("scenario")
     p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
 

@@ -217,7 +217,7 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
               "late_node": _c(late[:, 1], i32), "late_lag": _c(late[:, 2], i32),
               "source": _c(s.net.source.T, i32), "ref": _c(s.ref, f64)}
     E = late.shape[0]
-    out = {"x_true": np.zeros((K, n)), "zeta": np.zeros((K, n)), "frames": np.zeros((M, K, m)),
+    out: dict[str, np.ndarray] = {"x_true": np.zeros((K, n)), "zeta": np.zeros((K, n)), "frames": np.zeros((M, K, m)),
            "late_z": np.zeros((E, m)), "node_x": np.zeros((M, K, n)), "node_P": np.zeros((M, K, n, n)),
            "x": np.zeros((K, n)), "P": np.zeros((K, n, n)), "u": np.zeros((K, m)), "v": np.zeros((K, m)),
            "late_applied": np.zeros(E, dtype=i32)}
