@@ -181,3 +181,19 @@ def test_python_dash_m_runs_the_command(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "dfeif_codegen", "simulate", "--runs", "0", "--quiet"],
                          capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert bad.returncode == 2 and bad.stderr.strip() == "codegen simulate: error: --runs: needs at least 1, got 0"
+
+
+def test_bench_result_json_keeps_every_measurement():
+    """BenchResult.to_json: the per-build counts keyed "oosm/fusion", the sizes' dataclasses as
+    objects, numbers unchanged."""
+    import json
+
+    from dfeif_codegen.check import target
+    from dfeif_codegen.check.bench_report import BenchResult
+
+    section = {"name": "m", "times": [1.5, 1.25], "counts": {("replay", "difference"): {"node_update": 385.0}},
+               "sizes": {"m_node.o": target.Size(text=1200, data=0, bss=8)}}
+    doc = json.loads(BenchResult("codegen bench", 3, {"gcc": "gcc 12"}, [section], {}).to_json())
+    assert doc["sections"][0]["counts"] == {"replay/difference": {"node_update": 385.0}}
+    assert doc["sections"][0]["sizes"] == {"m_node.o": {"text": 1200, "data": 0, "bss": 8}}
+    assert doc["repeat"] == 3 and doc["sections"][0]["times"] == [1.5, 1.25]
