@@ -26,6 +26,7 @@ import sympy as sp
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.codegen import kernels, layout, render
+from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
 
@@ -87,17 +88,18 @@ def context(flat, opts: Options) -> dict:
     p = m.name
     ks = kernels.build(flat, opts, p)
     real_c = "float" if opts.precision == "float" else "double"
-    kernel_code, kernel_list = {}, []
+    kernel_code: dict[str, tuple[str, str]] = {}
+    kernel_list: list[dict] = []
     for group, functions in ks.groups.items():
-        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
+        code, infos = csource.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
                                        local_work=group in ks.local_work, wrappers=ks.wrappers,
-                                       loops=ks.loops)
+                                       loops=ks.loops, own_work=ks.own_work)
         looped = [k.name[len(p) + 6:] for k in infos if k.name in ks.loops]
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + "."
                                     + (f" Printed as loops over static parts: {', '.join(looped)}." if looped else ""))
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w, "local_work": k.local_work,
-                         "signature": kernels.wrap_comment(_comment(k.signature)),
+                         "signature": csource.wrap_comment(_comment(k.signature)),
                          "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real", k.name.upper() + "_SZ_W"),
                                                  ");")}
                         for k in infos]
@@ -172,9 +174,10 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options and the output folder are checked before the derivation starts; the derivation runs
-    under a time and memory budget; what was written is compiled (host compiler, when there is
-    one) before it replaces the folder, atomically. `force` allows replacing files the toolkit
-    did not write there."""
+    under a time and memory budget (`max_seconds` in seconds, `max_memory` in GB, as the
+    command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
+    there is one) before it replaces the folder, atomically. `force` allows replacing files the
+    toolkit did not write there."""
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol)
     check_target(Path(out), m.name, force)
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
