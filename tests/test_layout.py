@@ -11,12 +11,13 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "dfeif_codegen"
 
 # README "Layout", in order. Stage 0 holds the leaf utilities every stage may use: the error
-# classes, the shared numbers, the output-path checks (paths.py: symbolic/ checks a model file
+# classes, the shared numbers, the angle wrap the kernels and the reference share (angles.py),
+# the output-path checks (paths.py: symbolic/ checks a model file
 # path with it) and the time/memory budget of a child process (budget.py: the symbolic
 # derivation runs under it), and the package root, which imports nothing (its names load lazily
 # by name). The Python face of the commands (api.py, __main__.py) sits with the CLI.
 STAGES = [
-    {"__init__", "errors", "constants", "paths", "budget"},
+    {"__init__", "errors", "constants", "angles", "paths", "budget"},
     {"symbolic"}, {"models"}, {"codegen"}, {"reference"}, {"experiment"}, {"check"}, {"net"},
     {"api", "cli", "__main__"},
 ]
