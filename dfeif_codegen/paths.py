@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import sys
+import tempfile
 from pathlib import Path
 
 from dfeif_codegen.errors import CodegenError
@@ -26,25 +27,44 @@ def _nearest_existing(path: Path) -> Path:
     return path
 
 
+def _can_create_in(folder: Path) -> bool:
+    """A file can be made in folder: tried (and removed at once), because os.access says yes to
+    root on a read-only mount such as /proc."""
+    if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
+        return False
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".codegen-probe-", dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    os.unlink(probe)
+    return True
+
+
 def writable_file(path: str | Path, flag: str) -> None:
-    """`flag PATH`: PATH can be created or replaced as a file."""
+    """`flag PATH`: PATH can be created or replaced as a file (its folder exists)."""
     path = Path(path)
+    if str(path) == "":
+        raise OutputPathError(f"{flag}: an empty path")
     if path.is_dir():
         raise OutputPathError(f"{flag} {path}: is a folder, not a file")
-    base = _nearest_existing(path.parent)
+    if not path.absolute().parent.is_dir():
+        raise OutputPathError(f"{flag} {path}: its folder {path.absolute().parent} does not exist")
     if path.exists() and not os.access(path, os.W_OK):
         raise OutputPathError(f"{flag} {path}: not writable")
-    if not base.is_dir() or not os.access(base, os.W_OK | os.X_OK):
-        raise OutputPathError(f"{flag} {path}: cannot create it ({base} is not a writable folder)")
+    if not _can_create_in(path.absolute().parent):
+        raise OutputPathError(f"{flag} {path}: cannot create it ({path.absolute().parent} is not a writable folder)")
 
 
 def writable_dir(path: str | Path, flag: str) -> None:
     """`flag DIR`: DIR exists as a writable folder or can be created."""
     path = Path(path)
+    if str(path) == "":
+        raise OutputPathError(f"{flag}: an empty path")
     if path.exists() and not path.is_dir():
         raise OutputPathError(f"{flag} {path}: exists and is not a folder")
     base = _nearest_existing(path)
-    if not base.is_dir() or not os.access(base, os.W_OK | os.X_OK):
+    if not _can_create_in(base):
         raise OutputPathError(f"{flag} {path}: cannot write there ({base} is not a writable folder)")
 
 
@@ -68,4 +88,6 @@ def parse_toml(text: str, source: str, error: type[CodegenError]) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{source}: malformed TOML: {exc}") from None
+    except RecursionError:
+        raise error(f"{source}: malformed TOML: nested too deeply") from None
 

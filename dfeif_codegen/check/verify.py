@@ -82,7 +82,12 @@ def table(errors: list[SignalError]) -> str:
 def check(errors: list[SignalError]) -> None:
     bad = [e for e in errors if not e.ok]
     if bad:
-        worst = max(bad, key=lambda e: e.worst / e.tol)
+        # a signal held to 0 (late_applied: accepted/rejected must agree exactly) is the worst
+        worst = max(bad, key=lambda e: e.worst / e.tol if e.tol > 0 else np.inf)
+        if worst.signal == "late_applied":
+            raise MismatchError(f"{len(bad)} signal(s) differ from the reference; worst late_applied: "
+                                f"a late measurement accepted on one side and rejected on the other "
+                                f"(first at step {worst.step})")
         raise MismatchError(f"{len(bad)} signal(s) differ from the reference; worst {worst.signal}: "
                             f"{worst.worst:.3e} > {worst.tol:.0e} at step {worst.step}")
 

@@ -79,12 +79,15 @@ class Plan:
         return sum(len(k) for k in self.wanted.values())
 
 
-def check_outputs(json_path, plot_dir) -> None:
+def check_outputs(json_path, plot_dir, csv=None, results=None) -> None:
     """Output paths and matplotlib, before any run."""
     from dfeif_codegen.paths import writable_dir, writable_file
 
-    if json_path and json_path != "-":
+    if json_path is not None and json_path != "-":
         writable_file(json_path, "--json")
+    for flag, path in (("--csv", csv), ("--results", results)):
+        if path is not None:
+            writable_file(path, flag)
     if plot_dir:
         writable_dir(plot_dir, "--plot")
         try:
@@ -114,8 +117,8 @@ def _counts(sc, nodes, max_lag: int, runs) -> tuple[int, int]:
         raise ScenarioError(f"--max-lag: needs at least 1, got {max_lag}")
     scenario_mod.check_window(sc, max_lag, nodes)
     runs = runs if runs is not None else sc.runs
-    if runs < 1:
-        raise ScenarioError(f"--runs: needs at least 1, got {runs}")
+    if not 1 <= runs <= scenario_mod.MAX_RUNS:
+        raise ScenarioError(f"--runs: needs 1 to {scenario_mod.MAX_RUNS}, got {runs}")
     return nodes, runs
 
 
@@ -135,6 +138,8 @@ def _list_runs(p: Plan) -> None:
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
          filters, plot_dir) -> Plan:
     """Load and check everything, then list each distinct run once."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
+        raise ScenarioError(f"--seed {seed!r}: a whole number from 0 to 2^32 - 1")
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
     flat = ex._flat(model)   # the derivation every run of this process (and its workers) uses

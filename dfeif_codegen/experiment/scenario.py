@@ -97,6 +97,10 @@ class Scenario:
             raise ScenarioError(f"{self.where(key)}: {message}{hint}")
 
         ts = self.ts or flat.model.ts
+        if self.runs > MAX_RUNS:
+            fail("scenario.runs", f"{self.runs} runs: at most {MAX_RUNS} (each is a closed-loop simulation)")
+        if self.harmonics > MAX_HARMONICS:
+            fail("reference.harmonics", f"{self.harmonics}: at most {MAX_HARMONICS} harmonics of the reference")
         if self.duration / ts > MAX_STEPS:
             fail("scenario.duration", f"{self.duration:g} s at Ts = {ts:g} s is {self.duration / ts:.3g} steps; "
                                       f"at most {MAX_STEPS:g} per run")
@@ -120,6 +124,8 @@ class Scenario:
 
 
 MAX_STEPS = 1e6  # steps per run: the recording keeps every step's covariances in memory
+MAX_RUNS = 100_000  # seeds per row (a 100-seed table is the chapter's; 1e9 would never end)
+MAX_HARMONICS = 1000  # of the seesaw reference (each is a term of every step's reference)
 
 
 def check_window(sc: "Scenario", max_lag: int, nodes: int) -> None:

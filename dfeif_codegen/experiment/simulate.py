@@ -75,7 +75,7 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
     """The chapter's experiment on `engine` (experiment/sweep.py): returns the result and writes
     what was asked for (JSON to `json_path` unless "-", CSV, per-run records, figures into `plot`).
     Bad input raises a CodegenError before any run; failed or diverged runs are in `.failures`."""
-    check_outputs(json_path, plot)
+    check_outputs(json_path, plot, csv, results)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
     if csv:

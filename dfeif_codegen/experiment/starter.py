@@ -212,8 +212,9 @@ def scenario(model: str, out: str | None = None) -> str:
             first = ""
         if not first.startswith(MARKER):
             raise ScenarioError(f"{path}: exists and was not written by `codegen scenario`; not overwriting it")
-    if path is not None and not path.parent.is_dir():
-        raise ScenarioError(f"{path}: folder {path.parent} does not exist")
+    if path is not None:
+        from dfeif_codegen.paths import writable_file
+        writable_file(path, "--out")
     text, _ = starting_scenario(model)
     scenario_mod.loads(text, str(path or "<generated>")).check_model(ex._flat(model))
     if path is not None:

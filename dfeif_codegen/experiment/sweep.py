@@ -219,7 +219,12 @@ def read_records(path) -> dict[str, dict]:
     p = Path(path)
     if not p.is_file():
         raise ScenarioError(f"--resume {path}: no such file")
-    lines = p.read_text(encoding="utf-8").splitlines()
+    try:
+        lines = p.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"--resume {path}: not a --results file (not UTF-8 text, byte {exc.start})") from None
+    except OSError as exc:
+        raise ScenarioError(f"--resume {path}: cannot read it ({exc.strerror})") from None
     for number, line in enumerate(lines, 1):
         try:
             rec = json.loads(line)

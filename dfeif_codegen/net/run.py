@@ -376,6 +376,9 @@ class Network:
                            "errors": verify.errors_as_dicts(self.errors)})
 
 
+MAX_DURATION = 600.0   # simulated seconds of one network run (60,000 steps at 10 ms)
+
+
 def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int = 2, seed: int = 0,
             precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int = 2,
             max_lag: int = 32, duration: float | None = 5.0, key: str | None = None, flip_rate: float = 0.0,
@@ -390,6 +393,15 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
         raise ScenarioError(f"--key {key!r}: needs 32 hex digits (a 16-byte SipHash key)")
     if not 0 <= flip_rate < 1:
         raise ScenarioError(f"--flip-rate {flip_rate}: not in [0, 1)")
+    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
+                                 or not 0 < duration <= MAX_DURATION):
+        raise ScenarioError(f"--duration {duration!r}: seconds, more than 0 and at most {MAX_DURATION:g} "
+                            "(every step is a datagram exchange between the processes)")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
+        raise ScenarioError(f"--seed {seed!r}: a whole number from 0 to 2^32 - 1")
+    if keep:
+        from dfeif_codegen.paths import writable_dir
+        writable_dir(keep, "--keep")
     o = Options(model=model, scenario=scenario, row=row, seed=seed, precision=precision, oosm=oosm,
                 fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate)
     if keep and Path(keep).exists() and any(Path(keep).iterdir()):

@@ -81,7 +81,7 @@ def growth_problem(expr: sp.Expr) -> str | None:
 
 def c_safe(name: str) -> bool:
     """A name that may become part of C identifiers without colliding with anything."""
-    return (bool(_NAME.match(name)) and name not in C_KEYWORDS and not name.lower().startswith("casadi")
+    return (bool(_NAME.fullmatch(name)) and name not in C_KEYWORDS and not name.lower().startswith("casadi")
             and len(name) <= NAME_LIMIT)
 
 
@@ -406,7 +406,7 @@ def _declare(doc: _Doc, states: list, inputs: list, parameters: list, dynamics: 
             seen[item.name] = kind
     doc.symbols.update({v.name: sp.Symbol(v.name) for v in states + parameters})
     for key, expr_text in _table(dynamics, "definitions", doc.source, required=False).items():
-        if not _NAME.match(key) or key in doc.symbols:
+        if not _NAME.fullmatch(key) or key in doc.symbols:
             raise ModelError(f"{doc.where('dynamics.definitions.' + key)}: '{key}' is not a new name")
         doc.symbols[key] = parse_expression(_text({key: expr_text}, key, doc.where("dynamics.definitions")),
                                             doc.symbols, doc.where(f"dynamics.definitions.{key}"))
@@ -484,7 +484,7 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
     _check_keys(doc.data, doc.where)
     head = _table(doc.data, "model", source)
     name = _text(head, "name", doc.where("model"))
-    if not _NAME.match(name):
+    if not _NAME.fullmatch(name):
         raise ModelError(f"{doc.where('model.name')}: '{name}' must be a C identifier (letters, digits, _)")
     ts = head.get("ts", 0.01)
     if not _finite(ts) or not 1e-9 <= ts <= 1e3:
