@@ -66,7 +66,8 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--singular-rtol", type=float, default=1e-6, metavar="R",
                    help="control returns ERR_SINGULAR when |det G| < R * |det G(nominal)| (default 1e-6)")
     p.add_argument("--force", action="store_true",
-                   help="replace files in OUT/<model> that an earlier build did not write")
+                   help="build even where OUT/<model> holds files an earlier build did not write "
+                        "(the build's own files are replaced, the others kept)")
     p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
                    help="time budget of the symbolic derivation (default 60)")
     p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",

@@ -227,8 +227,11 @@ def test_force_replaces_only_when_asked(tmp_path, earlier_build, capsys):
     (tmp_path / "out" / "dc_motor_link" / "mine.txt").write_text("x")
     assert run_cli(["build", "--out", str(tmp_path / "out")], capsys)[0] == 2
     assert (tmp_path / "out" / "dc_motor_link" / "mine.txt").exists()
+    (tmp_path / "out" / "dc_motor_link" / "dc_motor_link.h").write_text("edited by hand")
     assert run_cli(["build", "--out", str(tmp_path / "out"), "--force"], capsys)[0] == 0
-    assert not (tmp_path / "out" / "dc_motor_link" / "mine.txt").exists()
+    # --force replaces the build's files and keeps the user's (it deleted them before)
+    assert (tmp_path / "out" / "dc_motor_link" / "mine.txt").read_text() == "x"
+    (tmp_path / "out" / "dc_motor_link" / "mine.txt").unlink()
     assert tree(tmp_path / "out") == tree(earlier_build)  # deterministic: the same build again
 
 

@@ -98,3 +98,29 @@ def test_inspect_json_and_version(capsys):
     with pytest.raises(SystemExit) as stop:
         cli.main(["--version"])
     assert stop.value.code == 0
+
+
+def test_generated_words_cover_a_fresh_build(tmp_path):
+    """model.GENERATED_WORDS holds the first word after the prefix of every identifier a build
+    writes (so that a model named <a>_<word> is refused: a model <a> declares <a>_<word>_*), and
+    ab_node, unistd and transport are refused in one line."""
+    import re
+
+    from dfeif_codegen.codegen.build import build
+    from dfeif_codegen.errors import ModelError
+    from dfeif_codegen.symbolic import model
+
+    words = set()
+    for precision, fusion in (("double", "ci"), ("float", "paper")):
+        out = build("two_link_arm", tmp_path / precision, precision=precision, fusion=fusion, oosm="retrodict",
+                    compile_check=False).path
+        for f in out.iterdir():
+            text = f.read_text()
+            words |= set(re.findall(r"\btwo_link_arm_([a-z0-9]+)", text))
+            words |= {w.lower() for w in re.findall(r"\bTWO_LINK_ARM_([A-Z0-9]+)", text)}
+    assert words <= model.GENERATED_WORDS, sorted(words - model.GENERATED_WORDS)
+    text = (resources.files("dfeif_codegen") / "models" / "dc_motor_link.toml").read_text()
+    for name, why in (("ab_node", "'node' is a word of the generated names"), ("unistd", "standard header"),
+                      ("transport", "standard header"), ("my_arm_master", "a model 'my_arm' declares my_arm_master_*")):
+        with pytest.raises(ModelError, match=re.escape(why)):
+            model.loads_toml(text.replace('name = "dc_motor_link"', f'name = "{name}"', 1), "m.toml")

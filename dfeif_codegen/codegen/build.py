@@ -263,6 +263,18 @@ def _swap(target: Path, tmp: Path, old: Path | None) -> None:
             signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
+def _keep_theirs(target: Path, tmp: Path, files: dict[str, str]) -> None:
+    """--force replaces the files a build writes; the user's other files there come along into
+    the new folder (copied, so the old folder stays whole until the swap)."""
+    for p in target.iterdir():
+        if p.name in files:
+            continue
+        if p.is_dir() and not p.is_symlink():
+            shutil.copytree(p, tmp / p.name, symlinks=True)
+        else:
+            shutil.copy2(p, tmp / p.name, follow_symlinks=False)
+
+
 def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool = False,
                  check=None) -> Path:
     """Write files into out_root/name by rendering into a sibling temp folder and renaming.
@@ -280,6 +292,8 @@ def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool =
     try:
         for fname, text in files.items():
             (tmp / fname).write_bytes(text.encode("utf-8"))
+        if force and target.is_dir() and not target.is_symlink():
+            _keep_theirs(target, tmp, files)
         os.chmod(tmp, 0o755)
         if check is not None:
             check(tmp)

@@ -29,7 +29,15 @@ goto if inline int long register restrict return short signed sizeof static stru
 unsigned void volatile while _Bool _Complex _Imaginary bool true false NULL main real""".split())
 C_HEADERS = frozenset("""assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp
 signal stdalign stdarg stdatomic stdbool stddef stdint stdio stdlib stdnoreturn string tgmath threads
-time uchar wchar wctype arm_math cmsis example_main manifest""".split())
+time uchar wchar wctype arm_math cmsis example_main manifest unistd fcntl pthread sched strings poll termios
+dirent transport transport_udp common relay node_main master_main""".split())
+# The first word after the prefix in the generated identifiers (<p>_node_init, <P>_ERR_ARG,
+# <p>_kern_update, ...; tests/test_model_errors.py keeps this list complete): a model named
+# ab_node would declare ab_node_packet, which a model ab in the same firmware declares too.
+GENERATED_WORDS = frozenset("""centre cflags chain ci command control cov crc32 det dir err example finite frame
+fusion gains h has heads health inbox inc include install internal kern kernels kind ldlibs master model
+move nflags nmax nnodes node np npp nring nu nx nxx ny nyy ok oosm p packet params positive precision real
+singular siphash24 sources spd srcs top ts wire wrap""".split())
 NAME_LIMIT = 31  # C99 guarantees 31 significant characters in external identifiers
 # The model name prefixes every identifier: up to this length the generated C keeps within 100
 # columns laid out as clang-format would (tests/test_format.py builds models of this length).
@@ -213,6 +221,13 @@ class Model:
             raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module (a C identifier "
                              f"of at most {MODEL_NAME_LIMIT} characters, not a C keyword, a standard header or "
                              "casadi*)")
+        segs = self.name.split("_")
+        clash = [i for i in range(1, len(segs)) if segs[i].lower() in GENERATED_WORDS]
+        if clash:
+            first = "_".join(segs[:clash[0]])
+            raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module: "
+                             f"'{segs[clash[0]]}' is a word of the generated names (a model {first!r} declares "
+                             f"{first}_{segs[clash[0]].lower()}_*, and several models link into one firmware)")
         if self.name.endswith("_") or "__" in self.name:
             raise ModelError(f"{self.where('model.name')}: {self.name!r} cannot name a C module: it must not end "
                              "with '_' or contain '__' (CasADi refuses its kernels' names, <name>_kern_*)")
