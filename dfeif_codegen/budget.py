@@ -84,8 +84,8 @@ def bounded(fn, args: tuple, max_seconds: float, max_memory: float, what: str):
     --max-seconds and --max-memory); BudgetError (exit 2) naming the stage when either runs
     out. CodegenErrors raised inside come out unchanged."""
     for flag, value in (("--max-seconds", max_seconds), ("--max-memory", max_memory)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or value != value:
-            raise BudgetError(f"{flag} must be a positive number, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < float("inf"):
+            raise BudgetError(f"{flag} must be a positive finite number, got {value!r}")
     if "fork" not in mp.get_all_start_methods() or os.environ.get("DFEIF_NO_BUDGET"):
         return fn(*args, progress=None)
     ctx = mp.get_context("fork")

@@ -48,8 +48,12 @@ def writable_file(path: str | Path, flag: str) -> None:
         raise OutputPathError(f"{flag}: an empty path")
     if path.is_dir():
         raise OutputPathError(f"{flag} {path}: is a folder, not a file")
-    if not path.absolute().parent.is_dir():
-        raise OutputPathError(f"{flag} {path}: its folder {path.absolute().parent} does not exist")
+    parent = path.absolute().parent
+    if not parent.is_dir():
+        base = _nearest_existing(parent)
+        if base.is_dir():
+            raise OutputPathError(f"{flag} {path}: its folder {parent} does not exist")
+        raise OutputPathError(f"{flag} {path}: cannot create it ({base} is not a writable folder)")
     if path.exists() and not os.access(path, os.W_OK):
         raise OutputPathError(f"{flag} {path}: not writable")
     if not _can_create_in(path.absolute().parent):

@@ -6,6 +6,7 @@ and the case's input files; the whole folder is hashed before and after and must
 
 import ctypes
 import hashlib
+import os
 import shutil
 import sys
 from importlib import resources
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import bad_input_cases
 from dfeif_codegen import cli
 from dfeif_codegen.check import harness
 from dfeif_codegen.codegen import build, render
@@ -136,7 +138,7 @@ CLI = {
                          {"s.toml": SMALL}, ["--plot", "notes.txt", "not a folder"]),
     "--plot without matplotlib": (["simulate", "--scenario", "{d}/in/s.toml", "--plot", "{d}/figs"],
                                   {"s.toml": SMALL, "!no-matplotlib": ""}, ["--plot needs matplotlib"]),
-    "--runs 0": (["simulate", "--scenario", "{d}/in/s.toml", "--runs", "0"], {"s.toml": SMALL}, ["--runs", "at least 1"]),
+    "--runs 0": (["simulate", "--scenario", "{d}/in/s.toml", "--runs", "0"], {"s.toml": SMALL}, ["--runs", "needs 1 to"]),
     "reference outside domain": (["simulate", "{d}/in/q.toml", "--scenario", "{d}/in/s.toml"],
                                  {"q.toml": SQRT, "s.toml": SMALL.replace("seesaw", "sinusoid").replace("1.0", "4.0", 1)},
                                  ["s.toml", "reference", "Phi^-1 is undefined", "I = sqrt", "t = "]),
@@ -177,9 +179,28 @@ def run_cli(argv, capsys) -> tuple[int, list[str]]:
     return code, captured.err.strip().splitlines()
 
 
-@pytest.mark.parametrize("case", list(CLI))
+def _class(argv: list[str]) -> str:
+    """The class of a hand-written case (the generated ones carry theirs)."""
+    if any(a.endswith((".toml",)) and "/in/m.toml" in a or a.endswith("nowhere.toml") for a in argv):
+        return "model file"
+    if any(a.startswith("--scenario") for a in argv) and any("/in/s.toml" in a for a in argv) and len(argv) <= 3:
+        return "scenario file"
+    if any(a in ("--out", "--json", "--plot", "--csv", "--results", "--keep") for a in argv) or argv == ["build"]:
+        return "output path"
+    if any(a in ("--max-seconds", "--max-memory") for a in argv):
+        return "time and memory budget"
+    return "option: out of range"
+
+
+ALL = {case: (_class(argv), argv, files, words) for case, (argv, files, words) in CLI.items()}
+ALL.update(bad_input_cases.generated())
+
+
+@pytest.mark.parametrize("case", list(ALL))
 def test_bad_cli_input(case, tmp_path, earlier_build, capsys, monkeypatch):
-    argv, files, words = CLI[case]
+    _, argv, files, words = ALL[case]
+    if isinstance(files.get("m.toml"), tuple):                 # a model file under another name
+        files = {**files, "m.toml": motor('name = "dc_motor_link"', f'name = "{files["m.toml"][1]}"')}
     shutil.copytree(earlier_build, tmp_path / "out")
     (tmp_path / "user").mkdir()
     (tmp_path / "user" / "notes.txt").write_text("the user's own notes\n")
@@ -296,6 +317,19 @@ C_CASES = {
     "master_init NaN P0": ("master", lambda lib, s: lib.dc_motor_link_master_init(
         s, ptr(np.zeros(N)), ptr(p0("nan")), ptr(np.ones(M))), ERR_NONFINITE),
     "node_update gamma 2": ("node", lambda lib, s: lib.dc_motor_link_node_update(s, ptr(np.zeros(M)), 2), ERR_ARG),
+    "node_update z NULL": ("node", lambda lib, s: lib.dc_motor_link_node_update(s, None, 1), ERR_ARG),
+    "node_init q negative": ("node", lambda lib, s: lib.dc_motor_link_node_init(
+        s, ptr(np.zeros(N)), ptr(P_GOOD), ptr(np.eye(M) * 1e-6), ptr(-np.ones(M))), ERR_ARG),
+    "node_init R not positive": ("node", lambda lib, s: lib.dc_motor_link_node_init(
+        s, ptr(np.zeros(N)), ptr(P_GOOD), ptr(-np.eye(M)), ptr(np.ones(M))), ERR_SINGULAR),
+    "master_init q negative": ("master", lambda lib, s: lib.dc_motor_link_master_init(
+        s, ptr(np.zeros(N)), ptr(P_GOOD), ptr(-np.ones(M))), ERR_ARG),
+    "master_predict NaN v": ("master", lambda lib, s: lib.dc_motor_link_master_predict(
+        s, ptr(np.full(M, np.nan))), ERR_NONFINITE),
+    "gains lambda -5": ("node", lambda lib, s: lib.dc_motor_link_gains(ptr(np.array([-5.0])), ptr(np.zeros(N))),
+                        ERR_ARG),
+    "gains lambda 0": ("node", lambda lib, s: lib.dc_motor_link_gains(ptr(np.array([0.0])), ptr(np.zeros(N))),
+                       ERR_ARG),
 }
 
 
@@ -343,5 +377,41 @@ def test_control_near_singular_parameters(clib):
     assert clib.dc_motor_link_control(ptr(x), ptr(flags), ptr(gains), ptr(params), ptr(u), ptr(v), None) == 0
 
 
+def table_markdown() -> str:
+    """docs/bad_inputs.md: every class of bad input, how many cases the tests hold and what each
+    gets, then every case (written by this file: DFEIF_WRITE_DOCS=1 pytest tests/test_bad_inputs.py)."""
+    classes: dict[str, list] = {}
+    for case, (cls, argv, _, words) in ALL.items():
+        classes.setdefault(cls, []).append((case, argv, words))
+    lines = ["# Bad input: what each class gets", "",
+             "Written by `tests/test_bad_inputs.py` from the cases it runs (regenerate with",
+             "`DFEIF_WRITE_DOCS=1 python -m pytest tests/test_bad_inputs.py -k docs`). Every command-line",
+             "case exits with code 2 before any long work, prints exactly one line `codegen COMMAND: error:",
+             "...` on stderr naming what is wrong and where (the words listed must be in it), and leaves",
+             "every file of its folder as it was (an earlier build, a user file, its inputs: hashed before",
+             "and after). Every C case returns the code listed and leaves the struct bit for bit as it was.",
+             f"{len(ALL)} command-line cases and {len(C_CASES) + 3} C cases.", "",
+             "| class | cases | example | exit | the line names |", "|---|---:|---|---:|---|"]
+    for cls, cases in sorted(classes.items()):
+        case, argv, words = cases[0]
+        lines.append(f"| {cls} | {len(cases)} | `codegen {' '.join(argv)}` | 2 | {', '.join(words)} |")
+    lines.append(f"| C API: bad argument or covariance | {len(C_CASES) + 3} | `node_init` with an asymmetric P0 "
+                 "| ERR_ARG / ERR_NONFINITE / ERR_SINGULAR | struct unchanged |")
+    lines += ["", "## Every case", "", "| case | class | command | the line names |", "|---|---|---|---|"]
+    for case, (cls, argv, _, words) in ALL.items():
+        cmd = " ".join(a.replace("|", "\\|") for a in argv)
+        lines.append(f"| {case.replace('|', '/')} | {cls} | `codegen {cmd}` | {', '.join(words).replace('|', '/')} |")
+    for case, (_, _, expected) in C_CASES.items():
+        lines.append(f"| {case} | C API | (ctypes) | returns {expected} |")
+    return "\n".join(lines) + "\n"
+
+
+def test_docs_table_is_current():
+    doc = Path(__file__).resolve().parents[1] / "docs" / "bad_inputs.md"
+    if os.environ.get("DFEIF_WRITE_DOCS"):
+        doc.write_text(table_markdown())
+    assert doc.read_text() == table_markdown(), "docs/bad_inputs.md is stale: rerun with DFEIF_WRITE_DOCS=1"
+
+
 def test_the_table_is_big_enough():
-    assert len(CLI) + len(C_CASES) + 4 >= 45
+    assert len(ALL) + len(C_CASES) >= 250

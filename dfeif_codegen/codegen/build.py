@@ -180,6 +180,8 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     toolkit did not write there."""
     if isinstance(out, str) and not out.strip():
         raise BuildError(f"--out {out!r}: an empty path (give a folder; . for the current one)")
+    from dfeif_codegen.paths import writable_dir
+    writable_dir(out, "--out")
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol)
     check_target(Path(out), m.name, force)
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")

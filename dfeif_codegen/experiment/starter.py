@@ -211,7 +211,7 @@ def scenario(model: str, out: str | None = None) -> str:
         except (OSError, UnicodeDecodeError):
             first = ""
         if not first.startswith(MARKER):
-            raise ScenarioError(f"{path}: exists and was not written by `codegen scenario`; not overwriting it")
+            raise ScenarioError(f"--out {path}: exists and was not written by `codegen scenario`; not overwriting it")
     if path is not None:
         from dfeif_codegen.paths import writable_file
         writable_file(path, "--out")

@@ -500,7 +500,7 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
     head = _table(doc.data, "model", source)
     name = _text(head, "name", doc.where("model"))
     if not _NAME.fullmatch(name):
-        raise ModelError(f"{doc.where('model.name')}: '{name}' must be a C identifier (letters, digits, _)")
+        raise ModelError(f"{doc.where('model.name')}: {name!r} must be a C identifier (letters, digits, _)")
     ts = head.get("ts", 0.01)
     if not _finite(ts) or not 1e-9 <= ts <= 1e3:
         raise ModelError(f"{doc.where('model.ts')}: must be a sampling period in seconds in [1e-9, 1e3], got {ts!r}")

@@ -1,0 +1,119 @@
+"""The generated part of the bad-input table (tests/test_bad_inputs.py): every numeric, path and
+choice option of every command with the values that must be refused (exit 2, one line naming the
+option), model names and scenario fields beyond their bounds. Each entry: (class, argv, input
+files, words the line must hold), the same shape as test_bad_inputs.CLI."""
+
+from __future__ import annotations
+
+S = ["--scenario", "{d}/in/s.toml"]
+SMALL = "[scenario]\nduration = 1.0\nruns = 1\nmetrics_from = 0.2\nreferences = [\"seesaw\"]\n"
+SF = {"s.toml": SMALL}
+INT_BAD = ["abc", "1.5", ""]          # argparse: not an int
+FLOAT_BAD = ["abc", "1,5", ""]        # argparse: not a float
+
+
+def _opt(cls, cmd, flag, values, files=None, extra=(), words=None):
+    out = {}
+    for v in values:
+        argv = [cmd, *extra, flag, v]
+        out[f"{cmd} {flag} {v!r}"] = (cls, argv, dict(files or {}), [flag] if words is None else words)
+    return out
+
+
+def generated() -> dict:
+    c = {}
+    # --- build ---------------------------------------------------------------------------------
+    c |= _opt("option: not a number", "build", "--max-lag", INT_BAD)
+    c |= _opt("option: out of range", "build", "--max-lag", ["-1", "100000"])
+    c |= _opt("option: not a number", "build", "--nodes", INT_BAD)
+    c |= _opt("option: out of range", "build", "--nodes", ["0", "-2", "100000"])
+    c |= _opt("option: not a number", "build", "--ts", FLOAT_BAD)
+    c |= _opt("option: out of range", "build", "--ts", ["0", "-0.01", "inf", "-inf"])
+    c |= _opt("option: not a number", "build", "--singular-rtol", FLOAT_BAD)
+    c |= _opt("option: out of range", "build", "--singular-rtol", ["-1", "nan", "inf", "1"])
+    c |= _opt("option: not a number", "build", "--max-seconds", FLOAT_BAD)
+    c |= _opt("option: out of range", "build", "--max-seconds", ["-1", "nan", "inf"])
+    c |= _opt("option: not a number", "build", "--max-memory", FLOAT_BAD)
+    c |= _opt("option: out of range", "build", "--max-memory", ["0", "-1", "nan"])
+    c |= _opt("option: not a choice", "build", "--precision", ["half", "", "DOUBLE"])
+    c |= _opt("option: not a choice", "build", "--oosm", ["discard", ""])
+    c |= _opt("option: not a choice", "build", "--fusion", ["sum", ""])
+    c |= _opt("output path", "build", "--out", ["", "/proc/x"], words=["--out"])
+    # --- inspect -------------------------------------------------------------------------------
+    c |= _opt("option: not a number", "inspect", "--ts", FLOAT_BAD)
+    c |= _opt("option: out of range", "inspect", "--ts", ["0", "-1", "inf"])
+    # --- simulate ------------------------------------------------------------------------------
+    c |= _opt("option: not a number", "simulate", "--runs", INT_BAD, SF, S)
+    c |= _opt("option: out of range", "simulate", "--runs", ["-1", "1000000000"], SF, S)
+    c |= _opt("option: not a number", "simulate", "--seed", INT_BAD, SF, S)
+    c |= _opt("option: out of range", "simulate", "--seed", ["-1", "4294967296"], SF, S)
+    c |= _opt("option: not a number", "simulate", "--nodes", INT_BAD, SF, S)
+    c |= _opt("option: out of range", "simulate", "--nodes", ["0", "-1"], SF, S)
+    c |= _opt("option: not a number", "simulate", "--max-lag", INT_BAD, SF, S)
+    c |= _opt("option: out of range", "simulate", "--max-lag", ["0", "-3"], SF, S)
+    c |= _opt("option: not a choice", "simulate", "--filters", ["kf", "df,pf", ","], SF, S)
+    c |= _opt("option: not a choice", "simulate", "--engine", ["python", ""], SF, S)
+    c |= _opt("option: not a choice", "simulate", "--reference", ["step", ""], SF, S)
+    c |= _opt("option: not a choice", "simulate", "--oosm", ["x"], SF, S)
+    c |= _opt("option: not a choice", "simulate", "--fusion", ["x"], SF, S)
+    c |= _opt("option: not a number", "simulate", "--workers", INT_BAD, SF, S)
+    for flag in ("--json", "--csv", "--results"):
+        c |= _opt("output path", "simulate", flag, ["{d}/nodir/x.out", "{d}/user", "/proc/x.out",
+                                                    "{d}/user/notes.txt/x.out"], SF, S)
+    c["simulate --resume binary"] = ("input file", ["simulate", *S, "--resume", "{d}/in/r.jsonl"],
+                                     {**SF, "r.jsonl": bytes(range(256))}, ["--resume", "r.jsonl"])
+    c["simulate --resume missing"] = ("input file", ["simulate", *S, "--resume", "{d}/in/none.jsonl"], SF,
+                                      ["--resume", "none.jsonl"])
+    c["simulate --resume not records"] = ("input file", ["simulate", *S, "--resume", "{d}/in/r.jsonl"],
+                                          {**SF, "r.jsonl": "hello\nworld\n"}, ["--resume", "line 1"])
+    c["simulate --resume folder"] = ("input file", ["simulate", *S, "--resume", "{d}/user"], SF, ["--resume"])
+    for name, text, words in (
+            ("runs 1e9", SMALL.replace("runs = 1", "runs = 1000000000"), ["scenario.runs", "at most"]),
+            ("harmonics 1e9", SMALL + "[reference]\nharmonics = 1000000000\n", ["reference.harmonics", "at most"]),
+            ("duration 0", SMALL.replace("1.0", "0.0", 1), ["scenario.duration"]),
+            ("duration -1", SMALL.replace("1.0", "-1.0", 1), ["scenario.duration"]),
+            ("runs 0", SMALL.replace("runs = 1", "runs = 0"), ["scenario.runs"]),
+            ("runs 1.5", SMALL.replace("runs = 1", "runs = 1.5"), ["scenario.runs"]),
+            ("ts 0", SMALL + "ts = 0.0\n", ["scenario.ts"]),
+            ("metrics_from 2", SMALL.replace("metrics_from = 0.2", "metrics_from = 2.0"), ["metrics_from"]),
+            ("references typo", SMALL.replace('"seesaw"', '"seasaw"'), ["seasaw"]),
+            ("nested 10000", "a = " + "[" * 10000 + "]" * 10000 + "\n", ["nested too deeply"]),
+            ("malformed", "[scenario\n", ["malformed TOML"]),
+            ("binary", b"\x00\x01\x02", ["s.toml"])):
+        c[f"scenario {name}"] = ("scenario file", ["simulate", *S], {"s.toml": text}, ["s.toml", *words])
+    c["scenario missing"] = ("scenario file", ["simulate", "--scenario", "{d}/in/none.toml"], {}, ["none.toml"])
+    # --- network -------------------------------------------------------------------------------
+    c |= _opt("option: not a number", "network", "--duration", FLOAT_BAD)
+    c |= _opt("option: out of range", "network", "--duration", ["0", "-5", "nan", "1e9", "inf"])
+    c |= _opt("option: not a number", "network", "--row", INT_BAD)
+    c |= _opt("option: out of range", "network", "--row", ["-1", "99"])
+    c |= _opt("option: out of range", "network", "--seed", ["-1", "4294967296"])
+    c |= _opt("option: not a key", "network", "--key", ["abc", "00112233445566778899aabbccddeeXX", "0" * 34])
+    c |= _opt("option: not a number", "network", "--flip-rate", FLOAT_BAD)
+    c |= _opt("option: out of range", "network", "--flip-rate", ["1", "-0.1", "nan"])
+    c |= _opt("output path", "network", "--keep", ["{d}/user/notes.txt", "/proc/x"])
+    c |= _opt("option: not a choice", "network", "--precision", ["half"])
+    c["network keep not empty"] = ("output path", ["network", "--keep", "{d}/user"], {}, ["--keep", "not empty"])
+    # --- verify, scenario, bench -----------------------------------------------------------------
+    c |= _opt("option: not a choice", "verify", "--target", ["m7", ""])
+    c |= _opt("option: not a choice", "verify", "--precision", ["half"])
+    c |= _opt("option: not a choice", "verify", "--inputs", ["mine"])
+    c["verify scenario missing"] = ("scenario file", ["verify", "--scenario", "{d}/in/none.toml"], {}, ["none.toml"])
+    c |= _opt("output path", "scenario", "--out", ["/proc/x.toml", "{d}/nodir/x.toml", "{d}/user",
+                                                   "{d}/user/notes.txt"])
+    c |= _opt("option: not a number", "bench", "--repeat", INT_BAD)
+    c |= _opt("option: out of range", "bench", "--repeat", ["-1", "100000"])
+    c |= _opt("output path", "bench", "--out", ["/proc/B.md", "{d}/nodir/B.md", "{d}/user"])
+    # --- model names ---------------------------------------------------------------------------
+    names = ["ab_node", "x_master", "arm_packet", "robot_kern", "cam_wire", "unistd", "transport", "pthread",
+             "common", "relay", "a b", "9lives", "ab-c", "V\\n", "_x"]
+    for name in names:
+        c[f"model named {name!r}"] = ("model name", ["build", "{d}/in/m.toml"], {"m.toml": ("name", name)},
+                                      ["model.name"])
+    # --- commands on missing or bad model files --------------------------------------------------
+    for cmd in ("inspect", "simulate", "verify", "scenario", "network"):
+        c[f"{cmd} missing model"] = ("model file", [cmd, "{d}/in/none.toml"], {}, ["none.toml"])
+        c[f"{cmd} binary model"] = ("model file", [cmd, "{d}/in/m.toml"], {"m.toml": b"\x89PNG\x00"},
+                                    ["m.toml"])
+        c[f"{cmd} unknown built-in"] = ("model file", [cmd, "dc_motor"], {}, ["dc_motor"])
+    return c
