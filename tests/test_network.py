@@ -6,6 +6,8 @@ within bounded time, each with its own check."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -157,3 +159,77 @@ def test_a_process_that_ended_early_is_named(tmp_path):
     assert "node0 ended early (killed by signal 9)" in msg and "master" not in msg
     for p in (dead, killed, alive):
         p.reap(0)
+
+
+def test_forged_frames_rejected_by_cause_in_the_running_programs(runs, tmp_path_factory):
+    """A keyed run; at the start of a step k >= 40 an attacker who knows the frame format (and, for the
+    replays and the unusable covariances, the key: what a compromised or replaying sender could
+    send) sends the master one frame per rejection cause and node 0 a replayed tick, a replayed
+    camera frame, a forged command and a corrupted kind byte. Each is refused and counted under
+    its own cause, and the run still equals the reference (nothing forged reached a filter)."""
+    import struct
+    import zlib
+
+    from dfeif_codegen.check import harness
+    from dfeif_codegen.net import session, wire
+
+    key = bytes.fromhex(KEY)
+    lay = wire.Layout.of_folder(harness.build_model("dc_motor_link", tmp_path_factory.mktemp("lay") / "gen").path)
+    n, m = lay.n, lay.m
+    o = run.Options(duration=1.0, key=KEY)
+    lag = session.setup(run.make_config(o)).net.lag
+    k = next(j for j in range(40, 90) if lag[0, j - 1] == 0)   # node 0's frame of k - 1 came at once
+
+    def packet(P_scale=1.0, pred=0.01):
+        return np.concatenate([np.zeros(m), np.zeros(n), (0.005 * P_scale * np.eye(n)).ravel(), np.zeros(n),
+                               (pred * np.eye(n)).ravel()])
+
+    def enc(kind, node, step, seq, values, keyed=key, patch=()):
+        b = bytearray(wire.encode(lay, kind, node, step, seq, values, keyed))
+        for at, v in patch:
+            b[at] = v
+        if patch:
+            b[-4:] = struct.pack("<I", zlib.crc32(bytes(b[:-4])))
+        return bytes(b)
+
+    fresh = 1 << 30
+    bad_p = packet()
+    bad_p[m + n] = -0.005
+    nan_p = packet()
+    nan_p[m] = np.nan
+    good = enc(wire.KIND_PACKET, 0, k, fresh, packet())
+    master = {
+        "length": good[:-1],
+        "crc": good[:30] + bytes([good[30] ^ 0x40]) + good[31:],
+        "format": enc(wire.KIND_PACKET, 0, k, fresh, packet(), patch=[(5, 9)]),
+        "version": enc(wire.KIND_PACKET, 0, k, fresh, packet(), patch=[(4, 2)]),
+        "model": enc(wire.KIND_PACKET, 0, k, fresh, packet(), patch=[(8, good[8] ^ 1)]),
+        "tag": enc(wire.KIND_PACKET, 0, k, fresh, packet(), keyed=bytes(16)),
+        "nonfinite": enc(wire.KIND_PACKET, 0, k, fresh, nan_p),
+        "node": enc(wire.KIND_PACKET, 7, k, fresh, packet()),
+        "replay": enc(wire.KIND_PACKET, 0, k, 5, packet()),
+        "future": enc(wire.KIND_PACKET, 0, k + 3, fresh, packet()),
+        "old": enc(wire.KIND_PACKET, 0, k - 34, fresh, packet()),
+        "duplicate": enc(wire.KIND_PACKET, 1, k - 1, fresh, packet()),
+        "outdated": enc(wire.KIND_PACKET, 1, k - 2, fresh, packet()),
+        "covariance": enc(wire.KIND_PACKET, 0, k, fresh, bad_p),
+        "gain": enc(wire.KIND_PACKET, 0, k, fresh, packet(P_scale=3.0)),
+    }
+    tick = np.zeros(1 + lay.n + lay.m)
+    node0 = [enc(wire.KIND_TICK, 0, k - 1, fresh, tick),                       # a replayed tick
+             enc(wire.KIND_CAMERA, 0, k - 1, fresh, np.full(m, 0.3)),   # k - 1's frame came: a replay
+             enc(wire.KIND_COMMAND, wire.MASTER_ID, k - 1, fresh, np.zeros(2 * m), keyed=bytes(16)),
+             enc(wire.KIND_TICK, 0, k, fresh, tick)[:5] + b"\x07" + enc(wire.KIND_TICK, 0, k, fresh, tick)[6:]]
+    o.inject_at, o.inject = (k,), lambda step: [("master", f) for f in master.values()] + [(0, f) for f in node0]
+    out = runs("forged", **{f.name: getattr(o, f.name) for f in dataclasses.fields(o)})
+    counts = out.master["counters"]["R"]
+    assert {c for c, v in counts.items() if v and c != "accepted"} == set(master)
+    assert all(counts[c] == 1 for c in master), counts
+    assert counts["accepted"] == out.setup.nodes * out.steps
+    node = out.nodes[0]["counters"]
+    assert node["H"]["replayed"] == 2
+    # the forged command fails its tag; the tick with a corrupted kind byte is checked as a command:
+    # its size is not a command's
+    assert node["R"]["tag"] == 1 and node["R"]["length"] == 1
+    errors, _ = run.compare(out)
+    assert all(e.ok for e in errors), verify.table(errors)

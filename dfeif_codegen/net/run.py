@@ -61,6 +61,10 @@ class Options:
     faults: tuple = ()
     step_timeout: float = 1.0         # relay: how long a master tick waits for missing packets
     command_timeout: float = 2.0      # plant: how long it waits for the master's command
+    # tests: datagrams sent straight to a program at the start of a step (forged, replayed):
+    # inject(k) -> [("master" | node index, bytes)], called at each step of inject_at
+    inject_at: tuple = ()
+    inject: object = None
 
 
 @dataclass
@@ -160,11 +164,11 @@ def _write_configs(o: Options, s: session.Setup, lay: wire.Layout, work: Path, p
             relay_port, master_port, plant_port, *node_ports]
     (work / "relay.cfg").write_text(" ".join(map(str, head)) + "\n" + "\n".join(
         " ".join(map(str, a.ravel())) for a in (s.net.lag[:, :K], rank, s.net.up_lag[:, :K])) + "\n")
-    fields = {f.name: getattr(o, f.name) for f in dataclasses.fields(o) if f.name != "faults"}
+    fields = {f.name: getattr(o, f.name) for f in dataclasses.fields(o) if f.name not in ("faults", "inject")}
     plant_cfg = {"options": fields, "layout": dataclasses.asdict(lay), "key": o.key, "steps": K,
                  "plant_port": plant_port, "relay_port": relay_port, "out": str(work / "plant.npz"),
                  "command_timeout": o.command_timeout,
-                 "pause_at": sorted({f.at for f in o.faults} | {f.back for f in o.faults})}
+                 "pause_at": sorted({f.at for f in o.faults} | {f.back for f in o.faults} | set(o.inject_at))}
     session.write_json(work / "plant.json", plant_cfg)
     return idle_ms
 
@@ -210,6 +214,17 @@ def _lines_of(stream) -> queue.Queue:
     return lines
 
 
+def _send_forged(datagrams, ports: list[int]) -> None:
+    """Datagrams straight to the master's or a node's port, as an attacker on the network would."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        for target, data in datagrams:
+            sock.sendto(data, (HOST, ports[1] if target == "master" else ports[3 + int(target)]))
+            time.sleep(0.002)
+    time.sleep(0.05)
+
+
 def _drive(o: Options, cmds: _Commands, procs: dict, plant: _Proc, deadline: float) -> tuple[bool, dict, list]:
     """Step the plant until it says done, killing and restarting programs at the faults' steps;
     returns (finished, restarts per program, the killed processes)."""
@@ -229,6 +244,8 @@ def _drive(o: Options, cmds: _Commands, procs: dict, plant: _Proc, deadline: flo
             finished = True
         elif line.startswith("pause"):
             k = int(line.split()[1])
+            if o.inject is not None and k in o.inject_at:
+                _send_forged(o.inject(k), cmds.ports)  # type: ignore[operator]
             for f in o.faults:
                 name = "master" if f.who == "master" else f"node{f.who}"
                 if f.at == k:
