@@ -144,6 +144,9 @@ def test_cli_prints_files_sizes_and_sizeof(tmp_path):
     if build.host_compiler():
         node = int(re.search(r"sizeof: node (\d+) B", out).group(1))
         assert node <= 4096, "node state over the 4 KiB budget at N_max = 32 (double)"
+        readme = (ROOT / "README.md").read_text()
+        said = re.search(r"dc_motor_link_node node; +/\* one per camera; (\d+) B in double", readme)
+        assert said and int(said.group(1)) == node, "README's example states the node's size: update it"
     else:
         assert "sizeof: skipped" in out
 
@@ -270,3 +273,16 @@ def test_library_refuses_a_header_from_another_build(tmp_path, host_cc, other, f
     bad = subprocess.run([host_cc, "-std=c99", "-c", str(source), "-o", str(tmp_path / "w.o"), "-I", str(mine.path)],
                          capture_output=True, text=True)
     assert bad.returncode != 0 and f"DC_MOTOR_LINK_{flag}" in bad.stderr and "another build" in bad.stderr
+
+
+def test_cmake_and_make_carry_the_size_flags(fresh):
+    """The generated CMake and Make fragments pass the flags the published sizes were measured
+    with (check/target.py), so a user's firmware gets the sizes BENCHMARKS.md states."""
+    from dfeif_codegen.check import target
+
+    flags = ("-ffunction-sections", "-fdata-sections", "-fno-math-errno")
+    assert all(f in target.CFLAGS for f in flags)
+    cmake = (fresh / "dc_motor_link" / "CMakeLists.txt").read_text()
+    make = (fresh / "dc_motor_link" / "dc_motor_link.mk").read_text()
+    assert "target_compile_options(dc_motor_link PRIVATE " + " ".join(flags) + ")" in cmake
+    assert "DC_MOTOR_LINK_LIB_CFLAGS := " + " ".join(flags) in make

@@ -19,4 +19,8 @@ DC_MOTOR_LINK_SRCS := \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_kernels_fusion.c \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_kernels_control.c
 DC_MOTOR_LINK_CFLAGS := -I$(DC_MOTOR_LINK_INC)
+# The flags the published code sizes were measured with (BENCHMARKS.md), for the library's
+# objects (with GCC or Clang; link with -Wl,--gc-sections), e.g.
+#     $(patsubst %.c,%.o,$(DC_MOTOR_LINK_SRCS)): CFLAGS += $(DC_MOTOR_LINK_LIB_CFLAGS)
+DC_MOTOR_LINK_LIB_CFLAGS := -ffunction-sections -fdata-sections -fno-math-errno
 DC_MOTOR_LINK_LDLIBS := -lm

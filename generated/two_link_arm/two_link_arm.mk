@@ -19,4 +19,8 @@ TWO_LINK_ARM_SRCS := \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_kernels_fusion.c \
 	$(TWO_LINK_ARM_DIR)/two_link_arm_kernels_control.c
 TWO_LINK_ARM_CFLAGS := -I$(TWO_LINK_ARM_INC)
+# The flags the published code sizes were measured with (BENCHMARKS.md), for the library's
+# objects (with GCC or Clang; link with -Wl,--gc-sections), e.g.
+#     $(patsubst %.c,%.o,$(TWO_LINK_ARM_SRCS)): CFLAGS += $(TWO_LINK_ARM_LIB_CFLAGS)
+TWO_LINK_ARM_LIB_CFLAGS := -ffunction-sections -fdata-sections -fno-math-errno
 TWO_LINK_ARM_LDLIBS := -lm
