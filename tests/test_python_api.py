@@ -129,7 +129,8 @@ def test_error_codes_become_named_exceptions_and_leave_the_state(lib):
     node = lib.Node([0.1, 0, 0], np.eye(3) * 1e-2, [[1e-6]], [1.0])
     node.update([0.1])
     before = node.estimate()
-    with pytest.raises(loader.LagError, match=r"^dc_motor_link_node_update_delayed: ERR_LAG$") as info:
+    with pytest.raises(loader.LagError, match=r"^dc_motor_link_node_update_delayed: ERR_LAG \(lag 3: the window "
+                                              r"is 1\.\.32 steps back") as info:
         node.update_delayed([0.1], lag=3)            # older than the node's first step
     assert isinstance(info.value, dc.CError) and info.value.code == -2
     with pytest.raises(loader.SequenceError, match="dc_motor_link_node_update: ERR_SEQUENCE"):

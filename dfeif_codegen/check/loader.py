@@ -28,8 +28,8 @@ from dfeif_codegen.errors import SetupError
 class CError(RuntimeError):
     """A generated C function returned an error code; `function`, `name` ("ERR_ARG"), `code`."""
 
-    def __init__(self, function: str, name: str, code: int):
-        super().__init__(f"{function}: {name}")
+    def __init__(self, function: str, name: str, code: int, detail: str = ""):
+        super().__init__(f"{function}: {name}" + (f" ({detail})" if detail else ""))
         self.function, self.name, self.code = function, name, code
 
 
@@ -134,13 +134,14 @@ class Library:
         self.Master = type("Master", (Master,), {"_library": lib})
 
     # calls ------------------------------------------------------------------------------------
-    def call(self, function: str, *args) -> None:
-        """Call `<model>_<function>`; a code other than OK raises its CError subclass."""
+    def call(self, function: str, *args, detail: str = "") -> None:
+        """Call `<model>_<function>`; a code other than OK raises its CError subclass, whose
+        message carries `detail` (the value refused)."""
         name = f"{self.name}_{function}"
         rc = getattr(self._lib, name)(*args)
         if rc != 0:
-            code = self.codes.get(rc, f"error {rc}")
-            raise ERRORS.get(code, CError)(name, code, rc)
+            code = self.codes.get(rc, f"code {rc}")
+            raise ERRORS.get(code, CError)(name, code, rc, detail)
 
     def array(self, value, shape: tuple, what: str, allow_none: bool = False):
         """`value` as a C-contiguous array of the build's real type, or a one-line ValueError."""
@@ -236,7 +237,9 @@ class Node(_Filter):
         """A measurement taken `lag` steps ago, after this step's update."""
         lib = self._library
         z = lib.array(z_late, (lib.ny,), "Node.update_delayed: z_late")
-        lib.call("node_update_delayed", self._state, lib.ptr(z), ctypes.c_int32(int(lag)))
+        lib.call("node_update_delayed", self._state, lib.ptr(z), ctypes.c_int32(int(lag)),
+                 detail=f"lag {int(lag)}: the window is 1..{lib.dims['NMAX']} steps back, not before the "
+                        "node's first step, and a step without a measurement yet")
 
     def packet(self) -> Packet:
         lib = self._library
