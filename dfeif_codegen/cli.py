@@ -57,7 +57,8 @@ def _filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
 
 def _build_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="generated", help="output folder (default generated)")
-    p.add_argument("--precision", choices=["double", "float"], default="double")
+    p.add_argument("--precision", choices=["double", "float"], default="double",
+                   help="the C's real type (default double)")
     _filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
     p.add_argument("--check", action="store_true",
@@ -75,12 +76,13 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _verify_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--target", choices=["host", "cortex-m4f"], default="host")
+    p.add_argument("--target", choices=["host", "cortex-m4f"], default="host",
+                   help="where the C runs: this machine, or an emulated Cortex-M4F in QEMU (default host)")
     p.add_argument("--precision", choices=["double", "float"], default=None,
                    help="default: double on the host, float on cortex-m4f")
     p.add_argument("--sanitize", action="store_true", help="host: build with -fsanitize=address,undefined")
     p.add_argument("--scenario", default="paper",
-                   help="'paper' or a scenario .toml to record (its first row with late frames)")
+                   help="'paper' or a scenario .toml to record (its first row with late frames; default paper)")
     p.add_argument("--inputs", choices=["recorded", "own"], default="recorded",
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")
@@ -88,7 +90,7 @@ def _verify_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _simulate_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
+    p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml (default paper)")
     p.add_argument("--runs", type=int, default=None, help="seeds to average over")
     p.add_argument("--seed", type=int, default=0, help="first seed")
     _filter_options(p, many=True)
@@ -110,10 +112,11 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _network_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
+    p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml (default paper)")
     p.add_argument("--row", type=int, default=2, help="the scenario's delay row (default 2)")
     p.add_argument("--seed", type=int, default=0, help="seed of noise, initial error and network (default 0)")
-    p.add_argument("--precision", choices=["double", "float"], default="double")
+    p.add_argument("--precision", choices=["double", "float"], default="double",
+                   help="the C's real type (default double)")
     p.add_argument("--duration", type=float, default=5.0, help="simulated seconds (default 5)")
     p.add_argument("--key", default=None, metavar="HEX", help="32 hex digits: tag every frame with SipHash-2-4")
     p.add_argument("--flip-rate", type=float, default=0.0, metavar="R",
@@ -126,8 +129,8 @@ def _network_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _bench_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
-    p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures (median reported)")
+    p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report (default BENCHMARKS.md)")
+    p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures, median reported (default 5)")
     p.add_argument("--quick", action="store_true", help="skip the scaling sweeps and the Monte Carlo figures")
 
 

@@ -415,3 +415,14 @@ def test_docs_table_is_current():
 
 def test_the_table_is_big_enough():
     assert len(ALL) + len(C_CASES) >= 250
+
+
+def test_every_option_has_help_with_its_default():
+    """`codegen CMD --help` says what every option does and, where it has one, its default."""
+    import argparse
+
+    sub = next(a for a in cli.parser()._actions if isinstance(a, argparse._SubParsersAction))
+    missing = [f"{name} {a.option_strings[0]}" for name, sp in sub.choices.items() for a in sp._actions
+               if a.option_strings and a.dest != "help" and (not a.help or (
+                   a.default not in (None, False, argparse.SUPPRESS) and "default" not in a.help))]
+    assert missing == []
