@@ -209,7 +209,8 @@ def simulation_figures(directory: str, figures: dict, flat) -> list[str]:
                            who="master estimate")
         ts = float(t[1] - t[0]) if len(t) > 1 else 1.0
         delay_figure(save(folder / f"fig10_{ref}_delays.png"),
-                          f"Fig. 10: {name}, camera -> node delays at {b['row']}: late with probability p by 1..d_i steps",
+                          f"Fig. 10: {name}, camera -> node delays at {b['row']} ({ref} run; the seed's draws, "
+                          "the same for every reference): late with probability p by 1..d_i steps",
                           np.asarray(b["t"]), b["delays"], ts)
         node_x = np.asarray(b["node_x"])
         for i in range(node_x.shape[0]):
