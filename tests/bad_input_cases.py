@@ -105,7 +105,7 @@ def generated() -> dict:
     c |= _opt("option: out of range", "bench", "--repeat", ["-1", "100000"])
     c |= _opt("output path", "bench", "--out", ["/proc/B.md", "{d}/nodir/B.md", "{d}/user"])
     # --- model names ---------------------------------------------------------------------------
-    names = ["ab_node", "x_master", "arm_packet", "robot_kern", "cam_wire", "unistd", "transport", "pthread",
+    names = ["ab_node", "x_master", "arm_lib", "robot_kern", "cam_internal", "unistd", "transport", "pthread",
              "common", "relay", "a b", "9lives", "ab-c", "V\\n", "_x"]
     for name in names:
         c[f"model named {name!r}"] = ("model name", ["build", "{d}/in/m.toml"], {"m.toml": ("name", name)},

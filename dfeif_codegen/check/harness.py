@@ -302,9 +302,9 @@ class Harness:
         self.state = (ctypes.c_uint8 * library.sizeof("harness"))()
         rc = getattr(self.lib, f"{p}_harness_init")(self.state, *(ctypes.c_void_p(_ptr(self.arrays[k])) for k in self._INIT))
         if rc != 0:
-            from dfeif_codegen.check.loader import header_facts
-            codes = header_facts((library.model.path / f"{p}.h").read_text(), p.upper())[1]
-            raise MismatchError(f"{p}_harness_init failed: {codes.get(rc, f'code {rc}')}")
+            names = dict((int(v), k) for k, v in re.findall(rf"#define {p.upper()}_(ERR_\w+) \((-\d+)\)",
+                                                            (library.model.path / f"{p}.h").read_text()))
+            raise MismatchError(f"{p}_harness_init failed: {names.get(rc, f'code {rc}')}")
 
     def counters(self, i: int) -> dict:
         """Node i's health counters (node[i] is the harness struct's first member)."""
