@@ -37,7 +37,7 @@ def _row_label(row: dict) -> str:
 
 def _block(t: dict, nodes: int, runs: int) -> list:
     """Per delay row, the cells of one (reference, method, rule) table (None: every run failed)."""
-    out = []
+    out: list[dict | None] = []
     for s in t["rows"]:
         if not s.get("runs"):
             out.append(None)
