@@ -248,7 +248,7 @@ def simulate(args: argparse.Namespace) -> int:
 
 def reproduce(args: argparse.Namespace) -> int:
     """`codegen reproduce`: what it ran and wrote; exit 1 when a run failed or diverged."""
-    from dfeif_codegen.reproduce import reproduce as run
+    from dfeif_codegen.reproduction.run import reproduce as run
 
     result = run(args.runs, args.out, workers=args.workers, scheduler=args.scheduler, quick=args.quick, doc=args.doc,
                  quiet=args.quiet)

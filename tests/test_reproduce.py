@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from dfeif_codegen.reproduce import document
+from dfeif_codegen.reproduction import document
 
 ROOT = Path(__file__).resolve().parents[1]
 # A number standing alone: not part of a name (x1, P0, fig13), a version or a path.
@@ -95,7 +95,7 @@ def test_tables_are_the_simulate_results(quick):
                  ("sinusoid", "replay", "difference"))
     text = doc.read_text()
     section = text[text.index("**Table IV: RMSE of the estimation error at the master**"):]
-    lines = [ln for ln in section.splitlines() if ln.startswith("| (")][:len(task["rows"])]
+    lines = [ln for ln in section.splitlines() if re.match(r"\| \(\d", ln)][:len(task["rows"])]
     for row, summary, line in zip(task["rows"], table["rows"], lines):
         mean, half = summary["rmse_master"]["mean"], summary["rmse_master"]["ci95"]
         label = "(" + ", ".join(map(str, row["d"])) + f", {row['p']:.1f})"

@@ -18,8 +18,8 @@ from pathlib import Path
 
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.paths import writable_file
-from dfeif_codegen.reproduce import document
-from dfeif_codegen.reproduce.tasks import FULL, QUICK, check_out, run_task
+from dfeif_codegen.reproduction import document
+from dfeif_codegen.reproduction.tasks import FULL, QUICK, check_out, run_task
 
 
 @dataclass
@@ -72,6 +72,7 @@ def _comparison_figures(data: dict, out: Path) -> None:
 def _publish(text: str, data: dict, out: Path, doc: Path) -> list[str]:
     """docs/experiment.md, the data it was rendered from (docs/experiment.json: a test renders
     it again and compares) and the figures it shows (copied beside it, same relative paths)."""
+    doc.parent.mkdir(parents=True, exist_ok=True)
     data_file = doc.with_suffix(".json")
     data_file.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
     written = [str(doc), str(data_file)]

@@ -1,7 +1,7 @@
 """`codegen reproduce`, the document: the tasks' results turned into the numbers docs/experiment.md
 shows (`derive`: every table cell and every number the prose quotes, ratios and ranges included,
 so the template only formats), stored as OUT/experiment.json, and rendered through the Jinja2
-template templates/docs/experiment.md.j2 (the prose lives there)."""
+template `templates/docs/experiment.md.j2` (the prose lives there)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import numpy as np
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.paths import parse_toml
 
-TEMPLATE = "docs/experiment.md.j2"     # package data dfeif_codegen.templates (repository: templates/)
+TEMPLATE = ("docs", "experiment.md.j2")   # in the package data dfeif_codegen.templates (templates/ here)
 CHAPTER = Path(__file__).with_name("chapter_tables.toml")
 
 
@@ -143,7 +143,7 @@ def pct(value) -> str:
 
 
 def template_text() -> str:
-    return (resources.files("dfeif_codegen.templates") / TEMPLATE).read_text(encoding="utf-8")
+    return resources.files("dfeif_codegen.templates").joinpath(*TEMPLATE).read_text(encoding="utf-8")
 
 
 def render(data: dict) -> str:
