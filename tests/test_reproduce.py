@@ -150,3 +150,26 @@ def test_bad_input_is_one_line_before_any_run(args, says):
     proc = run_cli(*args, "--quick", timeout=60)
     assert proc.returncode == 2
     assert says in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_every_task_of_the_full_command_is_a_valid_simulate_call(tmp_path):
+    """The full list (not run here) passes simulate's own checks: model, scenario variant,
+    methods, rules, references and filters, as the test's --quick subset does by running."""
+    from dfeif_codegen.experiment.plan import plan
+    from dfeif_codegen.reproduction import tasks
+
+    names = [t.name for t in tasks.FULL]
+    assert len(set(names)) == len(names) and {t.name for t in tasks.QUICK} <= set(names)
+    for task in tasks.FULL:
+        scenario = "paper"
+        if task.q is not None or task.rows is not None:
+            scenario = str(tmp_path / f"{task.name}.toml")
+            Path(scenario).write_text(tasks.scenario_text(task.q, task.rows))
+        o = task.options
+
+        def listed(v):
+            return [v] if isinstance(v, str) else v
+
+        p = plan(task.model, scenario, 2, 0, None, 32, listed(o.get("oosm")), listed(o.get("fusion")),
+                 listed(o.get("reference")), o.get("filters"), None)
+        assert p.runs == 2 and (task.q is None or p.sc.q[0] == task.q)
