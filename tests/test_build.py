@@ -284,5 +284,5 @@ def test_cmake_and_make_carry_the_size_flags(fresh):
     assert all(f in target.CFLAGS for f in flags)
     cmake = (fresh / "dc_motor_link" / "CMakeLists.txt").read_text()
     make = (fresh / "dc_motor_link" / "dc_motor_link.mk").read_text()
-    assert "target_compile_options(dc_motor_link PRIVATE " + " ".join(flags) + ")" in cmake
+    assert "target_compile_options(dc_motor_link PRIVATE\n        " + " ".join(flags) + ")" in cmake
     assert "DC_MOTOR_LINK_LIB_CFLAGS := " + " ".join(flags) in make

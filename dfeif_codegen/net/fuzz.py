@@ -34,7 +34,8 @@ def build(model: harness.ModelDir, out: Path, clang: str = "clang") -> Path:
     out.mkdir(parents=True, exist_ok=True)
     src = out / "fuzz.c"
     src.write_text(render.environment(model.precision).get_template("harness/fuzz.c.j2").render(
-        p=model.name, P=model.name.upper(), banner=render.banner("harness/fuzz.c.j2", model.name, __version__)))
+        p=model.name, P=model.name.upper(), banner=render.banner("harness/fuzz.c.j2", model.name, __version__),
+        wrap=f"{model.name}_wrap(" in (model.path / f"{model.name}_internal.h").read_text()))
     exe = out / "fuzz"
     cmd = [clang, *FLAGS, f"-I{model.path}", str(src), *map(str, model.sources()), "-lm", "-o", str(exe)]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)

@@ -97,7 +97,6 @@ static inline real dc_motor_link_wrap(real e)
     }
     return out;
 }
-#define DC_MOTOR_LINK_HAS_WRAP 1
 
 /* 1 if all n values are finite (x - x is 0 for finite x, NaN otherwise; no math.h macros). */
 static inline int dc_motor_link_finite(const real* a, size_t n)

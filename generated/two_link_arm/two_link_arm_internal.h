@@ -97,7 +97,6 @@ static inline real two_link_arm_wrap(real e)
     }
     return out;
 }
-#define TWO_LINK_ARM_HAS_WRAP 1
 
 /* 1 if all n values are finite (x - x is 0 for finite x, NaN otherwise; no math.h macros). */
 static inline int two_link_arm_finite(const real* a, size_t n)
