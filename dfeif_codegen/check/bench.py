@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 from dfeif_codegen import __version__
-from dfeif_codegen.check import bench_peers, harness, target
+from dfeif_codegen.check import bench_peers, bench_target, harness, target
 from dfeif_codegen.codegen import render
 from dfeif_codegen.errors import CodegenError, SetupError
 
@@ -120,8 +120,9 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
     if isinstance(repeat, bool) or not isinstance(repeat, int) or not 1 <= repeat <= 1000:
         raise CodegenError(f"--repeat must be an integer between 1 and 1000, got {repeat!r}")
     harness.host_compiler()
-    for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size"):
+    for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "arm-none-eabi-nm", "qemu-system-arm"):
         target.require(tool)
+    target.require_newlib()
     models = [model] if model not in (None, "all") and model not in MODELS else list(MODELS)
     sections = []
     with tempfile.TemporaryDirectory(prefix="codegen-bench-") as tmp:
@@ -136,6 +137,10 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
             md = harness.build_model(sec["name"], work / sec["name"] / "peers-build")
             sec["peers"] = bench_peers.c_peers(sec["name"], md, work / sec["name"] / "peers")
             sec["py_peers"] = bench_peers.python_peers(sec["name"])
+            if progress:
+                progress(f"codegen bench: {sec['name']} on the emulated Cortex-M4F")
+            sec["target"] = bench_target.model(sec["name"], work / sec["name"] / "target")
+            sec["target_peers"] = bench_target.peers(sec["name"], work / sec["name"] / "target-peers")
         comparisons = {}
         if not quick:
             if progress:
@@ -187,6 +192,8 @@ def _markdown(command: str, sections: list[dict], repeat: int) -> str:
            f"- target: `{arm}`, `{' '.join(target.CPU_FLAGS)} -Os`, float; sizes of the library's own "
            "objects (no newlib), stack from `-fstack-usage` over GCC's call graph (`-fcallgraph-info=su`), "
            "newlib leaf functions (`ceilf`, `sinf`, `memset`, ...) not included",
+           "- Cortex-M4F instructions and cycles: " + bench_target.ASSUMPTIONS.format(
+               flags=" ".join([*target.CPU_FLAGS, bench_target.OPT, *target.CFLAGS]), calls=bench_target.CALLS),
            f"- build time: wall clock of `codegen build` in a fresh process (imports included), "
            f"median of {repeat}", ""]
     for s in sections:
@@ -226,6 +233,8 @@ def _markdown(command: str, sections: list[dict], repeat: int) -> str:
         for kind in ("node", "master", "packet"):
             out.append(f"| `{name}_{kind}` | {sf[kind]} | {sd[kind]} | {sd[kind] / sf[kind]:.2f} |")
         out.append("")
+        if "target" in s:
+            out += bench_target.markdown(name, s["target"])
     return "\n".join(out)
 
 
@@ -257,6 +266,19 @@ def _ratio(a, b) -> str:
     return "-" if a is None or b is None else f"{a / b:.2f}"
 
 
+def _peer_targets(sec: dict) -> list[str]:
+    """The node step against the hand-written filter (issue targets: 1.5x on the M4F, 1.4x host)."""
+    tp, hp = sec.get("target_peers", {}), sec["peers"]["instructions"]
+    if "straight" not in hp:
+        return []
+    rows = [f"| node step / hand-written, host instructions | {_fmt(hp['generated'])} / {_fmt(hp['straight'])} = "
+            f"{hp['generated'] / hp['straight']:.2f}x | 1.4x |"]
+    if "straight" in tp:
+        g, s = tp["generated"]["instructions"], tp["straight"]["instructions"]
+        rows.append(f"| node step / hand-written, Cortex-M4F instructions | {_fmt(g)} / {_fmt(s)} = {g / s:.2f}x | 1.5x |")
+    return rows
+
+
 def _markdown_more(sections: list[dict], comp: dict) -> str:
     """Peers side by side, targets, worst cases, scaling and Monte Carlo throughput."""
     out = ["## Peers side by side (one node step: update with an on-time frame, then predict)", "",
@@ -278,6 +300,8 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
             out.append(f"| {sec['name']} | {label} | - | - | {'-' if t is None else f'{t:,.0f}'} | "
                        f"{_ratio(t, gn)} |")
     out.append("")
+    out += bench_target.peers_markdown([(s["name"], s["target_peers"], s["peers"]["instructions"])
+                                        for s in sections if "target_peers" in s])
     for sec in sections:
         c = sec["counts"][("replay", "difference")]
         r = sec["counts"][("retrodict", "difference")]
@@ -286,6 +310,7 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
         out += [f"### Targets, {sec['name']} (host, double)", "", "| figure | measured | target |",
                 "|---|---:|---:|",
                 f"| node predict + update | {_fmt(step)} | 350 (dc_motor_link) |",
+                *_peer_targets(sec),
                 f"| replay, per replayed step (lag 8 -> 32) | {_fmt(per)} = {per / step:.2f}x a plain step | 1.0x |",
                 f"| update_delayed, lag 25, replay | {_fmt(c['node_update_delayed_lag25'])} | 10,000 (dc_motor_link) |",
                 f"| update_delayed, lag 32, replay / retrodict | {_fmt(c['node_update_delayed_lag32'])} / "

@@ -49,22 +49,29 @@ def chain_model(n: int) -> str:
 
 # --- peers of one node step ------------------------------------------------------------------------
 
-def _peers_program(spec: str, md: harness.ModelDir, work: Path) -> Path:
+def render_peers(spec: str, md: harness.ModelDir, work: Path) -> Path:
+    """templates/harness/peers.c.j2 for this model, in the build's precision."""
     from dfeif_codegen.symbolic import flatness, model as model_mod
 
     flat = flatness.derive(model_mod.load(spec))
     ts = float(md.options.get("ts") or flat.model.ts)
     A, B, _ = flat.discrete(ts)
     Q = flat.process_noise(ts, np.ones(flat.m))
-    lit = render.literal("double")
-    env = render.environment("double")
+    lit = render.literal(md.precision)
+    env = render.environment(md.precision)
     straight = flat.n == 3 and flat.m == 1
+    work.mkdir(parents=True, exist_ok=True)
     src = work / "peers.c"
     src.write_text(env.get_template("harness/peers.c.j2").render(
-        p=md.name, P=md.name.upper(), straight=straight,
+        p=md.name, P=md.name.upper(), straight=straight, precision=md.precision,
         A=[lit(a) for a in np.ravel(A)], B=[lit(b) for b in np.ravel(B)], Q=[lit(q) for q in np.ravel(Q)],
         heads=flat.heads, angles=[int(c.angle) for c in flat.chains],
         banner=render.banner("harness/peers.c.j2", md.name, __version__)))
+    return src
+
+
+def _peers_program(spec: str, md: harness.ModelDir, work: Path) -> Path:
+    src = render_peers(spec, md, work)
     return harness.compile_program([*md.sources(), src], work / "peers", [md.path], [harness.BIND_NOW])
 
 
@@ -86,9 +93,13 @@ def c_peers(spec: str, md: harness.ModelDir, work: Path) -> dict:
 
 def _callgrind(exe: Path, work: Path) -> tuple[dict, dict]:
     counts, stdout = harness.callgrind(exe, work)
-    finals = {m.group(1): [float(v) for v in m.group(2).split()]
-              for m in re.finditer(r"^final (\w+) (.*)$", stdout, re.M)}
-    return counts, finals
+    return counts, finals(stdout)
+
+
+def finals(stdout: str) -> dict[str, list[float]]:
+    """Each peer's final estimate, as the peers program prints it."""
+    return {m.group(1): [float(v) for v in m.group(2).split()]
+            for m in re.finditer(r"^final (\w+) (.*)$", stdout, re.M)}
 
 
 def python_peers(model: str, steps: int = 2000, repeat: int = 5) -> dict:
