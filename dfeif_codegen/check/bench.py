@@ -147,6 +147,9 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
                 progress("codegen bench: scaling")
             comparisons["scaling"] = bench_peers.scaling(work / "scaling", callgrind)
             if progress:
+                progress("codegen bench: scaling on the emulated Cortex-M4F")
+            comparisons["target_scaling"] = bench_target.scaling(work / "target-scaling")
+            if progress:
                 progress("codegen bench: closed-loop Monte Carlo")
             comparisons["mc"] = bench_peers.monte_carlo(work / "mc")
     return (_markdown(command or f"codegen bench --repeat {repeat}", sections, repeat)
@@ -359,6 +362,8 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
                 f"{bench_peers.growth(Ns, [wd[N]['replay'] for N in Ns]):.2f}, retrodict ~ N^"
                 f"{bench_peers.growth(Ns, [wd[N]['retrodict'] for N in Ns]):.2f}, node struct ~ N^"
                 f"{bench_peers.growth(Ns, [wd[N]['node_bytes'] for N in Ns]):.2f}.", ""]
+    if comp.get("target_scaling"):
+        out += bench_target.scaling_markdown(comp["target_scaling"])
     mc = comp.get("mc")
     if mc:
         out += ["## Closed-loop Monte Carlo (`codegen simulate`, scenario paper, dc_motor_link)", "",

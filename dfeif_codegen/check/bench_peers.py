@@ -29,7 +29,7 @@ from dfeif_codegen.check import harness, target
 from dfeif_codegen.codegen import render
 from dfeif_codegen.errors import SetupError
 
-CHAINS = tuple(range(2, 11))
+CHAINS = tuple(range(2, 13))
 NODES = (1, 2, 4, 8, 16)
 WINDOWS = (8, 16, 32, 64, 128)
 

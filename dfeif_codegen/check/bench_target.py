@@ -138,3 +138,62 @@ def peers_markdown(rows: list[tuple[str, dict, dict | None]]) -> list[str]:
             hcell = "-" if h is None else f"{_fmt(h)} | {h / hg:.2f}"
             out.append(f"| {model_name} | {label} | {_fmt(i)} | {i / g:.2f} | {_cyc(tc[key]['cycles'])} | {hcell} |")
     return out + [""]
+
+
+def _chain_spec(n: int, work: Path) -> str:
+    spec = work / f"chain{n}.toml"
+    spec.parent.mkdir(parents=True, exist_ok=True)
+    spec.write_text(bench_peers.chain_model(n))
+    return str(spec)
+
+
+def scaling(work: Path, chains=None, nodes=None) -> dict:
+    """On the target: the node step (update + predict) and the kernels' .text over the synthetic
+    chains, and the CI fuse with every Newton step over nodes M, typical (fresh packets) and
+    worst (worst.c.j2: packets N_max steps stale too)."""
+    from dfeif_codegen.check import target
+
+    out: dict = {"chains": {}, "nodes": {}}
+    for n in chains or bench_peers.CHAINS:
+        md = harness.build_model(_chain_spec(n, work), work / f"chain{n}", "float")
+        counts, _, _ = _run(md, _render(md, "bench", work / f"chain{n}-src"), work / f"chain{n}-bench",
+                            ("BENCH_SKIP_LAGS", "BENCH_SKIP_FUSE"))
+        text = {k: z.text for k, z in target.sizes(sorted((work / f"chain{n}-bench" / "lib").glob("*.o"))).items()}
+        out["chains"][n] = {"step": counts["node_update"]["instructions"] + counts["node_predict"]["instructions"],
+                            "cycles": tuple(counts["node_update"]["cycles"][i] + counts["node_predict"]["cycles"][i]
+                                            for i in (0, 1)),
+                            "filter_text": text[f"chain{n}_kernels_filter.o"],
+                            "fusion_text": text[f"chain{n}_kernels_fusion.o"]}
+    for M in nodes or bench_peers.NODES:
+        md = harness.build_model("dc_motor_link", work / f"nodes{M}", "float", "replay", "ci", M)
+        fresh, _, _ = _run(md, _render(md, "bench", work / f"nodes{M}-src"), work / f"nodes{M}-bench",
+                           ("BENCH_SKIP_NODE", "BENCH_SKIP_LAGS", "CI_TOL=-1"))
+        worst, _, _ = _run(md, _render(md, "worst", work / f"nodes{M}-wsrc"), work / f"nodes{M}-worst",
+                           ("CI_TOL=-1",))
+        out["nodes"][M] = {"fresh": fresh["master_fuse_distinct"]["instructions"],
+                           "worst": worst["worst/master_fuse"]["max"],
+                           "worst_cycles": worst["worst/master_fuse"]["max_cycles"]}
+    return out
+
+
+def scaling_markdown(sc: dict) -> list[str]:
+    ch, nd = sc["chains"], sc["nodes"]
+    ns, Ms = sorted(ch), sorted(nd)
+    out = [f"### Scaling on the Cortex-M4F (float, {OPT})", "",
+           "| n | node step instructions | x previous n | cycles (estimate) | filter kernels .text [B] "
+           "| fusion kernels .text [B] |", "|---:|---:|---:|---:|---:|---:|"]
+    for a, n in enumerate(ns):
+        prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
+        out.append(f"| {n} | {_fmt(ch[n]['step'])} | {prev} | {_cyc(ch[n]['cycles'])} | {ch[n]['filter_text']} "
+                   f"| {ch[n]['fusion_text']} |")
+    g = bench_peers.growth
+    out += ["", f"Fitted growth over n = {ns[0]}..{ns[-1]}: node step ~ n^{g(ns, [ch[n]['step'] for n in ns]):.2f}, "
+            f"filter kernels .text ~ n^{g(ns, [ch[n]['filter_text'] for n in ns]):.2f}, fusion kernels .text ~ "
+            f"n^{g(ns, [ch[n]['fusion_text'] for n in ns]):.2f} (targets: each n at most 1.6x the previous, "
+            ".text no faster than n^2).", "",
+            "| nodes M (dc_motor_link, ci) | fuse, every Newton step, fresh packets | worst: stale packets too "
+            "| cycles of the worst (estimate) |", "|---:|---:|---:|---:|"]
+    out += [f"| {M} | {_fmt(nd[M]['fresh'])} | {_fmt(nd[M]['worst'])} | {_cyc(nd[M]['worst_cycles'])} |" for M in Ms]
+    return out + ["", "Every Newton step: built with -D<MODEL>_CI_TOL=-1 (the early stop off); stale: "
+                  "`templates/harness/worst.c.j2`'s packets N_max steps old, each brought forward before the "
+                  "fuse (target at M = 8: 20,000 instructions).", ""]
