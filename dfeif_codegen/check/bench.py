@@ -329,13 +329,17 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
         ns = sorted(ch)
         out += ["## Scaling (host, double instructions; Cortex-M4F float -Os sizes)", "",
                 "Synthetic flat chains: one output, relative degree n (`n` integrators).", "",
-                "| n | node step instructions | filter kernels .text [B] | kernels + node .text [B] |",
-                "|---:|---:|---:|---:|"]
-        for n in ns:
-            out.append(f"| {n} | {_fmt(ch[n]['step'])} | {ch[n]['kernel_text']} | {ch[n]['filter_text']} |")
+                "| n | node step instructions | x previous n | filter kernels .text [B] | kernels + node .text [B] "
+                "| fusion kernels .text [B] |", "|---:|---:|---:|---:|---:|---:|"]
+        for a, n in enumerate(ns):
+            prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
+            out.append(f"| {n} | {_fmt(ch[n]['step'])} | {prev} | {ch[n]['kernel_text']} | {ch[n]['filter_text']} "
+                       f"| {ch[n]['fusion_text']} |")
         out += ["", f"Fitted growth over n = {ns[0]}..{ns[-1]}: node step ~ n^"
                 f"{bench_peers.growth(ns, [ch[n]['step'] for n in ns]):.2f}, filter kernel .text ~ n^"
-                f"{bench_peers.growth(ns, [ch[n]['kernel_text'] for n in ns]):.2f} (target: no faster than n^2).", ""]
+                f"{bench_peers.growth(ns, [ch[n]['kernel_text'] for n in ns]):.2f}, fusion kernel .text ~ n^"
+                f"{bench_peers.growth(ns, [ch[n]['fusion_text'] for n in ns]):.2f} (targets: each n at most 1.6x "
+                "the previous, .text no faster than n^2).", ""]
         nd = sc["nodes"]
         Ms = sorted(nd)
         out += ["| nodes M (dc_motor_link) | master fuse, difference | CI, identical nodes | CI, distinct nodes "

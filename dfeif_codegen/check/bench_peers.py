@@ -164,7 +164,8 @@ def scaling(work: Path, callgrind) -> dict:
         text = {name: z.text for name, z in target.sizes(objs).items()}
         out["chains"][n] = {"step": c["node_update"] + c["node_predict"],
                             "kernel_text": text[f"chain{n}_kernels_filter.o"],
-                            "filter_text": text[f"chain{n}_kernels_filter.o"] + text[f"chain{n}_node.o"]}
+                            "filter_text": text[f"chain{n}_kernels_filter.o"] + text[f"chain{n}_node.o"],
+                            "fusion_text": text[f"chain{n}_kernels_fusion.o"]}
     for M in NODES:
         row = {}
         for fusion in ("difference", "ci"):
