@@ -32,13 +32,17 @@ def test_growth_fit_recovers_a_power_law():
 
 def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
     """c_peers raises unless the dense-loop and the straight-line filters end where the generated
-    filter ends after 200 steps (1e-9); the straight-line one exists for the 3-state motor only."""
+    filter ends after 200 steps (1e-9), each with the generated filter's predictor (held: the
+    ETD2RK mean calling the model function, E P E' + Q; brunovsky: the linear chain); the
+    straight-line one exists for the 3-state motor only."""
     require_tool("valgrind", "valgrind")
-    md = harness.build_model("dc_motor_link", tmp_path / "b")
-    out = bench_peers.c_peers("dc_motor_link", md, tmp_path / "w")
-    assert set(out["instructions"]) == set(out["ns"]) == {"generated", "dense", "straight"}
-    # the hand-written filter does strictly less work than the generated one, which checks its inputs
-    assert 0 < out["instructions"]["straight"] < out["instructions"]["generated"]
+    for pred in bench_peers.PREDICTORS:
+        md = harness.build_model("dc_motor_link", tmp_path / f"b{pred}", **bench_peers.with_predictor(pred))
+        assert md.options.get("predictor") == pred
+        out = bench_peers.c_peers("dc_motor_link", md, tmp_path / f"w{pred}")
+        assert set(out["instructions"]) == set(out["ns"]) == {"generated", "dense", "straight"}
+        # the hand-written filter does strictly less work than the generated one, which checks its inputs
+        assert 0 < out["instructions"]["straight"] < out["instructions"]["generated"] < out["instructions"]["dense"]
     arm = harness.build_model("two_link_arm", tmp_path / "a")
     assert set(bench_peers.c_peers("two_link_arm", arm, tmp_path / "wa")["instructions"]) == {"generated", "dense"}
 

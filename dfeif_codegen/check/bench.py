@@ -127,13 +127,17 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
         if progress:
             progress("codegen bench: peers")
         for sec in sections:
-            md = harness.build_model(sec["name"], work / sec["name"] / "peers-build")
-            sec["peers"] = bench_peers.c_peers(sec["name"], md, work / sec["name"] / "peers")
-            sec["py_peers"] = bench_peers.python_peers(sec["name"])
+            name, w = sec["name"], work / sec["name"]
+            sec["peers"] = {}
+            for pred in bench_peers.PREDICTORS:
+                md = harness.build_model(name, w / f"peers-{pred}-build", **bench_peers.with_predictor(pred))
+                sec["peers"][pred] = bench_peers.c_peers(name, md, w / f"peers-{pred}")
+            sec["py_peers"] = bench_peers.python_peers(name)
             if progress:
-                progress(f"codegen bench: {sec['name']} on the emulated Cortex-M4F")
-            sec["target"] = bench_target.model(sec["name"], work / sec["name"] / "target")
-            sec["target_peers"] = bench_target.peers(sec["name"], work / sec["name"] / "target-peers")
+                progress(f"codegen bench: {name} on the emulated Cortex-M4F")
+            sec["target"] = bench_target.model(name, w / "target")
+            sec["target_peers"] = {pred: bench_target.peers(name, w / f"target-peers-{pred}", pred)
+                                   for pred in bench_peers.PREDICTORS}
         comparisons = {}
         if not quick:
             if progress:

@@ -56,12 +56,12 @@ def model(name: str, work: Path) -> dict:
     return {"typical": typical, "worst": worst, "stack": stack}
 
 
-def peers(spec: str, work: Path) -> dict:
+def peers(spec: str, work: Path, predictor: str | None = None) -> dict:
     """The peers of one node step (peers.c.j2) on the target, float: instructions and cycles per
     step, after checking each peer ends where the generated filter does (float: 1e-3 relative,
     200 steps of a filter whose covariance settles, far above single precision's 6e-8 but far
     below a wrong filter's error)."""
-    md = harness.build_model(spec, work / "float", "float")
+    md = harness.build_model(spec, work / "float", "float", **bench_peers.with_predictor(predictor))
     src = bench_peers.render_peers(spec, md, work / "src")
     counts, stdout, _ = _run(md, src, work / "peers")
     finals = bench_peers.finals(stdout)
@@ -120,14 +120,14 @@ def markdown(name: str, t: dict) -> list[str]:
     return out
 
 
-def peers_markdown(rows: list[tuple[str, dict, dict | None]]) -> list[str]:
-    """Peers on the target beside the host's: (model, target counts, host counts)."""
+def peers_markdown(rows: list[tuple[str, str, dict, dict | None]]) -> list[str]:
+    """Peers on the target beside the host's: (model, predictor, target counts, host counts)."""
     labels = {"generated": "generated (this tool)", "dense": "dense-loop C (embedded-library style)",
               "straight": "hand-written straight-line C (n = 3 limit)"}
     out = [f"### Peers on the Cortex-M4F (float, {OPT}, one node step: update then predict)", "",
-           "| model | filter | M4F instructions | x generated | M4F cycles (estimate) | host instructions | x generated |",
-           "|---|---|---:|---:|---:|---:|---:|"]
-    for model_name, tc, host in rows:
+           "| model | predictor | filter | M4F instructions | x generated | M4F cycles (estimate) | host instructions "
+           "| x generated |", "|---|---|---|---:|---:|---:|---:|---:|"]
+    for model_name, pred, tc, host in rows:
         g = tc["generated"]["instructions"]
         hg = host["generated"] if host else None
         for key, label in labels.items():
@@ -136,7 +136,8 @@ def peers_markdown(rows: list[tuple[str, dict, dict | None]]) -> list[str]:
             i = tc[key]["instructions"]
             h = host.get(key) if host else None
             hcell = "-" if h is None else f"{_fmt(h)} | {h / hg:.2f}"
-            out.append(f"| {model_name} | {label} | {_fmt(i)} | {i / g:.2f} | {_cyc(tc[key]['cycles'])} | {hcell} |")
+            out.append(f"| {model_name} | {pred or 'brunovsky'} | {label} | {_fmt(i)} | {i / g:.2f} | "
+                       f"{_cyc(tc[key]['cycles'])} | {hcell} |")
     return out + [""]
 
 
