@@ -43,6 +43,18 @@ def _model_arg(p: argparse.ArgumentParser) -> None:
                    help=f"built-in model name or path to a .toml model file (default {DEFAULT_MODEL})")
 
 
+def budget_options(p: argparse.ArgumentParser) -> None:
+    """--max-seconds and --max-memory: every command that derives a model takes them."""
+    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
+                   help="CPU-time budget of the symbolic derivation in seconds (default 60)")
+    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
+                   help="memory budget of the symbolic derivation in GB (default 2)")
+
+
+def _budget(args: argparse.Namespace) -> dict:
+    return dict(max_seconds=args.max_seconds, max_memory=args.max_memory * 1e9)
+
+
 def parser() -> argparse.ArgumentParser:
     top = _Parser(prog="codegen", description=(
         "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
@@ -77,10 +89,7 @@ def parser() -> argparse.ArgumentParser:
                    help="control returns ERR_SINGULAR when |det G| < R * |det G(nominal)| (default 1e-6)")
     p.add_argument("--force", action="store_true",
                    help="replace files in OUT/<model> that an earlier build did not write")
-    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
-                   help="time budget of the symbolic derivation (default 60)")
-    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
-                   help="memory budget of the symbolic derivation in GB (default 2)")
+    budget_options(p)
 
     p = add("verify")
     p.add_argument("--target", choices=["host", "cortex-m4f"], default="host")
@@ -93,6 +102,7 @@ def parser() -> argparse.ArgumentParser:
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")
     filter_options(p)
+    budget_options(p)
 
     p = add("simulate")
     p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
@@ -114,13 +124,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="FILE", help="per-run scalar results as CSV")
     p.add_argument("--resume", metavar="FILE",
                    help="continue the sweep recorded in FILE (a --results file): finished runs are not rerun")
+    budget_options(p)
 
     p = add("scenario")
     p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
+    budget_options(p)
 
     p = add("inspect")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+    budget_options(p)
 
     p = add("network")
     p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
@@ -136,6 +149,7 @@ def parser() -> argparse.ArgumentParser:
                    help="measure wire sizes, master throughput, latency and CPU; write the network section "
                         "of FILE (default BENCHMARKS.md) instead of one compared run")
     filter_options(p)
+    budget_options(p)
 
     p = add("bench")
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
@@ -162,7 +176,7 @@ def build(args: argparse.Namespace) -> int:
         print(f"codegen build --check: {args.out} is up to date for {args.model}")
         return 0
     module = build.build(args.model, args.out, **_build_options(args), force=args.force,
-                         max_seconds=args.max_seconds, max_memory=args.max_memory * 1e9)
+                         **_budget(args))
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")
@@ -181,7 +195,7 @@ def build(args: argparse.Namespace) -> int:
 def inspect(args: argparse.Namespace) -> int:
     from dfeif_codegen.symbolic import inspect_model
 
-    info = inspect_model.inspect(args.model, ts=args.ts)
+    info = inspect_model.inspect(args.model, ts=args.ts, **_budget(args))
     print(inspect_model.render_json(info) if args.json else inspect_model.render_text(info))
     return 0
 
@@ -193,7 +207,7 @@ def verify(args: argparse.Namespace) -> int:
     result = verify.verify(args.model, target=args.target, precision=args.precision, sanitize=args.sanitize,
                            scenario=args.scenario, inputs=args.inputs, max_lag=args.max_lag, nodes=args.nodes,
                            oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                           progress=lambda line: print(line, flush=True))
+                           progress=lambda line: print(line, flush=True), **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")
@@ -207,7 +221,7 @@ def simulate(args: argparse.Namespace) -> int:
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
-        results=args.results, csv=args.csv, resume=args.resume)
+        results=args.results, csv=args.csv, resume=args.resume, **_budget(args))
 
 
 def bench(args: argparse.Namespace) -> int:
@@ -232,7 +246,7 @@ def bench(args: argparse.Namespace) -> int:
 def scenario(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import starter
 
-    text = starter.scenario(args.model, out=args.out)
+    text = starter.scenario(args.model, out=args.out, **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 
@@ -255,7 +269,7 @@ def network(args: argparse.Namespace) -> int:
     result = run.network(args.model, scenario=args.scenario, row=args.row, seed=args.seed,
                          precision=args.precision, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
                          nodes=args.nodes, max_lag=args.max_lag, duration=args.duration, key=args.key,
-                         flip_rate=args.flip_rate, keep=args.keep)
+                         flip_rate=args.flip_rate, keep=args.keep, **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")

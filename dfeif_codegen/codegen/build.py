@@ -146,8 +146,8 @@ def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
 
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
-          ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float = budget.MAX_SECONDS,
-          max_memory: float = budget.MAX_MEMORY) -> list[str]:
+          ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float | None = None,
+          max_memory: float | None = None) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
     compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
@@ -167,7 +167,7 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
 def build(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, force: bool = False,
-          max_seconds: float = budget.MAX_SECONDS, max_memory: float = budget.MAX_MEMORY,
+          max_seconds: float | None = None, max_memory: float | None = None,
           compile_check: bool = True) -> GeneratedModule:
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 

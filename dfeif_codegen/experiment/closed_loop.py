@@ -293,6 +293,18 @@ def _flat(spec: str):
     return FLATS[spec]
 
 
+def derive(spec: str, max_seconds: float | None = None, max_memory: float | None = None):
+    """The derivation `_flat` returns, made now under the budget (CPU seconds, bytes; None: the
+    process's default, see budget.configure): a command calls this before its runs start."""
+    from dfeif_codegen import budget
+    budget.configure(max_seconds, max_memory)
+    if spec not in FLATS:
+        text = MODEL_TEXT.get(spec)
+        mdl = model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec)
+        FLATS[spec] = budget.bounded(flatness.derive, (mdl,), None, None, f"deriving {mdl.source}")
+    return FLATS[spec]
+
+
 @lru_cache(maxsize=None)
 def _plant(spec: str, ts: float, substeps: int) -> Plant:
     return Plant(_flat(spec).model, ts, substeps)

@@ -546,12 +546,15 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
              nodes: int | None = None, max_lag: int = 32, oosm=None, fusion=None, reference=None,
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              engine: str = "c", workers: int | None = None, scheduler: str | None = None,
-             results: str | None = None, csv: str | None = None, resume: str | None = None, out=None) -> int:
+             results: str | None = None, csv: str | None = None, resume: str | None = None, out=None,
+             max_seconds: float | None = None, max_memory: float | None = None) -> int:
     """The chapter's experiment: tables on `out` (stdout), optionally JSON, CSV, per-run records and
     figures. `filters`: any of "df", "ekf", "ukf" (or one comma-separated string); the EKF and UKF
     run on the recordings of the replay + difference closed loops. Returns 0, or 1 when a run
-    failed or diverged. Bad input raises a CodegenError before any run."""
+    failed or diverged. Bad input raises a CodegenError before any run. The derivation runs under
+    `max_seconds` CPU seconds and `max_memory` bytes (None: the defaults of `build`)."""
     out = out or sys.stdout
+    ex.derive(model, max_seconds, max_memory)
     _check_outputs(json_path, plot)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)

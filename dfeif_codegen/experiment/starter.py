@@ -202,9 +202,11 @@ def _toml_list(values) -> str:
     return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
 
 
-def scenario(model: str, out: str | None = None) -> str:
+def scenario(model: str, out: str | None = None, max_seconds: float | None = None,
+             max_memory: float | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
-    model; written to `out` when given (only over a file this command wrote before)."""
+    model; written to `out` when given (only over a file this command wrote before). The
+    derivation runs under `max_seconds` CPU seconds and `max_memory` bytes."""
     path = Path(out) if out else None
     if path is not None and path.exists():
         try:
@@ -215,6 +217,7 @@ def scenario(model: str, out: str | None = None) -> str:
             raise ScenarioError(f"{path}: exists and was not written by `codegen scenario`; not overwriting it")
     if path is not None and not path.parent.is_dir():
         raise ScenarioError(f"{path}: folder {path.parent} does not exist")
+    ex.derive(model, max_seconds, max_memory)
     text, _ = starting_scenario(model)
     scenario_mod.loads(text, str(path or "<generated>")).check_model(ex._flat(model))
     if path is not None:
