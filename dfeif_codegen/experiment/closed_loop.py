@@ -119,6 +119,8 @@ class Config:
     period: float = 5.0
     offset: tuple = (0.0,)
     harmonics: int = 4
+    phase: tuple = (0.0,)             # per output [rad]: (pi/2, 0) with equal amplitudes is a circle
+    cycles: tuple = (1,)              # per output, cycles per period: (1, 2) is a figure eight
     noise_scale: tuple = (1.0, 1.0)   # per node, times the model's camera noise
     noise_std: tuple = (None, None)   # per node: std per channel, or None for the model's
     sensor: tuple = (Link(), Link())  # camera -> node link per node
@@ -307,7 +309,7 @@ def derive(spec: str, max_seconds: float | None = None, max_memory: float | None
 
 @lru_cache(maxsize=None)
 def _plant(spec: str, ts: float, substeps: int) -> Plant:
-    return Plant(_flat(spec).model, ts, substeps)
+    return Plant(_flat(spec).model, ts, substeps, _flat(spec).extension)
 
 
 @lru_cache(maxsize=None)
@@ -328,11 +330,13 @@ def initial_covariance(flat, p0_std) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
-def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K) -> np.ndarray:
+def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K, phase=(0.0,),
+                     cycles=(1,)) -> np.ndarray:
     """The reference flags of every step, checked to map into the domain (the same for every seed
     and method of a row: computed and checked once per process)."""
     flat = _flat(spec)
-    cfg = Config(model=spec, reference=kind, amplitude=amplitude, period=period, offset=offset, harmonics=harmonics)
+    cfg = Config(model=spec, reference=kind, amplitude=amplitude, period=period, offset=offset, harmonics=harmonics,
+                 phase=phase, cycles=cycles)
     refs = references(cfg, flat.m)
     t = np.arange(K) * ts
     table = np.array([flags(refs, flat.degrees, tk) for tk in t])
@@ -342,8 +346,10 @@ def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K) ->
 
 
 def references(cfg: Config, m: int) -> list[Reference]:
-    amp, off = _per_chain(cfg.amplitude, m), _per_chain(cfg.offset, m)
-    return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics) for j in range(m)]
+    amp, off, phase = _per_chain(cfg.amplitude, m), _per_chain(cfg.offset, m), _per_chain(cfg.phase, m)
+    cycles = _per_chain(cfg.cycles, m)
+    return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics, phase[j], int(cycles[j]))
+            for j in range(m)]
 
 
 def state_of_flags(flat, ref_flags) -> np.ndarray:
@@ -396,7 +402,8 @@ def prepare(cfg: Config) -> Setup:
     cams = [_camera(cfg.model, float(s), None if std is None else tuple(std))
             for s, std in zip(cfg.noise_scale, cfg.noise_std)]
     t = np.arange(K) * ts
-    ref = _reference_table(cfg.model, cfg.reference, cfg.amplitude, cfg.period, cfg.offset, cfg.harmonics, ts, K)
+    ref = _reference_table(cfg.model, cfg.reference, cfg.amplitude, cfg.period, cfg.offset, cfg.harmonics, ts, K,
+                           tuple(cfg.phase), tuple(cfg.cycles))
 
     net_rng, noise_rng, init_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(3))
     net = Network(list(cfg.sensor), list(cfg.uplink), K, net_rng)

@@ -97,10 +97,37 @@ def _angles(eq_pair: list[sp.Expr], unknown: list[sp.Symbol]) -> sp.Symbol | Non
     return None
 
 
+def _squares(expr: sp.Expr) -> list[sp.Expr] | None:
+    """Bases b_i with expr = sum b_i^2, found by completing the square one variable at a time
+    (x^2 + z^2 + 2 g z + g^2 -> [x, z + g]); None when expr is not such a sum."""
+    expr, bases = sp.expand(expr), []
+    for v in sorted(expr.free_symbols, key=str):
+        poly = sp.Poly(expr, v)
+        if poly.degree() != 2:
+            continue
+        a, b, c = (poly.coeff_monomial(v**k) for k in (2, 1, 0))
+        if a != 1:
+            return None
+        bases.append(v + b / 2)
+        expr = sp.expand(c - b**2 / 4)
+    return bases if expr == 0 and bases else None
+
+
+def sum_of_squares_roots(expr: sp.Expr) -> sp.Expr:
+    """Every sqrt(sum of squares) written as such, so that it is printed as hypot (no overflow or
+    underflow of the squares in float32) and known to be non-negative."""
+    def rewrite(e):
+        bases = _squares(e.base)
+        return sp.sqrt(sp.Add(*[b**2 for b in bases], evaluate=False)) if bases and len(bases) == 2 else e
+    return expr.replace(lambda e: isinstance(e, sp.Pow) and abs(e.exp) == sp.Rational(1, 2),
+                        lambda e: rewrite(e) if e.exp > 0 else 1 / rewrite(1 / e))
+
+
 def _atan2(s: sp.Expr, c: sp.Expr) -> sp.Expr:
     """atan2(s, c) with a common positive denominator cancelled (atan2 is invariant under it)."""
     (sn, sd), (cn, cd) = sp.fraction(sp.together(s)), sp.fraction(sp.together(c))
-    if sd == cd and sd.is_nonnegative:
+    root = isinstance(sd, sp.Pow) and sd.exp == sp.Rational(1, 2)   # a principal square root: >= 0
+    if sd == cd and (root or sd.is_nonnegative):
         return sp.atan2(sn, cn)
     if sd == cd and (-sd).is_nonnegative:
         return sp.atan2(-sn, -cn)
@@ -129,8 +156,8 @@ def polar_candidates(pair: list[sp.Expr], unknown: list[sp.Symbol], real: dict) 
     for r in roots:
         if S not in r or C not in r:
             continue
-        cand = {th: _atan2(r[S], r[C]).subs(back)}
-        cand.update({v: r[real[v]].subs(back) for v in others if real[v] in r})
+        cand = {th: sum_of_squares_roots(_atan2(r[S], r[C]).subs(back))}
+        cand.update({v: sum_of_squares_roots(r[real[v]].subs(back)) for v in others if real[v] in r})
         if len(cand) == 1 + len(others):
             out.append(cand)
     return out or None
