@@ -80,3 +80,26 @@ def test_reference_through_the_singular_set_is_refused_with_its_time(tmp_path, c
     assert cli.main(["simulate", str(mdl), "--scenario", str(sc), "--runs", "1", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "t = 2.500 s" in err and "decoupling matrix is singular" in err
+
+
+def test_generated_control_integrates_the_controller_states(tmp_path):
+    """pvtol_extension_step: the plant gets T (held), then T and T' advance exactly under the
+    held T'' (closed form T + Ts T' + Ts^2/2 T'', T' + Ts T''); tau passes through. A non-finite
+    input is refused and leaves xi alone."""
+    import ctypes
+
+    import dfeif_codegen as dc
+    from dfeif_codegen.check.loader import NonFiniteError
+
+    lib = dc.load(dc.build("pvtol", tmp_path))
+    ts = 0.01
+    xi, u, out = np.array([6.9, -0.4]), np.array([3.0, 0.02]), np.zeros(2)
+    ptr = lambda a: ctypes.c_void_p(a.ctypes.data)  # noqa: E731
+    lib.call("extension_step", ptr(xi), ptr(u), ptr(out))
+    np.testing.assert_allclose(out, [6.9, 0.02], rtol=0, atol=0)
+    # three products and two sums of O(10) numbers: a few ulps
+    np.testing.assert_allclose(xi, [6.9 - 0.4 * ts + 3.0 * ts**2 / 2, -0.4 + 3.0 * ts], rtol=1e-15, atol=1e-14)
+    before = xi.copy()
+    with pytest.raises(NonFiniteError):
+        lib.call("extension_step", ptr(xi), ptr(np.array([np.nan, 0.0])), ptr(out))
+    np.testing.assert_array_equal(xi, before)

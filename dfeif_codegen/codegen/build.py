@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
@@ -123,7 +124,26 @@ def context(flat, opts: Options) -> dict:
         "check_every": kernels.CHECK_EVERY if opts.oosm == "replay" else 1,
         "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
+        "extension": extension_context(flat, opts.ts),
     }
+
+
+def extension_context(flat, ts: float) -> dict | None:
+    """The controller's integrator chains of a dynamically extended model, for
+    <model>_extension_step: per input its chain's indices into xi and the exact step's
+    coefficients Ts^k / k!; None for a model that needed no extension."""
+    ext = flat.extension
+    if ext is None or not ext.steps:
+        return None
+    names, chains, offset = ext.states, [], 0
+    for j, (u, states) in enumerate(ext.chains.items()):
+        r = len(states)
+        chains.append({"input": j, "name": _comment(u), "offset": offset, "degree": r,
+                       "states": [_comment(s) for s in states],
+                       "coef": [ts ** k / math.factorial(k) for k in range(r + 1)]})
+        offset += r
+    return {"nxi": len(names), "names": [_comment(s) for s in names], "chains": chains,
+            "inputs": [_comment(u) for u in ext.inputs]}
 
 
 def generate(m: model.Model, opts: Options, progress=None) -> dict[str, str]:
