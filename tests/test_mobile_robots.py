@@ -103,3 +103,22 @@ def test_generated_control_integrates_the_controller_states(tmp_path):
     with pytest.raises(NonFiniteError):
         lib.call("extension_step", ptr(xi), ptr(np.array([np.nan, 0.0])), ptr(out))
     np.testing.assert_array_equal(xi, before)
+
+
+def test_plant_holds_the_controller_states_over_a_period():
+    """The closed loops' plant applies the controller's T held over the period (the ZOH that
+    <model>_extension_step gives the plant) and advances T, T' by the same closed form. Level
+    flight (th = om = 0): vz' = T/m - g is constant over the period, so RK4 is exact and
+    vz(Ts) = vz + (T/m - g) Ts; a ramped T would add T' Ts^2 / (2 m)."""
+    from dfeif_codegen.experiment import closed_loop as ex
+    from dfeif_codegen.experiment.plant import Plant
+
+    flat = ex._flat("pvtol")
+    ts, m, g = 0.01, 0.7, 9.81
+    plant = Plant(flat.model, ts, 10, flat.extension)
+    x = np.array([0.1, 1.0, 0.0, 0.2, -0.3, 0.0, 7.5, 40.0])   # x z th vx vz om T T'
+    u = np.array([-200.0, 0.0])                                 # T'', tau
+    after = plant.step(x, u)
+    np.testing.assert_allclose(after[4], -0.3 + (7.5 / m - g) * ts, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(after[6:], [7.5 + 40.0 * ts - 200.0 * ts**2 / 2, 40.0 - 200.0 * ts],
+                               rtol=0, atol=1e-12)
