@@ -148,3 +148,19 @@ def _spin(progress=None):
         progress("spinning")
     while True:
         pass
+
+
+def test_inspect_warns_where_g_bar_crosses_zero_inside_the_domain(capsys):
+    """g-bar = cos(x1) on x1 in [-2, 2] changes sign at +-pi/2; the motor's g-bar = k_e/(J L) is a
+    constant, so it gets no warning."""
+    from dfeif_codegen import cli
+
+    text = _toml([("x1", "min = -2.0\nmax = 2.0\nnominal = 0.0"), ("x2", "min = -1.0\nmax = 1.0")], [("u", "")],
+                 {"x1": "x2", "x2": "0"}, {"u": {"x2": "cos(x1)"}}, [("y", "x1")])
+    from dfeif_codegen.symbolic import inspect_model
+    info = inspect_model.inspect(model.loads_toml(text))
+    assert len(info["warnings"]) == 1 and "g_bar changes sign" in info["warnings"][0]
+    x1 = float(info["warnings"][0].split("x1 = ")[1].split(",")[0])
+    assert abs(abs(x1) - np.pi / 2) < 0.1        # the smallest |g_bar| sampled lies next to the zero
+    assert cli.main(["inspect", "dc_motor_link"]) == 0
+    assert "warning" not in capsys.readouterr().out

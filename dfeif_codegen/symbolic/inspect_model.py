@@ -8,7 +8,7 @@ import numpy as np
 import sympy as sp
 
 from dfeif_codegen.symbolic import flatness, model
-from dfeif_codegen.symbolic.inverse import singular_sets
+from dfeif_codegen.symbolic.inverse import near_singular, singular_sets
 from dfeif_codegen.errors import ModelError
 
 
@@ -32,6 +32,7 @@ def describe(flat: flatness.FlatSystem, ts: float) -> dict:
             "controller_states": ext.states, "inputs": list(ext.inputs),
             "chains": {u: list(c) for u, c in ext.chains.items()}, "steps": ext.describe()},
         "singular_sets": singular_sets(flat),
+        "warnings": near_singular(flat),
         "canonical_state": [str(z) for z in flat.zeta],
         "phi": {str(z): text(e) for z, e in zip(flat.zeta, flat.phi)},
         "phi_inv": {s.name: text(e) for s, e in zip(mdl.states, flat.phi_inv)},
@@ -70,6 +71,7 @@ def render_text(info: dict) -> str:
     if info.get("singular_sets"):
         lines += ["", "singular sets (a reference must stay away from them):"]
         lines += [f"  {s}" for s in info["singular_sets"]]
+    lines += [f"warning: {w}" for w in info.get("warnings", [])]
     lines += ["", "zeta = Phi(x):"] + [f"  {k} = {v}" for k, v in info["phi"].items()]
     lines += ["x = Phi^-1(zeta):"] + [f"  {k} = {v}" for k, v in info["phi_inv"].items()]
     lines += ["", "canonical form  y^(r) = f_bar(zeta) + g_bar(zeta) u:"]

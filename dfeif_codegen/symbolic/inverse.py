@@ -290,3 +290,41 @@ def singular_sets(flat) -> list[str]:
                 seen.add(("den", sub.base))
                 out.append(f"{key} undefined where {sub.base} = 0")
     return out
+
+
+NEAR_SINGULAR = 1e-3   # inspect warns where |det G| falls below this fraction of its nominal value
+DOMAIN_POINTS = 512    # states of the declared domain the warning looks at
+
+
+def near_singular(flat) -> list[str]:
+    """Warnings for `inspect`: where inside the declared domain the decoupling matrix's
+    determinant (g-bar for one input) changes sign, is undefined, or falls below NEAR_SINGULAR
+    of its nominal value, with the worst sampled state. Sampled, so a warning is certain and its
+    absence is evidence only."""
+    from dfeif_codegen.symbolic.lie import Sampler
+
+    sampler = Sampler(flat.model, DOMAIN_POINTS)
+    values = sampler.values(list(flat.decoupling_x)).reshape(-1, flat.m, flat.m)
+    with np.errstate(all="ignore"):
+        det = np.array([np.linalg.det(a) if np.all(np.isfinite(a)) else np.nan for a in values])
+    name = "g_bar" if flat.m == 1 else "det G"
+    nominal, out = abs(det[0]), []
+    if not np.isfinite(nominal) or nominal == 0:
+        return [f"{name} is zero or undefined at the nominal state"]
+
+    def at(k: int) -> str:
+        return ", ".join(f"{s.name} = {v:.4g}" for s, v in zip(flat.model.states, sampler.rows[k]))
+    bad = ~np.isfinite(det)
+    if bad.any():
+        out.append(f"{name} is undefined inside the declared domain, e.g. at {at(int(np.argmax(bad)))}")
+    finite = np.where(bad, np.nan, det)
+    if np.nanmin(finite) < 0 < np.nanmax(finite):
+        k = int(np.nanargmin(np.abs(finite)))
+        out.append(f"{name} changes sign inside the declared domain, so it is zero somewhere in it; smallest "
+                   f"|{name}| = {abs(finite[k]):.3g} (nominal {nominal:.3g}) at {at(k)}")
+    elif np.nanmin(np.abs(finite)) < NEAR_SINGULAR * nominal:
+        k = int(np.nanargmin(np.abs(finite)))
+        out.append(f"|{name}| = {abs(finite[k]):.3g} at {at(k)}, below {NEAR_SINGULAR:g} of its nominal "
+                   f"{nominal:.3g}: the control is near singular there")
+    return out
+
