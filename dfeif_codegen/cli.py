@@ -128,6 +128,12 @@ def parser() -> argparse.ArgumentParser:
 
     p = add("scenario")
     p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
+    p.add_argument("--shape", choices=["sinusoid", "seesaw", "circle", "figure8"], default="sinusoid",
+                   help="how the flat outputs move together (default sinusoid: in phase)")
+    p.add_argument("--amplitude", metavar="A[,A...]", help="per flat output (default: a quarter of its domain)")
+    p.add_argument("--offset", metavar="C[,C...]", help="per flat output (default: its nominal value)")
+    p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
+    p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
     budget_options(p)
 
     p = add("inspect")
@@ -246,7 +252,8 @@ def bench(args: argparse.Namespace) -> int:
 def scenario(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import starter
 
-    text = starter.scenario(args.model, out=args.out, **_budget(args))
+    text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
+                            offset=args.offset, phase=args.phase, period=args.period, **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 
