@@ -103,7 +103,8 @@ def _child(conn, fn, args, max_memory, max_seconds) -> None:
 
 def bounded(fn, args: tuple, max_seconds: float | None, max_memory: float | None, what: str):
     """`fn(*args, progress=...)` within max_seconds of CPU time and max_memory bytes; BudgetError
-    (exit 2) naming the stage when either runs out (None: this process's LIMITS). CodegenErrors raised inside come out unchanged.
+    (exit 2) naming the stage when either runs out (None: this process's LIMITS). CodegenErrors
+    raised inside come out unchanged.
     A child that gets no CPU at all is still stopped after WALL_FACTOR times the budget of wall time."""
     max_seconds = LIMITS["max_seconds"] if max_seconds is None else max_seconds
     max_memory = LIMITS["max_memory"] if max_memory is None else max_memory

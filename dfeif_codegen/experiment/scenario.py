@@ -27,7 +27,7 @@ _ALLOWED = {
                  "oosm", "fusion", "baselines"},
     "filter": {"q", "p0_std", "initial_error"},
     "control": {"poles"},
-    "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles"},
+    "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound"},
     "nodes": {"noise_scale", "noise_std"},
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
@@ -74,6 +74,7 @@ class Scenario:
     harmonics: int = 4
     phase: list[float] = field(default_factory=lambda: [0.0])
     cycles: list[float] = field(default_factory=lambda: [1.0])
+    tracking_bound: list[float] = field(default_factory=list)   # default: twice the amplitude
     noise_scale: list[float] = field(default_factory=lambda: [1.0, 1.0])
     noise_std: list[list[float] | None] = field(default_factory=lambda: [None, None])
     uplink: Link = field(default_factory=Link)
@@ -104,7 +105,8 @@ class Scenario:
                                       f"at most {MAX_STEPS:g} per run")
         for key, values in (("filter.q", self.q), ("control.poles", self.poles),
                             ("reference.amplitude", self.amplitude), ("reference.offset", self.offset),
-                            ("reference.phase", self.phase), ("reference.cycles", self.cycles)):
+                            ("reference.phase", self.phase), ("reference.cycles", self.cycles),
+                            *((("reference.tracking_bound", self.tracking_bound),) if self.tracking_bound else ())):
             if len(values) not in (1, m):
                 fail(key, f"needs 1 or {m} values (one per flat output) for model {flat.model.name}, "
                           f"got {len(values)}")
@@ -248,6 +250,8 @@ def loads(text: str, source: str = "<string>") -> Scenario:
     sc.harmonics = number(ref, "reference", "harmonics", sc.harmonics, positive=True, allow_zero=False, integer=True)
     sc.phase = numbers(ref, "reference", "phase", sc.phase, positive=False)
     sc.cycles = numbers(ref, "reference", "cycles", sc.cycles)
+    if "tracking_bound" in ref:
+        sc.tracking_bound = numbers(ref, "reference", "tracking_bound", [])
     if any(c != int(c) or c < 1 for c in sc.cycles):
         fail("reference.cycles", f"needs whole numbers of cycles per period (>= 1), got {sc.cycles}")
 
