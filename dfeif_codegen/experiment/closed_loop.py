@@ -92,8 +92,7 @@ def check_reference(flat, ref_rows, t) -> None:
     bad = flat.undefined_at(state_of_flags(flat, np.asarray(ref_rows)))
     if bad is not None:
         k, what = bad
-        raise UndefinedReference(f"the reference at t = {t[k]:.3f} s asks for flat outputs where the transform "
-                                 f"is undefined: {what}")
+        raise UndefinedReference(f"the reference at t = {t[k]:.3f} s asks for flat outputs where {what}")
 
 
 def check_reference_of(cfg: "Config") -> None:

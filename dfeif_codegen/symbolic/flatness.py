@@ -127,8 +127,8 @@ class FlatSystem:
         return det
 
     def undefined_at(self, zeta_rows, singular_rtol: float = 1e-6) -> tuple[int, str] | None:
-        """First row where Phi^-1 is undefined (not finite) or leaves the declared domain, with the
-        Phi^-1 entry responsible, or where the decoupling matrix is singular (|det G| below
+        """First row where Phi^-1 is undefined (not finite) or leaves the declared domain, saying so
+        with the Phi^-1 entry responsible, or where the decoupling matrix is singular (|det G| below
         singular_rtol times its nominal value, where the C control refuses); None when every row
         maps to a state in the domain with G invertible."""
         zeta_rows = np.atleast_2d(np.asarray(zeta_rows, dtype=float))
@@ -140,13 +140,14 @@ class FlatSystem:
             bad = ~np.isfinite(x[:, i]) | (x[:, i] < lo) | (x[:, i] > hi)
             if bad.any():
                 k = int(np.argmax(bad))
-                return k, f"{var.name} = {self.phi_inv[i]} = {x[k, i]:.6g} (domain [{lo:g}, {hi:g}])"
+                return k, (f"Phi^-1 is undefined: {var.name} = {self.phi_inv[i]} = {x[k, i]:.6g} "
+                           f"(domain [{lo:g}, {hi:g}])")
         with np.errstate(all="ignore"):
             det = np.array([abs(np.linalg.det(self.G_num(z))) for z in zeta_rows])
         bad = ~np.isfinite(det) | (det < singular_rtol * self.nominal_det())
         if bad.any():
             k = int(np.argmax(bad))
-            return k, (f"the decoupling matrix is singular there (|det G| = {det[k]:.3g}, below {singular_rtol:g} "
+            return k, (f"the decoupling matrix is singular (|det G| = {det[k]:.3g}, below {singular_rtol:g} "
                        f"times its nominal {self.nominal_det():.3g}; see the singular sets in `codegen inspect`)")
         return None
 
