@@ -164,3 +164,18 @@ def test_inspect_warns_where_g_bar_crosses_zero_inside_the_domain(capsys):
     assert abs(abs(x1) - np.pi / 2) < 0.1        # the smallest |g_bar| sampled lies next to the zero
     assert cli.main(["inspect", "dc_motor_link"]) == 0
     assert "warning" not in capsys.readouterr().out
+
+
+def test_fully_coupled_3dof_arm_with_motors_derives_within_60_cpu_seconds():
+    """Relative degree 3: Phi^-1 solves the currents from the accelerations (a linear system, by
+    LU) and F-bar substitutes them (xreplace); G-bar = (k_e / L) M(q)^-1."""
+    mdl = model.load(str(DATA / "planar_arm3_motors.toml"))
+    flat = budget.bounded(flatness.derive, (mdl,), 60.0, 2e9, "deriving planar_arm3m")
+    assert flat.degrees == [3, 3, 3]
+    p = {q.name: q.value for q in mdl.parameters}
+    q, w, current = np.array([0.4, -1.1, 0.7]), np.array([0.3, -0.2, 0.5]), np.array([1.0, -0.5, 0.2])
+    x = np.concatenate([q, w, current])
+    zeta = flat.phi_num(x)
+    np.testing.assert_allclose(flat.phi_inv_num(zeta), x, rtol=1e-9, atol=1e-9)
+    M = _mass_matrix(q, [p["m1"], p["m2"], p["m3"]], [p["l1"], p["l2"], p["l3"]], [p["Jm1"], p["Jm2"], p["Jm3"]])
+    np.testing.assert_allclose(flat.G_num(zeta), p["k_e"] / p["L"] * np.linalg.inv(M), rtol=1e-9, atol=1e-9)

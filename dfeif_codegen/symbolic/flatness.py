@@ -212,8 +212,9 @@ def derive(model: Model, progress=None) -> FlatSystem:
     phi_inv = solve_inverse(model, phi, zeta)
     say("substituting Phi^-1 into F-bar and G-bar")
     back = dict(zip(x, phi_inv))
-    F = sp.Matrix([small_simplify(r.subs(back)) for r in io.top])
-    G = io.decoupling.subs(back).applyfunc(small_simplify)
+    # xreplace: one structural pass (subs pattern-matches every node: minutes on a coupled arm)
+    F = sp.Matrix([small_simplify(sp.sympify(r).xreplace(back)) for r in io.top])
+    G = io.decoupling.xreplace(back).applyfunc(small_simplify)
     _check_denominators(model, {f"Phi^-1.{s.name}": e for s, e in zip(model.states, phi_inv)}
                         | {"F-bar": sum(F), "G-bar": sum(G)})
     return FlatSystem(model, chains, zeta, phi, phi_inv, F, G, io.decoupling, physical, ext)

@@ -21,8 +21,20 @@ from dfeif_codegen.symbolic import numeric
 from dfeif_codegen.symbolic.lie import domain_samples, interval, nominal_state
 from dfeif_codegen.symbolic.model import Model
 
+
+def _nodes_exceed(expr, cap: int) -> bool:
+    """More than `cap` nodes in the tree? Stops counting there (count_ops walks all of a huge one)."""
+    for k, _ in enumerate(sp.preorder_traversal(expr)):
+        if k >= cap:
+            return True
+    return False
+
+
 def small_simplify(expr: sp.Expr, limit: int = 30) -> sp.Expr:
-    """Simplify what is cheap to simplify; large expressions are left for CasADi's CSE."""
+    """Simplify what is cheap to simplify; large expressions are left for CasADi's CSE. A tree of
+    more than 40 nodes per allowed operation is large without counting its operations."""
+    if _nodes_exceed(expr, 40 * limit):
+        return expr
     return sp.simplify(expr) if sp.count_ops(expr) <= limit else expr
 
 
@@ -72,11 +84,11 @@ def _float32_trips(cand: dict, rows: np.ndarray, zeta_rows: np.ndarray, zeta: li
     shaken = [zeta_rows * (1 + EPS32 * rng.uniform(-1, 1, zeta_rows.shape)) for _ in range(3)]
     for var, expr in cand.items():
         expr_p = sp.sympify(expr).subs(params)
-        exact = _evaluate(list(zeta), expr_p, zeta_rows)
-        moved = np.max([np.abs(_evaluate(list(zeta), expr_p, z) - exact) for z in shaken], axis=0)
+        values = _evaluate(list(zeta), expr_p, np.vstack([zeta_rows, *shaken])).reshape(len(shaken) + 1, -1)
+        moved = np.max(np.abs(values[1:] - values[0]), axis=0)
         try:
             with np.errstate(all="ignore"):
-                got = numeric.to_casadi(sp.sympify(expr).subs(params), table, str(var), numeric.Float32)
+                got = numeric.to_casadi(expr_p, table, str(var), numeric.Float32)
         except (ModelError, TypeError, ValueError):
             return np.zeros(len(rows), dtype=bool)
         got = np.broadcast_to(np.asarray(got, dtype=np.float32), (len(rows),))
@@ -232,8 +244,9 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
             progress = _polar_step(pending, solved, x, real, pick)
     rest = [v for v in x if v not in solved]
     if rest:
+        roots = _linear_roots([eq.subs(solved) for eq in pending], rest)
         try:
-            roots = sp.solve([eq.subs(solved) for eq in pending], rest, dict=True)
+            roots = roots if roots is not None else sp.solve([eq.subs(solved) for eq in pending], rest, dict=True)
         except NotImplementedError:
             roots = []
         roots = [r for r in roots if all(v in r for v in rest)]
@@ -242,10 +255,32 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
                              f"{', '.join(map(str, rest))}")
         solved.update(pick(roots))
     # back-substitute until every entry is a function of zeta only
-    inverse = sp.Matrix([solved[v] for v in x])
-    for _ in range(len(x)):
-        inverse = inverse.subs(solved)
-    return inverse.applyfunc(small_simplify)
+    inverse, unknowns = [solved[v] for v in x], set(x)
+    for _ in range(len(x)):   # only entries that still hold a state: subs walks the whole tree
+        todo = [i for i, e in enumerate(inverse) if sp.sympify(e).free_symbols & unknowns]
+        if not todo:
+            break
+        for i in todo:
+            inverse[i] = sp.sympify(inverse[i]).subs(solved)
+    return sp.Matrix(inverse).applyfunc(small_simplify)
+
+
+def _linear_roots(eqs: list, rest: list) -> list[dict] | None:
+    """The one root of equations linear in the unknowns (A(known) rest = b), by an LU solve that
+    forms no inverse and simplifies nothing (a fully coupled arm's currents from its accelerations:
+    sympy's general solve took minutes where this takes milliseconds); None when not linear or
+    not square. The round-trip test of the caller checks the result."""
+    if len(eqs) != len(rest):
+        return None
+    E = sp.Matrix(eqs)
+    A = E.jacobian(rest)
+    if any(a.has(r) for a in A for r in rest):
+        return None
+    try:
+        sol = A.LUsolve(-E.subs({r: 0 for r in rest}))
+    except (ValueError, ZeroDivisionError, sp.matrices.common.NonInvertibleMatrixError):
+        return None
+    return [dict(zip(rest, sol))]
 
 
 def _polar_step(pending: list, solved: dict, x: list, real: dict, pick) -> bool:
