@@ -265,13 +265,16 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
     return sp.Matrix(inverse).applyfunc(small_simplify)
 
 
+LINEAR_NODES = 2000  # equations larger than this (tree nodes) that are linear in the unknowns: LU
+
+
 def _linear_roots(eqs: list, rest: list) -> list[dict] | None:
     """The one root of equations linear in the unknowns (A(known) rest = b), by an LU solve that
     forms no inverse and simplifies nothing (a fully coupled arm's currents from its accelerations:
     sympy's general solve took minutes where this takes milliseconds); None when not linear or
     not square. The round-trip test of the caller checks the result."""
-    if len(eqs) != len(rest):
-        return None
+    if len(eqs) != len(rest) or not _nodes_exceed(sp.Add(*eqs), LINEAR_NODES):
+        return None   # small systems: sympy's solve, whose simplified forms the built-ins' C keeps
     E = sp.Matrix(eqs)
     A = E.jacobian(rest)
     if any(a.has(r) for a in A for r in rest):
