@@ -21,7 +21,7 @@ import time
 from dfeif_codegen.errors import CodegenError
 
 MAX_SECONDS = 60.0
-MAX_MEMORY = 2e9  # bytes
+MAX_MEMORY = 2.0  # GB, the unit of --max-memory
 WALL_FACTOR = 10  # wall-clock backstop: a child that gets no CPU is stopped after 10x the budget + 60 s
 
 
@@ -42,7 +42,7 @@ def _check(max_seconds, max_memory) -> None:
 
 
 def configure(max_seconds: float | None = None, max_memory: float | None = None) -> None:
-    """Set this process's default budget (CPU seconds, bytes); None keeps the current one."""
+    """Set this process's default budget (CPU seconds, GB); None keeps the current one."""
     seconds = LIMITS["max_seconds"] if max_seconds is None else max_seconds
     memory = LIMITS["max_memory"] if max_memory is None else max_memory
     _check(seconds, memory)
@@ -68,11 +68,11 @@ def _cpu_seconds(pid: int) -> float | None:
         return None
 
 
-def _child(conn, fn, args, max_memory, max_seconds) -> None:
+def _child(conn, fn, args, max_bytes: float, max_seconds: float) -> None:
     try:
         import math
         import resource
-        limit = int(_mapped() + max_memory)  # on top of what is mapped already (libraries, BLAS)
+        limit = int(_mapped() + max_bytes)  # on top of what is mapped already (libraries, BLAS)
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
         cpu = int(math.ceil(max_seconds)) + 2  # the backstop; the parent stops the child first
         resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 5))
@@ -102,7 +102,7 @@ def _child(conn, fn, args, max_memory, max_seconds) -> None:
 
 
 def bounded(fn, args: tuple, max_seconds: float | None, max_memory: float | None, what: str):
-    """`fn(*args, progress=...)` within max_seconds of CPU time and max_memory bytes; BudgetError
+    """`fn(*args, progress=...)` within max_seconds of CPU time and max_memory GB; BudgetError
     (exit 2) naming the stage when either runs out (None: this process's LIMITS). CodegenErrors
     raised inside come out unchanged.
     A child that gets no CPU at all is still stopped after WALL_FACTOR times the budget of wall time."""
@@ -113,7 +113,7 @@ def bounded(fn, args: tuple, max_seconds: float | None, max_memory: float | None
         return fn(*args, progress=None)
     ctx = mp.get_context("fork")
     parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child, fn, args, max_memory, max_seconds), daemon=True)
+    proc = ctx.Process(target=_child, args=(child, fn, args, max_memory * 1e9, max_seconds), daemon=True)
     proc.start()
     child.close()
     stage, wall_deadline = "starting", time.monotonic() + WALL_FACTOR * max_seconds + 60
@@ -147,7 +147,7 @@ def bounded(fn, args: tuple, max_seconds: float | None, max_memory: float | None
             elif kind == "error":
                 raise pickle.loads(payload)
             elif kind == "memory":
-                raise BudgetError(f"{what}: out of the {max_memory / 1e9:g} GB memory budget while {stage} "
+                raise BudgetError(f"{what}: out of the {max_memory:g} GB memory budget while {stage} "
                                   "(simplify the expression or raise --max-memory)")
             elif kind == "recursion":
                 raise BudgetError(f"{what}: expression nested too deeply while {stage}")

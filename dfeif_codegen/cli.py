@@ -24,6 +24,7 @@ COMMANDS = {
     "bench": "measure build time, code size, stack and instruction counts",
     "network": "run nodes and master as separate processes over UDP on 127.0.0.1 through a seeded "
                "delay/drop relay and compare with the reference",
+    "reproduce": "run every table and figure of docs/experiment.md (resumable) and render the document",
 }
 
 
@@ -43,44 +44,22 @@ def _model_arg(p: argparse.ArgumentParser) -> None:
                    help=f"built-in model name or path to a .toml model file (default {DEFAULT_MODEL})")
 
 
-def budget_options(p: argparse.ArgumentParser) -> None:
-    """--max-seconds and --max-memory: every command that derives a model takes them."""
-    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
-                   help="CPU-time budget of the symbolic derivation in seconds (default 60)")
-    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
-                   help="memory budget of the symbolic derivation in GB (default 2)")
+def _filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
+    """The build options of the estimator (repeatable where a command compares several)."""
+    p.add_argument("--max-lag", type=int, default=32, metavar="N", help="late-measurement window (default 32)")
+    p.add_argument("--nodes", type=int, default=None if many else 2, metavar="M",
+                   help="camera nodes (default: " + ("the scenario's)" if many else "2)"))
+    kind = dict(action="append") if many else dict(default=None)
+    p.add_argument("--oosm", choices=["retrodict", "replay"], **kind,
+                   help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
+    p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
+                   help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
 
 
-def _budget(args: argparse.Namespace) -> dict:
-    return dict(max_seconds=args.max_seconds, max_memory=args.max_memory * 1e9)
-
-
-def parser() -> argparse.ArgumentParser:
-    top = _Parser(prog="codegen", description=(
-        "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
-        "derivative-free Kalman filtering under packet drops and variable delays."))
-    top.add_argument("--version", action="version", version=f"dfeif-codegen {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-
-    def add(name: str) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
-        _model_arg(p)
-        return p
-
-    def filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
-        p.add_argument("--max-lag", type=int, default=32, metavar="N", help="late-measurement window (default 32)")
-        p.add_argument("--nodes", type=int, default=None if many else 2, metavar="M",
-                       help="camera nodes (default: " + ("the scenario's)" if many else "2)"))
-        kind = dict(action="append") if many else dict(default=None)
-        p.add_argument("--oosm", choices=["retrodict", "replay"], **kind,
-                       help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
-        p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
-                       help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
-
-    p = add("build")
+def _build_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="generated", help="output folder (default generated)")
     p.add_argument("--precision", choices=["double", "float"], default="double")
-    filter_options(p)
+    _filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
     p.add_argument("--check", action="store_true",
                    help="write nothing: exit 0 if DIR/<model> equals a fresh build, 1 (listing the files) if "
@@ -89,9 +68,22 @@ def parser() -> argparse.ArgumentParser:
                    help="control returns ERR_SINGULAR when |det G| < R * |det G(nominal)| (default 1e-6)")
     p.add_argument("--force", action="store_true",
                    help="replace files in OUT/<model> that an earlier build did not write")
-    budget_options(p)
+    _budget_options(p)
 
-    p = add("verify")
+
+def _budget_options(p: argparse.ArgumentParser) -> None:
+    """--max-seconds and --max-memory: every command that derives a model takes them."""
+    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
+                   help="CPU-time budget of the symbolic derivation in seconds (default 60)")
+    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
+                   help="memory budget of the symbolic derivation in GB (default 2)")
+
+
+def _budget(args: argparse.Namespace) -> dict:
+    return dict(max_seconds=args.max_seconds, max_memory=args.max_memory)
+
+
+def _verify_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target", choices=["host", "cortex-m4f"], default="host")
     p.add_argument("--precision", choices=["double", "float"], default=None,
                    help="default: double on the host, float on cortex-m4f")
@@ -101,14 +93,15 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--inputs", choices=["recorded", "own"], default="recorded",
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")
-    filter_options(p)
-    budget_options(p)
+    _filter_options(p)
+    _budget_options(p)
 
-    p = add("simulate")
+
+def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
     p.add_argument("--runs", type=int, default=None, help="seeds to average over")
     p.add_argument("--seed", type=int, default=0, help="first seed")
-    filter_options(p, many=True)
+    _filter_options(p, many=True)
     p.add_argument("--reference", choices=["sinusoid", "seesaw"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
                    help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
@@ -124,24 +117,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="FILE", help="per-run scalar results as CSV")
     p.add_argument("--resume", metavar="FILE",
                    help="continue the sweep recorded in FILE (a --results file): finished runs are not rerun")
-    budget_options(p)
+    _budget_options(p)
 
-    p = add("scenario")
-    p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
-    p.add_argument("--shape", choices=["sinusoid", "seesaw", "circle", "figure8"], default="sinusoid",
-                   help="how the flat outputs move together (default sinusoid: in phase)")
-    p.add_argument("--amplitude", metavar="A[,A...]", help="per flat output (default: a quarter of its domain)")
-    p.add_argument("--offset", metavar="C[,C...]", help="per flat output (default: its nominal value)")
-    p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
-    p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
-    budget_options(p)
 
-    p = add("inspect")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
-    budget_options(p)
-
-    p = add("network")
+def _network_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
     p.add_argument("--row", type=int, default=2, help="the scenario's delay row (default 2)")
     p.add_argument("--seed", type=int, default=0, help="seed of noise, initial error and network (default 0)")
@@ -154,13 +133,64 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--bench", metavar="FILE", nargs="?", const="BENCHMARKS.md", default=None,
                    help="measure wire sizes, master throughput, latency and CPU; write the network section "
                         "of FILE (default BENCHMARKS.md) instead of one compared run")
-    filter_options(p)
-    budget_options(p)
+    _filter_options(p)
+    _budget_options(p)
 
-    p = add("bench")
+
+def _bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
     p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures (median reported)")
     p.add_argument("--quick", action="store_true", help="skip the scaling sweeps and the Monte Carlo figures")
+
+
+def _reproduce_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--runs", type=int, default=100, help="seeds per table (default 100)")
+    p.add_argument("--out", default="reproduce", metavar="DIR",
+                   help="tasks' results, experiment.json, experiment.md and figures (default ./reproduce)")
+    p.add_argument("--doc", metavar="FILE", help="also write the document here, its figures beside it "
+                   "(docs/experiment.md)")
+    p.add_argument("--quick", action="store_true",
+                   help="a subset: the motor's tables and figures, the filter comparison on two rows")
+    p.add_argument("--quiet", action="store_true", help="no progress")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N", help="local processes (default: all cores)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on an existing Dask distributed cluster (extra 'cluster')")
+
+
+def parser() -> argparse.ArgumentParser:
+    top = _Parser(prog="codegen", description=(
+        "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
+        "derivative-free Kalman filtering under packet drops and variable delays."))
+    top.add_argument("--version", action="version", version=f"dfeif-codegen {__version__}")
+    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    def add(name: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
+        _model_arg(p)
+        return p
+
+    _build_arguments(add("build"))
+    _verify_arguments(add("verify"))
+    _simulate_arguments(add("simulate"))
+    p = add("scenario")
+    p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
+    p.add_argument("--shape", choices=["sinusoid", "seesaw", "circle", "figure8"], default="sinusoid",
+                   help="how the flat outputs move together (default sinusoid: in phase)")
+    p.add_argument("--amplitude", metavar="A[,A...]", help="per flat output (default: a tenth of its domain)")
+    p.add_argument("--offset", metavar="C[,C...]", help="per flat output (default: its nominal value)")
+    p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
+    p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
+    _budget_options(p)
+
+    p = add("inspect")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+    _budget_options(p)
+
+    _network_arguments(add("network"))
+    _bench_arguments(add("bench"))
+    _reproduce_arguments(sub.add_parser("reproduce", help=COMMANDS["reproduce"], description=COMMANDS["reproduce"]))
     return top
 
 
@@ -221,13 +251,29 @@ def verify(args: argparse.Namespace) -> int:
 
 
 def simulate(args: argparse.Namespace) -> int:
-    from dfeif_codegen.experiment import simulate
+    """`codegen simulate`: the tables (or the JSON with `--json -`); exit 1 when a run failed or diverged."""
+    from dfeif_codegen import api
 
-    return simulate.simulate(
+    result = api.simulate(
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
         results=args.results, csv=args.csv, resume=args.resume, **_budget(args))
+    print(result.to_json() if args.json == "-" else result.report())
+    if result.failures:  # a run that failed or diverged is a result to act on, not a footnote
+        print(f"codegen simulate: {result.failure_line()}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def reproduce(args: argparse.Namespace) -> int:
+    """`codegen reproduce`: what it ran and wrote; exit 1 when a run failed or diverged."""
+    from dfeif_codegen.reproduction.run import reproduce as run
+
+    result = run(args.runs, args.out, workers=args.workers, scheduler=args.scheduler, quick=args.quick, doc=args.doc,
+                 quiet=args.quiet)
+    print(result.report())
+    return 1 if result.failures else 0
 
 
 def bench(args: argparse.Namespace) -> int:
@@ -239,9 +285,10 @@ def bench(args: argparse.Namespace) -> int:
     writable_file(args.out, "--out")
     command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
         else None
-    text = bench.bench(args.model, repeat=args.repeat, command=command, quick=args.quick,
-                       progress=lambda line: print(line, file=sys.stderr))
+    result = bench.bench(args.model, repeat=args.repeat, command=command, quick=args.quick,
+                         progress=lambda line: print(line, file=sys.stderr))
     out = Path(args.out)
+    text = result.report()
     text = bench.keep_network_section(text, out.read_text() if out.exists() else "")
     out.write_text(text)
     print(text)
@@ -284,7 +331,7 @@ def network(args: argparse.Namespace) -> int:
 
 
 HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench,
-            "network": network, "scenario": scenario}
+            "network": network, "scenario": scenario, "reproduce": reproduce}
 
 
 def main(argv: list[str] | None = None) -> int:

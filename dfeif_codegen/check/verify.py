@@ -16,7 +16,9 @@ A reference that is exactly zero with its scale zero must be matched exactly.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -168,12 +170,12 @@ def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", re
     node -> master packets late or lost; `sensor_drop` adds camera frame drops."""
     import dataclasses
 
-    from dfeif_codegen.experiment import scenario, simulate
+    from dfeif_codegen.experiment import plan, scenario
     from dfeif_codegen.experiment import closed_loop as experiment
 
     sc = scenario.load(scenario_spec)
-    cfg = simulate.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
-    changes = {}
+    cfg = plan.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
+    changes: dict[str, Any] = {}
     if duration is not None:
         changes["duration"] = duration
         changes["metrics_from"] = min(cfg.metrics_from, duration / 2)
@@ -210,6 +212,20 @@ class Verification:
     def report(self) -> str:
         return "\n".join(t for t in (table(self.errors), self.target_report, self.yardstick) if t)
 
+    def to_dict(self) -> dict:
+        return {"settings": self.settings, "scenario": self.scenario, "ok": self.ok,
+                "errors": errors_as_dicts(self.errors), "target_report": self.target_report,
+                "yardstick": self.yardstick}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict())
+
+
+def errors_as_dicts(errors: list[SignalError]) -> list[dict]:
+    """The comparison table as data: per signal its worst relative error, where, the tolerance."""
+    return [{"signal": e.signal, "worst": float(e.worst), "step": int(e.step), "index": [int(i) for i in e.index],
+             "tol": float(e.tol), "ok": e.ok} for e in errors]
+
 
 def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str | None = None,
            sanitize: bool = False, scenario: str = "paper", inputs: str = "recorded", max_lag: int = 32,
@@ -219,12 +235,13 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     row with late frames, sinusoid, 20 s) with the reference, run the C on it (host: ctypes, or a
     program under ASan+UBSan with `sanitize`; cortex-m4f: QEMU) and compare. `progress(line)` is
     told the settings and the scenario as soon as they are known. The derivations (the
-    reference's and the build's) run under `max_seconds` CPU seconds and `max_memory` bytes. A mismatch is in the result
-    (`ok`, `check(result.errors)` raises it); bad input and missing tools raise before any work."""
+    reference's and the build's) run under `max_seconds` CPU seconds and `max_memory` GB. A
+    mismatch is in the result (`ok`, `check(result.errors)` raises it); bad input and missing
+    tools raise before any work."""
     import tempfile
     from pathlib import Path
 
-    from dfeif_codegen.check import harness, target as targets
+    from dfeif_codegen.check import harness, stages, target as targets
     from dfeif_codegen.experiment import scenario as scenarios
     from dfeif_codegen.experiment import closed_loop as experiment
 
@@ -262,17 +279,15 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         about = (f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
                  f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
         say(about)
-        result = Verification(settings, about, [])
-        if target == "cortex-m4f":
-            run = targets.run_scenario(built, rec, work / "target", inputs=inputs)
-            if run.status["status"] != 0:
-                raise MismatchError(harness.failure(run.status))
-            got, result.target_report = run.outputs, targets.report(run)
-        elif sanitize:
-            got = harness.run_program(built, rec, work / "host", sanitize=True, inputs=inputs)[1]
-        else:
-            got = harness.Library(built, work / "host").run(rec, inputs)
-        result.errors = compare_run(got, rec, precision)
-        if precision == "float" and not result.ok:
-            result.yardstick = single_precision_yardstick(result.errors, float32_reference_errors(rec))
+        compiled = stages.compile(built, target, sanitize, work)    # compile -> run -> compare, once each
+        ran = stages.run(compiled, rec, inputs)
+        return compare_outputs(settings, about, ran, rec, precision)
+
+
+def compare_outputs(settings: str, about: str, ran, rec, precision: str) -> Verification:
+    """The third step: the C's outputs against the reference's, signal by signal; after a float
+    mismatch, how far a float32 run of the reference itself lands (the yardstick)."""
+    result = Verification(settings, about, compare_run(ran.outputs, rec, precision), ran.target_report)
+    if precision == "float" and not result.ok:
+        result.yardstick = single_precision_yardstick(result.errors, float32_reference_errors(rec))
     return result

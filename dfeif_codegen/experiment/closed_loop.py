@@ -304,7 +304,7 @@ def _flat(spec: str):
 
 
 def derive(spec: str, max_seconds: float | None = None, max_memory: float | None = None):
-    """The derivation `_flat` returns, made now under the budget (CPU seconds, bytes; None: the
+    """The derivation `_flat` returns, made now under the budget (CPU seconds, GB; None: the
     process's default, see budget.configure): a command calls this before its runs start."""
     from dfeif_codegen import budget
     budget.configure(max_seconds, max_memory)
@@ -373,7 +373,7 @@ class Setup:
     numpy loop and the compiled one see the same noise, network and initial state."""
 
     cfg: Config
-    flat: object
+    flat: flatness.FlatSystem
     ts: float
     K: int
     t: np.ndarray

@@ -144,11 +144,10 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str
     poles = [round(0.1 / ts, 6)]
     scale = max(abs(a) for a in shape.amplitude)
     p0_std = [float(f"{0.05 * scale * (2 * shape.omega) ** k:.3g}") for k in range(max(flat.degrees))]
+    noise_std: list[list[float] | None] = [None, None]
     if model.measurement is None:
         std = [float(f"{0.004 * abs(a):.3g}") for a in shape.amplitude]
         noise_std = [std, [1.25 * s for s in std]]
-    else:
-        noise_std = [None, None]
     q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape)
     if all(entry.startswith("closed loop diverged") for entry in log[1:]):
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged "
@@ -201,9 +200,9 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str
         "harmonics = 4",
         "",
     ]
-    for i, std in enumerate(noise_std):
-        lines += ["[[nodes]]", f"noise_scale = {1.0 if i == 0 else 1.25:g}" if std is None
-                  else f"noise_std = {_toml_list(std)}", ""]
+    for i, node_std in enumerate(noise_std):
+        lines += ["[[nodes]]", f"noise_scale = {1.0 if i == 0 else 1.25:g}" if node_std is None
+                  else f"noise_std = {_toml_list(node_std)}", ""]
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
@@ -219,7 +218,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
              phase=None, period: float | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
-    derivation runs under `max_seconds` CPU seconds and `max_memory` bytes."""
+    derivation runs under `max_seconds` CPU seconds and `max_memory` GB."""
     path = Path(out) if out else None
     if path is not None and path.exists():
         try:

@@ -86,7 +86,7 @@ def inspect(spec, ts: float | None = None, max_seconds: float | None = None,
             max_memory: float | None = None) -> dict:
     """What `codegen inspect` shows for a model (a built-in name, a .toml path or a Model), at
     the sampling period `ts` (default the model's), as plain data. The derivation runs under the
-    budget of `build` (CPU seconds, bytes; None: the process's default)."""
+    budget of `build` (CPU seconds, GB; None: the process's default)."""
     mdl = spec if isinstance(spec, model.Model) else model.load(str(spec))
     ts = mdl.ts if ts is None else ts
     if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not (np.isfinite(ts) and 1e-9 <= ts <= 1e3):
