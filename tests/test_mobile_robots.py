@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dfeif_codegen import cli
-from dfeif_codegen.experiment import simulate
+from dfeif_codegen import api
 from dfeif_codegen.symbolic import model
 
 ROBOTS = ["unicycle", "pvtol"]
@@ -51,11 +51,10 @@ def test_robot_closes_the_loop_through_delays(name, tmp_path, capsys):
     2 and 2.5 mm, through the model: measured 0.5-1.0 times, up to 12-15 periods late with 20 %
     lost) and the robot tracks the reference within 5 camera stds."""
     path = tmp_path / "out.json"
-    rc = simulate.simulate(name, scenario=name, runs=1, oosm=["replay"], fusion=["difference"], quiet=True,
-                           json_path=str(path))
+    api.simulate(name, scenario=name, runs=1, oosm=["replay"], fusion=["difference"], quiet=True, json_path=str(path))
     capsys.readouterr()
     result = json.loads(path.read_text())
-    assert rc == 0 and result["failures"] == []
+    assert result["failures"] == []
     flat_heads = [0, 2] if name == "unicycle" else [0, 4]
     table = next(t for t in result["tables"] if t["method"] == "replay")
     for row in table["rows"]:

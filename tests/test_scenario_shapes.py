@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dfeif_codegen import cli
+from dfeif_codegen import api, cli
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment import shapes, simulate
+from dfeif_codegen.experiment import shapes
 from dfeif_codegen.experiment.trajectory import Reference
 
 DATA = Path(__file__).parent / "data"
@@ -62,8 +62,7 @@ def test_starting_scenario_verifies_and_closes_the_loop(name, tmp_path, capsys):
     assert cli.main(["verify", spec, "--scenario", sc]) == 0
     assert capsys.readouterr().out.rstrip().endswith("PASS")
     path = tmp_path / "out.json"
-    simulate.simulate(spec, scenario=sc, runs=1, oosm=["replay"], fusion=["difference"], quiet=True,
-                      json_path=str(path))
+    api.simulate(spec, scenario=sc, runs=1, oosm=["replay"], fusion=["difference"], quiet=True, json_path=str(path))
     capsys.readouterr()
     result = json.loads(path.read_text())
     assert not [f for f in result["failures"] if " replay " in f]   # the baselines may fail, replay not
@@ -82,10 +81,10 @@ def test_a_run_that_stops_tracking_is_a_failure(engine, tmp_path, capsys):
     the amplitude) stops none."""
     sc = tmp_path / "tight.toml"
     sc.write_text(PAPER_TIGHT)
-    rc = simulate.simulate("dc_motor_link", scenario=str(sc), runs=1, oosm=["replay"], fusion=["difference"],
-                           reference=["sinusoid"], quiet=True, engine=engine)
-    out = capsys.readouterr().out
-    assert rc == 1 and "stopped tracking at t = " in out and "output theta" in out
-    rc = simulate.simulate("dc_motor_link", scenario="paper", runs=1, oosm=["replay"], fusion=["difference"],
-                           reference=["sinusoid"], quiet=True, engine=engine)
-    assert rc == 0 and "stopped tracking" not in capsys.readouterr().out
+    result = api.simulate("dc_motor_link", scenario=str(sc), runs=1, oosm=["replay"], fusion=["difference"],
+                          reference=["sinusoid"], quiet=True, engine=engine)
+    assert result.failures and all("stopped tracking at t = " in str(f) and "output theta" in str(f)
+                                   for f in result.failures)
+    result = api.simulate("dc_motor_link", scenario="paper", runs=1, oosm=["replay"], fusion=["difference"],
+                          reference=["sinusoid"], quiet=True, engine=engine)
+    assert not result.failures
