@@ -229,16 +229,19 @@ def errors_as_dicts(errors: list[SignalError]) -> list[dict]:
 
 def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str | None = None,
            sanitize: bool = False, scenario: str = "paper", inputs: str = "recorded", max_lag: int = 32,
-           nodes: int = 2, oosm: str = "replay", fusion: str = "difference", progress=None) -> Verification:
+           nodes: int = 2, oosm: str = "replay", fusion: str = "difference", progress=None,
+           max_seconds: float | None = None, max_memory: float | None = None) -> Verification:
     """Build into a temporary folder, record a scenario (default the paper one, its first delay
     row with late frames, sinusoid, 20 s) with the reference, run the C on it (host: ctypes, or a
     program under ASan+UBSan with `sanitize`; cortex-m4f: QEMU) and compare. `progress(line)` is
-    told the settings and the scenario as soon as they are known. A mismatch is in the result
-    (`ok`, `check(result.errors)` raises it); bad input and missing tools raise before any work."""
+    told the settings and the scenario as soon as they are known. The derivations (the
+    reference's and the build's) run under `max_seconds` CPU seconds and `max_memory` GB. A
+    mismatch is in the result (`ok`, `check(result.errors)` raises it); bad input and missing
+    tools raise before any work."""
     import tempfile
     from pathlib import Path
 
-    from dfeif_codegen.check import harness, target as targets
+    from dfeif_codegen.check import harness, stages, target as targets
     from dfeif_codegen.experiment import scenario as scenarios
     from dfeif_codegen.experiment import closed_loop as experiment
 
@@ -247,7 +250,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     harness.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
-    sc.check_model(experiment._flat(model))   # the derivation the recording reuses (cached)
+    sc.check_model(experiment.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
     scenarios.check_window(sc, max_lag, nodes)
     precision = precision or ("float" if target == "cortex-m4f" else "double")
@@ -276,17 +279,15 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         about = (f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
                  f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
         say(about)
-        result = Verification(settings, about, [])
-        if target == "cortex-m4f":
-            run = targets.run_scenario(built, rec, work / "target", inputs=inputs)
-            if run.status["status"] != 0:
-                raise MismatchError(harness.failure(run.status))
-            got, result.target_report = run.outputs, targets.report(run)
-        elif sanitize:
-            got = harness.run_program(built, rec, work / "host", sanitize=True, inputs=inputs)[1]
-        else:
-            got = harness.Library(built, work / "host").run(rec, inputs)
-        result.errors = compare_run(got, rec, precision)
-        if precision == "float" and not result.ok:
-            result.yardstick = single_precision_yardstick(result.errors, float32_reference_errors(rec))
+        compiled = stages.compile(built, target, sanitize, work)    # compile -> run -> compare, once each
+        ran = stages.run(compiled, rec, inputs)
+        return compare_outputs(settings, about, ran, rec, precision)
+
+
+def compare_outputs(settings: str, about: str, ran, rec, precision: str) -> Verification:
+    """The third step: the C's outputs against the reference's, signal by signal; after a float
+    mismatch, how far a float32 run of the reference itself lands (the yardstick)."""
+    result = Verification(settings, about, compare_run(ran.outputs, rec, precision), ran.target_report)
+    if precision == "float" and not result.ok:
+        result.yardstick = single_precision_yardstick(result.errors, float32_reference_errors(rec))
     return result
