@@ -102,6 +102,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--reference", choices=["sinusoid", "seesaw"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
                    help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
+    p.add_argument("--param-error", metavar="SPREAD|NAME=REL,...", default=None,
+                   help="model error, replacing the scenario's [model_error]: 0.2 draws each of the plant's "
+                        "parameters per run within +-20%% of the model's; R=0.2,J=-0.1 fixed relative offsets; "
+                        "0 the exact model (the filters and the controller keep the model's values)")
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--json", metavar="FILE", help="write every figure machine-readably ('-' for stdout)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -207,7 +211,7 @@ def simulate(args: argparse.Namespace) -> int:
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
-        results=args.results, csv=args.csv, resume=args.resume)
+        results=args.results, csv=args.csv, resume=args.resume, param_error=args.param_error)
 
 
 def bench(args: argparse.Namespace) -> int:

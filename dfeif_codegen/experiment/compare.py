@@ -15,7 +15,10 @@ with its predict and its update each one CasADi function called through Numeric'
 master), `operations` the arithmetic of one predict and one update (CasADi's instruction count).
 
 A run counts as diverged when a covariance stops being positive definite or an estimate is not
-finite, or when its master NEES averages above 100 (the filter no longer knows its error).
+finite, or by the closed loops' own criterion (closed_loop.DivergenceWatch): the master's NEES
+above NEES_DIVERGED n for NEES_STEPS steps in a row, a filter that has lost the state. A filter
+that is merely overconfident (a NEES of hundreds, as an EKF whose model is wrong) keeps its run:
+its RMSE is a result, its NEES says how little it knows of its error.
 """
 
 from __future__ import annotations
@@ -33,7 +36,6 @@ from dfeif_codegen.reference.physical import PhysicalMaster, PhysicalModel, Repl
 from dfeif_codegen.reference.ukf import UKF
 
 FILTERS = {"ekf": EKF, "ukf": UKF}
-DIVERGED_NEES = 100.0
 
 
 class CanonicalModel:
@@ -133,9 +135,12 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
     with np.errstate(all="ignore"):       # a diverged filter's NEES is inf or nan: judged below
         m = ex.metrics(dataclasses.replace(res, recording=mine, counters=counters))
     m["us_per_step"] = 1e6 * out["seconds"] / len(res.t)
-    nees = float(np.mean(m["nees_master"]))
-    if not np.all(np.isfinite(m["rmse_master"])) or not nees <= DIVERGED_NEES:
-        return {"failed": f"{kind}: diverged (master NEES {nees:.3g})"}
+    high = ~(np.asarray(m["nees_master"]) <= ex.NEES_DIVERGED * rec.n)
+    ends = np.flatnonzero(np.diff(np.concatenate([[0], high.astype(int), [0]])))
+    longest = int(np.max(ends[1::2] - ends[::2])) if ends.size else 0
+    if not np.all(np.isfinite(m["rmse_master"])) or longest >= ex.NEES_STEPS:
+        return {"failed": f"{kind}: diverged (master NEES above {ex.NEES_DIVERGED:g} n for {longest} steps "
+                          f"in a row; mean {float(np.mean(m['nees_master'])):.3g})"}
     return m
 
 

@@ -21,36 +21,53 @@ import sympy as sp
 from dfeif_codegen.symbolic import numeric
 from dfeif_codegen.symbolic.model import Model
 
-def _fixed(model: Model, exprs) -> list[sp.Expr]:
-    """Expressions with the parameters replaced by their values."""
-    values = model.param_values
+def _fixed(model: Model, exprs, values=None) -> list[sp.Expr]:
+    """Expressions with the parameters replaced by their values (default: the model's)."""
+    values = model.param_values if values is None else values
     return [sp.sympify(e).subs(values) for e in exprs]
 
 
-class Plant:
-    """True plant: `step(x, u)` integrates one sampling period with `u` held."""
+def rk4_period(f: ca.Function, n: int, m: int, ts: float, substeps: int, extra=()) -> ca.Function:
+    """One sampling period of `x' = f(x, u, *extra)` with u held: `substeps` classical RK4 steps,
+    unrolled into one function of (x, u, *extra)."""
+    xs, us = ca.SX.sym("x", n), ca.SX.sym("u", m)
+    h = ts / substeps
+    x = xs
+    for _ in range(substeps):
+        k1 = f(x, us, *extra)
+        k2 = f(x + h / 2 * k1, us, *extra)
+        k3 = f(x + h / 2 * k2, us, *extra)
+        k4 = f(x + h * k3, us, *extra)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function("step", [xs, us, *extra], [x])
 
-    def __init__(self, model: Model, ts: float | None = None, substeps: int = 10):
+
+class Plant:
+    """True plant: `step(x, u)` integrates one sampling period with `u` held. `params`: the
+    plant's parameter vector in model order when it differs from the model's (model error,
+    experiment/model_error.py); the values are substituted like the model's own, so a plant with
+    the model's parameters is the same function whichever way it was asked for."""
+
+    def __init__(self, model: Model, ts: float | None = None, substeps: int = 10, params=None):
         self.model, self.ts, self.substeps = model, float(ts or model.ts), int(substeps)
-        n, m = model.n, model.m
-        f = numeric.sx_function("f", [list(model.x), list(model.u)], _fixed(model, model.f + model.g * model.u))
-        xs, us = ca.SX.sym("x", n), ca.SX.sym("u", m)
-        h = self.ts / self.substeps
-        x = xs
-        for _ in range(self.substeps):
-            k1 = f(x, us)
-            k2 = f(x + h / 2 * k1, us)
-            k3 = f(x + h / 2 * k2, us)
-            k4 = f(x + h * k3, us)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        values = None if params is None else dict(zip(model.p, map(float, params)))
+        f = numeric.sx_function("f", [list(model.x), list(model.u)],
+                                _fixed(model, model.f + model.g * model.u, values))
         self._f = numeric.Numeric(f)
-        self._step = numeric.Numeric(ca.Function("step", [xs, us], [x]))
+        self._step = numeric.Numeric(rk4_period(f, model.n, model.m, self.ts, self.substeps))
 
     def rhs(self, x, u) -> np.ndarray:
         return self._f(x, np.atleast_1d(u))
 
     def step(self, x, u) -> np.ndarray:
         return self._step(x, np.atleast_1d(u))
+
+
+def parametric_step(model: Model, ts: float, substeps: int) -> ca.Function:
+    """The plant's period as a function of (x, u, p), p the parameter vector in model order: what
+    the compiled closed loop calls for a run whose plant differs from the model."""
+    f = numeric.sx_function("f", [list(model.x), list(model.u), list(model.p)], model.f + model.g * model.u)
+    return rk4_period(f, model.n, model.m, ts, substeps, (ca.SX.sym("p", len(model.p)),))
 
 
 class Camera:

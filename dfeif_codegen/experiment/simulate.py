@@ -90,7 +90,7 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         noise_scale=tuple(_pick(sc.noise_scale, i) for i in range(nodes)),
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
-        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from)
+        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error)
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:
@@ -373,11 +373,16 @@ def _filters_of(filters) -> list[str]:
 
 
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
-         filters, plot_dir) -> Plan:
-    """Load and check everything, then list each distinct run once."""
+         filters, plot_dir, param_error=None) -> Plan:
+    """Load and check everything, then list each distinct run once. `param_error`
+    (experiment/model_error.from_option's text) replaces the scenario's [model_error]."""
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
     flat = ex._flat(model)   # the derivation every run of this process (and its workers) uses
+    if param_error is not None:
+        from dfeif_codegen.experiment import model_error
+        sc.model_error = model_error.from_option(param_error)
+        sc.model_error.check(flat.model, lambda key: "--param-error")
     if plot_dir:                          # a missing matplotlib is said before the runs, not after
         from dfeif_codegen.experiment import figures as figs
         figs.pyplot()
@@ -501,6 +506,8 @@ def _settings(p: Plan, o: Outcome, engine: str) -> dict:
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
            "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": engine, "ran_on": o.where,
            "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3)}
+    from dfeif_codegen.experiment import model_error
+    out["model_error"] = model_error.summary(sc.model_error, p.flat.model, p.seeds)
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
@@ -546,14 +553,17 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
              nodes: int | None = None, max_lag: int = 32, oosm=None, fusion=None, reference=None,
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              engine: str = "c", workers: int | None = None, scheduler: str | None = None,
-             results: str | None = None, csv: str | None = None, resume: str | None = None, out=None) -> int:
+             results: str | None = None, csv: str | None = None, resume: str | None = None,
+             param_error: str | float | None = None, out=None) -> int:
     """The chapter's experiment: tables on `out` (stdout), optionally JSON, CSV, per-run records and
     figures. `filters`: any of "df", "ekf", "ukf" (or one comma-separated string); the EKF and UKF
     run on the recordings of the replay + difference closed loops. Returns 0, or 1 when a run
-    failed or diverged. Bad input raises a CodegenError before any run."""
+    failed or diverged. `param_error`: the plant's parameters against the model's, replacing the
+    scenario's [model_error] (0.2: each drawn per run within +-20%; "R=0.2": R 20% above; 0: the
+    exact model). Bad input raises a CodegenError before any run."""
     out = out or sys.stdout
     _check_outputs(json_path, plot)
-    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
+    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, param_error)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
     bound = o.bound
     if csv:
@@ -595,6 +605,9 @@ def _print_report(out, p: Plan, o: Outcome, settings: dict, groups: dict, bound,
           f"{sc.duration:g} s runs, N_max = {p.max_lag}, q = {sc.q}, poles {sc.poles}, "
           f"seeds {p.seed}..{p.seed + p.runs - 1}, {o.distinct} runs in {o.elapsed:.0f} s on {o.where} "
           f"({engine} engine{f', {o.reused} resumed' if o.reused else ''})\n", file=out)
+    if sc.model_error.active:
+        from dfeif_codegen.experiment import model_error
+        model_error.report(out, sc.model_error, p.flat.model, p.seeds)
     print_tables(out, sc, p.rows, groups, p.flat, p.nodes, bound)
     if p.filters:
         print(file=out)
