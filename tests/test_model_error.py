@@ -181,3 +181,34 @@ def test_simulate_prints_the_model_error_block(tmp_path, capsys):
     assert sc.model_error == me.ParamError(relative=(("R", 0.2),))
     with pytest.raises(ScenarioError):
         me.from_option("R=abc")
+
+
+def test_paired_ratios_under_model_error(tmp_path):
+    """simulate --filters with model error: Table VII's ratios are df / EKF per seed, averaged with
+    a Student-t interval, recomputed here from compare.evaluate on each seed's recording (numpy
+    engine, the same arithmetic in the same order: 1e-12)."""
+    from dfeif_codegen.experiment import simulate
+
+    path = _write(tmp_path, "[[grid]]\nd = [3, 5]\np = 0.8\n")
+    out = tmp_path / "r.json"
+    log = tmp_path / "log.txt"
+    with open(log, "w") as fh:
+        rc = simulate.simulate("dc_motor_link", scenario=path, runs=3, filters="df,ekf,brunovsky", engine="reference",
+                               json_path=str(out), quiet=True, workers=1, param_error="0.2", out=fh)
+    assert rc == 0
+    doc = json.loads(out.read_text())
+    sc = scenario_mod.load(path)
+    sc.model_error = me.from_option("0.2")
+    for ri, row in enumerate(sc.grid):
+        runs = [ex.run(simulate.make_config(sc, "dc_motor_link", 2, 32, "seesaw", row, "replay", "difference", s))
+                for s in range(3)]
+        ratio = [compare.evaluate(r, "df")["rmse_master"] / compare.evaluate(r, "ekf")["rmse_master"] for r in runs]
+        mean, half = simulate.mean_ci(ratio)
+        got = next(e for e in doc["paired"] if e["row"] == ri and e["filter"] == "ekf")
+        np.testing.assert_allclose(got["mean"], mean, rtol=1e-12)
+        np.testing.assert_allclose(got["ci95"], half, rtol=1e-12)
+        assert got["pairs"] == 3
+        same = next(e for e in doc["paired"] if e["row"] == ri and e["filter"] == "brunovsky")
+        np.testing.assert_allclose(same["mean"], 1.0, rtol=1e-12)   # today the df filter is the chapter's
+    text = log.read_text()
+    assert "Table VII" in text and "every parameter uniform +-20%" in text and "seesaw" in text

@@ -36,6 +36,10 @@ from dfeif_codegen.reference.physical import PhysicalMaster, PhysicalModel, Repl
 from dfeif_codegen.reference.ukf import UKF
 
 FILTERS = {"ekf": EKF, "ukf": UKF}
+# filters on the canonical model, fed the controller's v: "df" is the project's derivative-free
+# filter, "brunovsky" the chapter's (v held over Ts, Brunovsky A_d); today they are the same
+CANONICAL = ("df", "brunovsky")
+KINDS = (*CANONICAL, *FILTERS)
 
 
 class CanonicalModel:
@@ -68,7 +72,7 @@ def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled
     (physical.compiled_function: the same results, and CPU time per step then measures compiled
     arithmetic rather than CasADi's interpreter)."""
     flat = ex._flat(spec)
-    if kind == "df":
+    if kind in CANONICAL:
         return EKF(CanonicalModel(flat, ts, np.array(q)), compiled)
     return FILTERS[kind](PhysicalModel(flat, ts, np.array(q), substeps), compiled)
 
@@ -80,7 +84,7 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     "df" runs the derivative-free filter itself through the same driver (CanonicalModel)."""
     filt = filter_of(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps, kind, compiled)
     pm = filt.model
-    inputs = rec.v if kind == "df" else rec.u
+    inputs = rec.v if kind in CANONICAL else rec.u
     x0, J0 = pm.phi_inv(rec.master_x0)
     P0 = J0 @ rec.master_P0 @ J0.T
     nodes = [ReplayNode(filt, rec.R[i], x0, P0, rec.max_lag) for i in range(rec.nodes)]
@@ -144,9 +148,9 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
     return m
 
 
-def operations(spec: str, ts: float, q, substeps: int = 10) -> dict:
+def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTERS)) -> dict:
     """Elementary operations of one predict and one update of each filter (CasADi's instruction
     count of the SX functions after common-subexpression elimination): a machine-independent
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
-    return {kind: filter_of(spec, float(ts), q, substeps, kind).operations() for kind in ("df", *FILTERS)}
+    return {kind: filter_of(spec, float(ts), q, substeps, kind).operations() for kind in kinds}

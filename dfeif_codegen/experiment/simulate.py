@@ -317,7 +317,7 @@ def plot_figures(directory: str, figures: dict, flat) -> list[str]:
 
 # --- the command --------------------------------------------------------------------------------------
 
-FILTERS = ("df", "ekf", "ukf")
+FILTERS = ("df", "ekf", "ukf", "brunovsky")
 
 
 @dataclass
@@ -511,7 +511,8 @@ def _settings(p: Plan, o: Outcome, engine: str) -> dict:
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
-        out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps)
+        out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
+                                               out["filters"])
     return out
 
 
@@ -539,10 +540,10 @@ def print_filters(out, p: Plan, groups: dict, operations: dict) -> None:
                 s = groups[(ref, label, rule)][ri]
                 failed = p.runs - s.get("runs", 0)
                 if not s.get("runs"):
-                    print(f"  {ref} {_row_label(row)}  {label:11s} every run failed", file=out)
+                    print(f"  {ref} {_row_label(row)}  {label:16s} every run failed", file=out)
                     continue
                 rm, us = s["rmse_master"], s["us_per_step"]
-                print(f"  {ref} {_row_label(row)}  {label:11s} x1 {_fmt(rm['mean'][0], rm['ci95'][0]):>20}  "
+                print(f"  {ref} {_row_label(row)}  {label:16s} x1 {_fmt(rm['mean'][0], rm['ci95'][0]):>20}  "
                       f"NEES {s['nees_master']['mean']:6.2f}  failed {failed:3d}/{p.runs}  "
                       f"{_fmt(us['mean'], us['ci95']):>20} us/step", file=out)
     ops = ", ".join(f"{k} {v['predict']}/{v['update']}" for k, v in operations.items())
@@ -583,6 +584,10 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
                           for (ref, m, f), s in groups.items()],
                "bounds": [{"rmse_central": b.rmse_central, "rmse_nodes": b.rmse_nodes} for b in bound],
                "failures": o.failures, "figures": figures}
+        if p.filters:
+            from dfeif_codegen.experiment import pairing
+            doc["paired"] = [{"reference": ref, "row": ri, "filter": kind, **r} for (ref, ri, kind), r in
+                             pairing.table(o.per_run, p.refs, p.rows, ["df", *p.filters]).items()]
         text = json.dumps(_jsonable(doc))
         if to_stdout:
             sys.stdout.write(text + "\n")
@@ -610,8 +615,11 @@ def _print_report(out, p: Plan, o: Outcome, settings: dict, groups: dict, bound,
         model_error.report(out, sc.model_error, p.flat.model, p.seeds)
     print_tables(out, sc, p.rows, groups, p.flat, p.nodes, bound)
     if p.filters:
+        from dfeif_codegen.experiment import pairing
         print(file=out)
         print_filters(out, p, groups, settings["operations"])
+        pairing.print_ratios(out, o.per_run, p.refs, p.rows, ["df", *p.filters], settings["operations"],
+                             _row_label, p.flat.n)
     print_summary(out, p.rows, groups)
     if o.failures:
         print(f"\n{len(o.failures)} run(s) failed (left out of the averages):", file=out)
