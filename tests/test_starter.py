@@ -58,10 +58,10 @@ def test_motor_q_matches_the_hand_calibration(tmp_path):
 
 def test_calibrated_q_puts_the_master_nees_in_its_band(tmp_path):
     """The arm: with the residual's q its master NEES is 8.0-9.1 for n = 6 (docs/experiment.md);
-    the written q brings it to n within 20% on seeds the calibration did not use (0-3, 20 s
-    instead of its 5 s, rows without and with the paper's longest delays), inside the 95% band
-    of 4 runs. 20%: the calibration matches n to 10% over 4 runs of 5 s; the NEES's run-to-run
-    spread over 4 runs of 20 s is a few percent (measured 3.4-3.5% on the motor)."""
+    the written q brings it to n within 20% on seeds the calibration did not use (0-3; rows
+    without and with the paper's longest delays), inside the 95% band of 4 runs. 20%: the
+    calibration matches n to 10% over 2 runs of 20 s; the NEES's run-to-run spread over 4 runs
+    of 20 s is a few percent (measured 3.4-3.5% on the motor)."""
     out = tmp_path / "arm.toml"
     assert cli.main(["scenario", "two_link_arm", "--out", str(out)]) == 0
     sc = scenario.load(str(out))

@@ -17,7 +17,7 @@ What a user would otherwise guess, derived from the model:
   noisier estimate makes a noisier u, which the plant holds and the model does not), so
   iterating drifts upwards without settling (motor: 1.4, 17.5, 120, 580, ...); one round gives
   the motor 17.5, where the paper's hand calibration chose 20. That fixes the chains'
-  proportions; their common scale is then set so that the master's NEES, averaged over four 5 s
+  proportions; their common scale is then set so that the master's NEES, averaged over two 20 s
   closed loops without delays, is n (within 10%), the middle of its 95% band (`match_nees`),
   with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings).
 - a warning, as a comment, when an oscillatory mode of the plant (eigenvalues of its Jacobian
@@ -94,7 +94,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     q = np.maximum(q, floor)
     log = [f"along the reference: q = {_fmt(q)}"]
 
-    def config(q, run_seed):
+    def config(q, run_seed, duration=duration):
         return ex.Config(model=spec, ts=ts, duration=duration, substeps=substeps, q=tuple(q), poles=tuple(poles),
                          p0_std=tuple(p0_std), amplitude=(AMPLITUDE,), period=PERIOD,
                          noise_std=tuple(None if s is None else tuple(s) for s in noise_std),
@@ -117,7 +117,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     return match_nees(flat, q, config, [seed + i for i in range(NEES_RUNS)], log)
 
 
-NEES_RUNS, NEES_TOL, NEES_EVALS = 4, 1.1, 8
+NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 2, 1.1, 8, 20.0
 
 
 def _master_nees(config, q, seeds) -> float:
@@ -125,7 +125,7 @@ def _master_nees(config, q, seeds) -> float:
     values = []
     for s in seeds:
         try:
-            values.append(float(np.mean(ex.run(config(q, s)).metrics["nees_master"])))
+            values.append(float(np.mean(ex.run(config(q, s, NEES_SECONDS)).metrics["nees_master"])))
         except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
             return math.inf
     return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
@@ -133,8 +133,10 @@ def _master_nees(config, q, seeds) -> float:
 
 def match_nees(flat, q, config, seeds, log) -> tuple[np.ndarray, list[str]]:
     """Scale q (every chain alike, keeping the residual's proportions) until the master's NEES,
-    averaged over `seeds` closed loops without delays, is n within a factor NEES_TOL: the middle of
-    its 95% band for any number of runs. A secant on log NEES against log scale (NEES falls as q
+    averaged over `seeds` closed loops without delays of NEES_SECONDS (the length of a
+    scenario's runs: the NEES of a filter with little process noise drifts over a run, so a
+    shorter run would match another q), is n within a factor NEES_TOL: the middle of its 95%
+    band for any number of runs. A secant on log NEES against log scale (NEES falls as q
     grows); at most NEES_EVALS evaluations, keeping the closest. The residual alone does not get
     there: it is coloured (correlated from step to step), which white noise of the same variance
     does not describe, and the estimate's own error feeds back through u."""
