@@ -187,15 +187,14 @@ def test_paired_ratios_under_model_error(tmp_path):
     """simulate --filters with model error: Table VII's ratios are df / EKF per seed, averaged with
     a Student-t interval, recomputed here from compare.evaluate on each seed's recording (numpy
     engine, the same arithmetic in the same order: 1e-12)."""
+    import dfeif_codegen as dc
     from dfeif_codegen.experiment import simulate
 
     path = _write(tmp_path, "[[grid]]\nd = [3, 5]\np = 0.8\n")
     out = tmp_path / "r.json"
-    log = tmp_path / "log.txt"
-    with open(log, "w") as fh:
-        rc = simulate.simulate("dc_motor_link", scenario=path, runs=3, filters="df,ekf,brunovsky", engine="reference",
-                               json_path=str(out), quiet=True, workers=1, param_error="0.2", out=fh)
-    assert rc == 0
+    result = dc.simulate("dc_motor_link", scenario=path, runs=3, filters="df,ekf,brunovsky", engine="reference",
+                         json_path=str(out), quiet=True, workers=1, param_error="0.2")
+    assert result.ok
     doc = json.loads(out.read_text())
     sc = scenario_mod.load(path)
     sc.model_error = me.from_option("0.2")
@@ -210,5 +209,5 @@ def test_paired_ratios_under_model_error(tmp_path):
         assert got["pairs"] == 3
         same = next(e for e in doc["paired"] if e["row"] == ri and e["filter"] == "brunovsky")
         np.testing.assert_allclose(same["mean"], 1.0, rtol=1e-12)   # today the df filter is the chapter's
-    text = log.read_text()
+    text = result.report()
     assert "Table VII" in text and "every parameter uniform +-20%" in text and "seesaw" in text

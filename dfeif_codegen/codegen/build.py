@@ -88,7 +88,8 @@ def context(flat, opts: Options) -> dict:
     p = m.name
     ks = kernels.build(flat, opts, p)
     real_c = "float" if opts.precision == "float" else "double"
-    kernel_code, kernel_list = {}, []
+    kernel_code: dict[str, tuple[str, str]] = {}
+    kernel_list: list[dict] = []
     for group, functions in ks.groups.items():
         code, infos = csource.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
                                        local_work=group in ks.local_work, wrappers=ks.wrappers,
@@ -173,9 +174,10 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options and the output folder are checked before the derivation starts; the derivation runs
-    under a time and memory budget; what was written is compiled (host compiler, when there is
-    one) before it replaces the folder, atomically. `force` allows replacing files the toolkit
-    did not write there."""
+    under a time and memory budget (`max_seconds` in seconds, `max_memory` in GB, as the
+    command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
+    there is one) before it replaces the folder, atomically. `force` allows replacing files the
+    toolkit did not write there."""
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol)
     check_target(Path(out), m.name, force)
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")

@@ -352,7 +352,7 @@ class Setup:
     numpy loop and the compiled one see the same noise, network and initial state."""
 
     cfg: Config
-    flat: object
+    flat: flatness.FlatSystem
     ts: float
     K: int
     t: np.ndarray

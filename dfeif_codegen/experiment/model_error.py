@@ -189,35 +189,35 @@ def from_option(text: str) -> ParamError:
 
 # --- saying it -----------------------------------------------------------------------------------
 
-def report(out, spec: ParamError, model, seeds) -> None:
-    """The model-error block of `simulate`: what was asked and, per perturbed parameter, the
-    plant's values over the runs (one run: its values)."""
-    print(f"Model error (the plant's parameters; the filters and the controller keep the model's): "
-          f"{spec.describe()}", file=out)
-    if not spec.active:
-        return
-    seeds = list(seeds)
-    values = np.array([spec.values(model, s) for s in seeds])
-    p0 = np.array([q.value for q in model.parameters], dtype=float)
-    moved = np.nonzero(np.any(values != p0, axis=0))[0]
-    head = "plant" if len(seeds) == 1 else f"plant over {len(seeds)} runs: min / mean / max"
-    print(f"  {'parameter':12s} {'model':>10s}   {head}", file=out)
-    for i in moved:
-        v = values[:, i]
-        rel = (v - p0[i]) / p0[i] if p0[i] else np.full_like(v, np.nan)
-        if len(seeds) == 1:
-            cells, rels = f"{v[0]:.5g}", f"{100 * rel[0]:+.2f}%"
-        else:
-            cells = f"{v.min():.5g} / {v.mean():.5g} / {v.max():.5g}"
-            rels = f"{100 * rel.min():+.2f}% / {100 * rel.mean():+.2f}% / {100 * rel.max():+.2f}%"
-        print(f"  {model.parameters[i].name:12s} {p0[i]:10.5g}   {cells}   ({rels})", file=out)
-    print(file=out)
-
-
 def summary(spec: ParamError, model, seeds) -> dict:
-    """The same for the JSON settings: the spec and every run's parameter vector."""
+    """What was asked and every run's parameter vector (the JSON settings; `report` prints it)."""
     out = {"describe": spec.describe(), "relative": dict(spec.relative), "absolute": dict(spec.absolute),
-           "draw": spec.draw, "spread": dict(spec.spread), "parameters": [q.name for q in model.parameters]}
+           "draw": spec.draw, "spread": dict(spec.spread), "parameters": [q.name for q in model.parameters],
+           "nominal": [float(q.value) for q in model.parameters]}
     if spec.active:
         out["per_seed"] = {int(s): spec.values(model, s).tolist() for s in seeds}
     return out
+
+
+def report(out, summary: dict) -> None:
+    """The model-error block of `simulate`: what was asked and, per perturbed parameter, its model
+    value and the plant's over the runs (min / mean / max; one run: its value)."""
+    print(f"Model error (the plant's parameters; the filters and the controller keep the model's): "
+          f"{summary['describe']}", file=out)
+    if "per_seed" not in summary:
+        return
+    values = np.array(list(summary["per_seed"].values()))
+    p0 = np.array(summary["nominal"])
+    single = len(values) == 1
+    head = "plant" if single else f"plant over {len(values)} runs: min / mean / max"
+    print(f"  {'parameter':12s} {'model':>10s}   {head}", file=out)
+    for i in np.nonzero(np.any(values != p0, axis=0))[0]:
+        v = values[:, i]
+        rel = 100 * (v - p0[i]) / p0[i] if p0[i] else np.full_like(v, np.nan)
+        if single:
+            cells, rels = f"{v[0]:.5g}", f"{rel[0]:+.2f}%"
+        else:
+            cells = f"{v.min():.5g} / {v.mean():.5g} / {v.max():.5g}"
+            rels = f"{rel.min():+.2f}% / {rel.mean():+.2f}% / {rel.max():+.2f}%"
+        print(f"  {summary['parameters'][i]:12s} {p0[i]:10.5g}   {cells}   ({rels})", file=out)
+    print(file=out)

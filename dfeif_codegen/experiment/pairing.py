@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dfeif_codegen.experiment.stats import mean_ci
+
 REFERENCE = "df"
 
 
@@ -21,11 +23,9 @@ def _by_seed(per_run, ref: str, label: str, ri: int) -> dict:
 def ratios(per_run, ref: str, ri: int, kind: str, key: str = "rmse_master") -> dict:
     """`REFERENCE`'s `key` over `kind`'s, per seed, then mean and 95% half-width per component;
     also both filters' mean master NEES over the same seeds."""
-    from dfeif_codegen.experiment.simulate import mean_ci
-
     mine, theirs = _by_seed(per_run, ref, f"{REFERENCE}-replay", ri), _by_seed(per_run, ref, f"{kind}-replay", ri)
     seeds = sorted(s for s in mine if s in theirs and isinstance(mine[s], dict) and isinstance(theirs[s], dict))
-    out = {"pairs": len(seeds), "unpaired": len(set(mine) | set(theirs)) - len(seeds)}
+    out: dict = {"pairs": len(seeds), "unpaired": len(set(mine) | set(theirs)) - len(seeds)}
     if not seeds:
         return out
     ratio = [np.asarray(mine[s][key], float) / np.asarray(theirs[s][key], float) for s in seeds]
@@ -35,35 +35,33 @@ def ratios(per_run, ref: str, ri: int, kind: str, key: str = "rmse_master") -> d
     return out
 
 
-def table(per_run, refs, rows, kinds) -> dict:
-    """{(reference, row index, kind): ratios} for every other filter against REFERENCE."""
-    return {(ref, ri, kind): ratios(per_run, ref, ri, kind)
-            for ref in refs for ri in range(len(rows)) for kind in kinds if kind != REFERENCE}
+def entries(per_run, refs, rows, kinds) -> list[dict]:
+    """Every other filter against REFERENCE, per reference and delay row (the JSON's "paired")."""
+    return [{"reference": ref, "row": ri, "filter": kind, **ratios(per_run, ref, ri, kind)}
+            for ref in refs for ri in range(len(rows)) for kind in kinds if kind != REFERENCE]
 
 
-def print_ratios(out, per_run, refs, rows, kinds, operations, row_label, n: int) -> None:
+def print_ratios(out, paired: list[dict], rows, operations, row_label, n: int) -> None:
     """Table VII: the paired ratios, every row and state, and the operations per node step."""
-    others = [k for k in kinds if k != REFERENCE]
-    if not others:
+    if not paired:
         return
     print(f"Table VII: master RMSE, derivative-free ({REFERENCE}) / each filter on the same recordings, "
           "formed per seed then averaged (mean ± 95% CI; below 1: df more accurate); master NEES of both "
           "over the same seeds; pairs (seeds where both ran; unpaired: either failed)", file=out)
     head = "".join(f"{f'x{i + 1}':>19}" for i in range(n))
-    for ref in refs:
+    for ref in dict.fromkeys(e["reference"] for e in paired):
         print(f"  {ref}", file=out)
         print(f"  {'row':>14}  {'df / filter':12s}{head}   NEES df / filter   pairs", file=out)
-        for ri, row in enumerate(rows):
-            for kind in others:
-                r = ratios(per_run, ref, ri, kind)
-                if not r["pairs"]:
-                    print(f"  {row_label(row):>14}  {kind:12s}  no pair (every run of one filter failed)", file=out)
-                    continue
-                cells = "".join(f"{m:>11.3f} ± {h:5.3f}" if np.isfinite(h) else f"{m:>19.3f}"
-                                for m, h in zip(r["mean"], r["ci95"]))
-                extra = f" ({r['unpaired']} unpaired)" if r["unpaired"] else ""
-                print(f"  {row_label(row):>14}  {kind:12s}{cells}   {r['nees'][0]:7.2f} / {r['nees'][1]:<8.2f}"
-                      f"   {r['pairs']}{extra}", file=out)
+        for e in (e for e in paired if e["reference"] == ref):
+            label = row_label(rows[e["row"]])
+            if not e["pairs"]:
+                print(f"  {label:>14}  {e['filter']:12s}  no pair (every run of one filter failed)", file=out)
+                continue
+            cells = "".join(f"{m:>11.3f} ± {h:5.3f}" if np.isfinite(h) else f"{m:>19.3f}"
+                            for m, h in zip(e["mean"], e["ci95"]))
+            extra = f" ({e['unpaired']} unpaired)" if e["unpaired"] else ""
+            print(f"  {label:>14}  {e['filter']:12s}{cells}   {e['nees'][0]:7.2f} / {e['nees'][1]:<8.2f}"
+                  f"   {e['pairs']}{extra}", file=out)
     base = sum(operations[REFERENCE].values())
     ops = ", ".join(f"{k} {sum(v.values()):,}" + ("" if k == REFERENCE else f" ({sum(v.values()) / base:.1f}x)")
                     for k, v in operations.items())
