@@ -53,9 +53,6 @@ class ParamError:
     def active(self) -> bool:
         return bool(self.relative or self.absolute or (self.draw != "none" and any(s for _, s in self.spread)))
 
-    def names(self) -> set[str]:
-        return {k for k, _ in (*self.relative, *self.absolute, *self.spread)} - {ALL}
-
     def check(self, model, where) -> None:
         """Against the model: every name a parameter, no sign flip. `where(key)` names the line."""
         known = [q.name for q in model.parameters]
