@@ -49,15 +49,23 @@ def _unit_q(flat, ts) -> np.ndarray:
     return np.diag(flat.process_noise(ts, np.ones(flat.m)))
 
 
-def implied_q(flat, ts, zeta, v) -> np.ndarray:
-    """Per chain, the q whose Q_d covers every component of the one-step residual (zeta (K, n),
-    v (K, m): states and inputs of the canonical model along a trajectory)."""
-    A, B, _ = flat.discrete(ts)
-    res = zeta[1:] - zeta[:-1] @ A.T - v[:-1] @ B.T
+def implied_q(flat, ts, zeta, v, u=None, predictor: str = "brunovsky") -> np.ndarray:
+    """Per chain, the q whose Q covers every component of the one-step residual of the filters'
+    model (zeta (K, n), v and u (K, m): canonical states, the controller's v and the applied u
+    along a trajectory): the chapter's Brunovsky chain driven by v, or another predictor of
+    reference/predictor.py (the held-input one of issue 22, driven by u) when the run used it."""
+    if predictor == "brunovsky":
+        A, B, _ = flat.discrete(ts)
+        res, unit = zeta[1:] - zeta[:-1] @ A.T - v[:-1] @ B.T, _unit_q(flat, ts)
+    else:
+        from dfeif_codegen.reference import predictor as predictors
+        pred = predictors.make(predictor, flat, ts, np.ones(flat.m))
+        res = zeta[1:] - np.array([pred.mean(z, w) for z, w in zip(zeta[:-1], u[:-1])])
+        unit = np.diag(pred.Q)
     for c in flat.chains:
         if c.angle:
             res[:, c.offset] = (res[:, c.offset] + math.pi) % (2 * math.pi) - math.pi
-    ratio = np.mean(res ** 2, axis=0) / _unit_q(flat, ts)
+    ratio = np.mean(res ** 2, axis=0) / unit
     return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
 
 
@@ -111,7 +119,9 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             log.append(f"closed loop diverged: q x 10 -> {_fmt(q)}")
             continue
         k0 = int(round(cfg.metrics_from / ts))
-        q = np.maximum(implied_q(flat, ts, res.zeta[k0:], res.recording.v[k0:]), q)
+        rec = res.recording      # the residual of the predictor the loop ran (the chapter's on main)
+        q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
+                                 getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
         break
     return match_nees(flat, q, config, [seed + i for i in range(NEES_RUNS)], log)
