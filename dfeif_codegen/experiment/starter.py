@@ -30,6 +30,7 @@ stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e
 
 from __future__ import annotations
 
+import importlib
 import math
 from pathlib import Path
 
@@ -58,7 +59,7 @@ def implied_q(flat, ts, zeta, v, u=None, predictor: str = "brunovsky") -> np.nda
         A, B, _ = flat.discrete(ts)
         res, unit = zeta[1:] - zeta[:-1] @ A.T - v[:-1] @ B.T, _unit_q(flat, ts)
     else:
-        from dfeif_codegen.reference import predictor as predictors
+        predictors = importlib.import_module("dfeif_codegen.reference.predictor")   # only when asked for
         pred = predictors.make(predictor, flat, ts, np.ones(flat.m))
         res = zeta[1:] - np.array([pred.mean(z, w) for z, w in zip(zeta[:-1], u[:-1])])
         unit = np.diag(pred.Q)
