@@ -61,7 +61,7 @@ def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]
     (a run without model error: the numbers the numpy engine's plant uses) and as functions of
     the parameter vector (`_p`: a run whose plant differs from the model, experiment/model_error.py)."""
     model = flat.model
-    plant = Plant(model, ts, substeps)
+    plant = Plant(model, ts, substeps, flat.extension)
     n, m = model.n, model.m
     xs, us = ca.SX.sym("x", n), ca.SX.sym("u", m)
     step = ca.Function(f"{prefix}_plant_step", [xs, us], [plant._step.function(xs, us)])
