@@ -120,7 +120,7 @@ def test_filters_keep_the_nominal_model():
     ekf = compare.filter_of("dc_motor_link", 0.01, (20.0,), 10, "ekf")
     x, u = np.array([0.3, -1.0, 0.5]), np.array([2.0])
     nominal = Plant(flat.model, 0.01, 10).step(x, u)
-    perturbed = Plant(flat.model, 0.01, 10, ERROR.values(flat.model, 0)).step(x, u)
+    perturbed = Plant(flat.model, 0.01, 10, params=ERROR.values(flat.model, 0)).step(x, u)
     predicted = np.array(ekf.model.step_sx(x, u)).ravel()
     np.testing.assert_allclose(predicted, nominal, rtol=1e-12, atol=1e-14)
     assert np.abs(predicted - perturbed).max() > 1e-4

@@ -72,7 +72,8 @@ def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]
     camera = ca.Function(f"{prefix}_plant_camera", [xs, es], [z])
     phi = ca.Function(f"{prefix}_plant_phi", [xs], [numeric.sx_function("phi", [list(model.x)], _fixed(model, flat.phi))(xs)])
     ps = ca.SX.sym("p", len(model.p))
-    step_p = ca.Function(f"{prefix}_plant_step_p", [xs, us, ps], [parametric_step(model, ts, substeps)(xs, us, ps)])
+    period_p = parametric_step(model, ts, substeps, flat.extension)
+    step_p = ca.Function(f"{prefix}_plant_step_p", [xs, us, ps], [period_p(xs, us, ps)])
     phi_p = ca.Function(f"{prefix}_plant_phi_p", [xs, ps],
                         [numeric.sx_function("phi", [list(model.x), list(model.p)], flat.phi)(xs, ps)])
     cg = ca.CodeGenerator(f"{prefix}_plant", {"casadi_int": "int", "casadi_real": "double", "main": False,
