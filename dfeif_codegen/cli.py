@@ -105,6 +105,10 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reference", choices=["sinusoid", "seesaw"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
                    help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
+    p.add_argument("--param-error", metavar="SPREAD|NAME=REL,...", default=None,
+                   help="model error, replacing the scenario's [model_error]: 0.2 draws each of the plant's "
+                        "parameters per run within +-20%% of the model's; R=0.2,J=-0.1 fixed relative offsets; "
+                        "0 the exact model (the filters and the controller keep the model's values)")
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--json", metavar="FILE", help="write every figure machine-readably ('-' for stdout)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -258,7 +262,7 @@ def simulate(args: argparse.Namespace) -> int:
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
-        results=args.results, csv=args.csv, resume=args.resume, **_budget(args))
+        results=args.results, csv=args.csv, resume=args.resume, param_error=args.param_error, **_budget(args))
     print(result.to_json() if args.json == "-" else result.report())
     if result.failures:  # a run that failed or diverged is a result to act on, not a footnote
         print(f"codegen simulate: {result.failure_line()}", file=sys.stderr)

@@ -26,6 +26,7 @@ from dfeif_codegen.symbolic import model as model_mod
 from dfeif_codegen.reference.control import FlatController
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.linalg import wrap
+from dfeif_codegen.experiment.model_error import NONE as EXACT_MODEL, ParamError
 from dfeif_codegen.experiment.network import Link, Network
 from dfeif_codegen.reference.node import NodeFilter
 from dfeif_codegen.experiment.plant import Camera, Plant
@@ -139,6 +140,9 @@ class Config:
     seed: int = 0
     metrics_from: float = 1.0         # [s] metrics skip the initial transient
     watch_nees: bool = True           # a run whose master NEES stays huge has diverged (off: calibration)
+    # the plant's parameters against the model's (experiment/model_error.py); out of repr, so a
+    # run without model error keeps its id in --results files (sweep.run_id adds it when set)
+    plant_error: ParamError = field(default=EXACT_MODEL, repr=False)
 
 
 @dataclass
@@ -315,9 +319,10 @@ def derive(spec: str, max_seconds: float | None = None, max_memory: float | None
     return FLATS[spec]
 
 
-@lru_cache(maxsize=None)
-def _plant(spec: str, ts: float, substeps: int) -> Plant:
-    return Plant(_flat(spec).model, ts, substeps, _flat(spec).extension)
+@lru_cache(maxsize=64)
+def _plant(spec: str, ts: float, substeps: int, params: tuple | None = None) -> Plant:
+    """The plant, with the model's parameters or (model error) the given vector."""
+    return Plant(_flat(spec).model, ts, substeps, _flat(spec).extension, params)
 
 
 @lru_cache(maxsize=None)
@@ -392,6 +397,11 @@ class Setup:
     P0: np.ndarray
     upd: np.ndarray           # (M, K) lag of the frame node i's update at k uses, -1: none
     late: np.ndarray          # (E, 3) late events (step, node, lag) in the order applied
+    plant_p: np.ndarray | None = None   # the plant's parameters; None: the model's (no model error)
+
+    @property
+    def plant_key(self) -> tuple | None:
+        return None if self.plant_p is None else tuple(self.plant_p.tolist())
 
     def bank(self) -> "FilterBank":
         return FilterBank(self.flat, self.ts, self.q, self.R, self.node_x0, self.node_P0, self.x_hat0, self.P0,
@@ -431,15 +441,18 @@ def prepare(cfg: Config) -> Setup:
         np.minimum.at(freshest, (node, step), lag)
         upd = np.where((upd < 0) & (freshest < K), freshest, upd)
     late = net.events if cfg.method in OOSM else np.zeros((0, 3), dtype=int)
-    return Setup(cfg, flat, ts, K, t, ref, net, cams, noise, flat.phi_inv_num(zeta0), q, gains, R, oosm,
-                 np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1)), x_hat0, P0, upd, late)
+    # the truth's canonical state is the plant's own flat outputs and derivatives: Phi with the
+    # plant's parameters (the model's without model error)
+    plant_p = cfg.plant_error.values(model, cfg.seed)
+    return Setup(cfg, flat, ts, K, t, ref, net, cams, noise, flat.phi_inv_num(zeta0, plant_p), q, gains, R, oosm,
+                 np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1)), x_hat0, P0, upd, late, plant_p)
 
 
 def run(cfg: Config) -> Result:
     """One closed-loop run, reproducible from `cfg.seed` (the numpy reference engine)."""
     s = prepare(cfg)
     flat, K, M, n, m = s.flat, s.K, len(cfg.sensor), s.flat.n, s.flat.m
-    plant = _plant(cfg.model, s.ts, cfg.substeps)
+    plant = _plant(cfg.model, s.ts, cfg.substeps, s.plant_key)
     bank = s.bank()
     frames = np.zeros((M, K, m))
     zeta, x_true = np.zeros((K, n)), np.zeros((K, n))
@@ -448,7 +461,7 @@ def run(cfg: Config) -> Result:
     x = s.x0
     watch = DivergenceWatch(flat.model, cfg.watch_nees, tracking_bound(cfg, m))
     for k in range(K):
-        x_true[k], zeta[k] = x, flat.phi_num(x)
+        x_true[k], zeta[k] = x, flat.phi_num(x, s.plant_p)
         for i in range(M):
             frames[i, k] = s.cams[i].measure(x, s.noise[i][k])
         z = np.array([frames[i, k - s.upd[i, k]] if s.upd[i, k] >= 0 else np.zeros(m) for i in range(M)])

@@ -18,6 +18,7 @@ from dfeif_codegen.symbolic.model import _key_lines
 from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
 from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
+from dfeif_codegen.experiment import model_error
 from dfeif_codegen.experiment.trajectory import KINDS
 
 BUILTIN = ("paper", "unicycle", "pvtol")
@@ -31,6 +32,7 @@ _ALLOWED = {
     "nodes": {"noise_scale", "noise_std"},
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
+    "model_error": model_error.KEYS,
 }
 
 
@@ -79,13 +81,16 @@ class Scenario:
     noise_std: list[list[float] | None] = field(default_factory=lambda: [None, None])
     uplink: Link = field(default_factory=Link)
     grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
+    model_error: model_error.ParamError = model_error.NONE    # the plant's parameters against the model's
     _lines: dict = field(default_factory=dict, repr=False)
 
     def where(self, key: str) -> str:
         """`file:line: key`; entry i of an array of tables is looked up as `grid#i` and shown as `grid[i+1]`."""
         head = key.split(".")[0]
         inside = [n for k, n in self._lines.items() if k.startswith(head + ".")]
-        line = self._lines.get(key) or self._lines.get(head) or (min(inside) if inside else None)
+        parent = key.rsplit(".", 1)[0] if key.count(".") > 1 else None    # model_error.relative.R
+        line = self._lines.get(key) or (parent and self._lines.get(parent)) or self._lines.get(head) \
+            or (min(inside) if inside else None)
         shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
 
@@ -99,6 +104,12 @@ class Scenario:
         def fail(key: str, message: str):
             raise ScenarioError(f"{self.where(key)}: {message}{hint}")
 
+        def at(key: str) -> str:      # a spread over `params` is named on the params line
+            if key.startswith("spread.") and "model_error.params" in self._lines:
+                key = "params"
+            return self.where(key if key == "model_error" else f"model_error.{key}")
+
+        self.model_error.check(flat.model, at)
         ts = self.ts or flat.model.ts
         if self.duration / ts > MAX_STEPS:
             fail("scenario.duration", f"{self.duration:g} s at Ts = {ts:g} s is {self.duration / ts:.3g} steps; "
@@ -307,4 +318,6 @@ def loads(text: str, source: str = "<string>") -> Scenario:
     _read_head(r, data.get("scenario", {}))
     _read_settings(r, data)
     _read_network(r, data)
+    if "model_error" in data:
+        r.sc.model_error = model_error.from_table(data["model_error"], r.fail)
     return r.sc
