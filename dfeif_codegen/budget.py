@@ -116,10 +116,12 @@ def bounded(fn, args: tuple, max_seconds: float | None, max_memory: float | None
     proc = ctx.Process(target=_child, args=(child, fn, args, max_memory * 1e9, max_seconds), daemon=True)
     proc.start()
     child.close()
+    pid = proc.pid
+    assert pid is not None  # set by start()
     stage, wall_deadline = "starting", time.monotonic() + WALL_FACTOR * max_seconds + 60
     try:
         while True:
-            used = _cpu_seconds(proc.pid)
+            used = _cpu_seconds(pid)
             if (used is not None and used >= max_seconds) or time.monotonic() >= wall_deadline \
                     or proc.exitcode == -getattr(signal, "SIGXCPU", -1):
                 raise BudgetError(f"{what}: stopped after {max_seconds:g} CPU-s while {stage} (the expression "

@@ -73,9 +73,10 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
 
 def _budget_options(p: argparse.ArgumentParser) -> None:
     """--max-seconds and --max-memory: every command that derives a model takes them."""
-    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
+    # None: the budget module's defaults (60 CPU-s, 2 GB), as for the dc.* keywords
+    p.add_argument("--max-seconds", type=float, default=None, metavar="S",
                    help="CPU-time budget of the symbolic derivation in seconds (default 60)")
-    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
+    p.add_argument("--max-memory", type=float, default=None, metavar="GB",
                    help="memory budget of the symbolic derivation in GB (default 2)")
 
 
