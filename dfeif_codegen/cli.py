@@ -70,10 +70,20 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true",
                    help="build even where OUT/<model> holds files an earlier build did not write "
                         "(the build's own files are replaced, the others kept)")
-    p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
-                   help="time budget of the symbolic derivation (default 60)")
-    p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
+    _budget_options(p)
+
+
+def _budget_options(p: argparse.ArgumentParser) -> None:
+    """--max-seconds and --max-memory: every command that derives a model takes them."""
+    # None: the budget module's defaults (60 CPU-s, 2 GB), as for the dc.* keywords
+    p.add_argument("--max-seconds", type=float, default=None, metavar="S",
+                   help="CPU-time budget of the symbolic derivation in seconds (default 60)")
+    p.add_argument("--max-memory", type=float, default=None, metavar="GB",
                    help="memory budget of the symbolic derivation in GB (default 2)")
+
+
+def _budget(args: argparse.Namespace) -> dict:
+    return dict(max_seconds=args.max_seconds, max_memory=args.max_memory)
 
 
 def _verify_arguments(p: argparse.ArgumentParser) -> None:
@@ -88,6 +98,7 @@ def _verify_arguments(p: argparse.ArgumentParser) -> None:
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")
     _filter_options(p)
+    _budget_options(p)
 
 
 def _simulate_arguments(p: argparse.ArgumentParser) -> None:
@@ -98,6 +109,10 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reference", choices=["sinusoid", "seesaw"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
                    help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
+    p.add_argument("--param-error", metavar="SPREAD|NAME=REL,...", default=None,
+                   help="model error, replacing the scenario's [model_error]: 0.2 draws each of the plant's "
+                        "parameters per run within +-20%% of the model's; R=0.2,J=-0.1 fixed relative offsets; "
+                        "0 the exact model (the filters and the controller keep the model's values)")
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--json", metavar="FILE", help="write every figure machine-readably ('-' for stdout)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -110,6 +125,7 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--csv", metavar="FILE", help="per-run scalar results as CSV")
     p.add_argument("--resume", metavar="FILE",
                    help="continue the sweep recorded in FILE (a --results file): finished runs are not rerun")
+    _budget_options(p)
 
 
 def _network_arguments(p: argparse.ArgumentParser) -> None:
@@ -127,6 +143,7 @@ def _network_arguments(p: argparse.ArgumentParser) -> None:
                    help="measure wire sizes, master throughput, latency and CPU; write the network section "
                         "of FILE (default BENCHMARKS.md) instead of one compared run")
     _filter_options(p)
+    _budget_options(p)
 
 
 def _bench_arguments(p: argparse.ArgumentParser) -> None:
@@ -167,10 +184,18 @@ def parser() -> argparse.ArgumentParser:
     _simulate_arguments(add("simulate"))
     p = add("scenario")
     p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
+    p.add_argument("--shape", choices=["sinusoid", "seesaw", "circle", "figure8"], default="sinusoid",
+                   help="how the flat outputs move together (default sinusoid: in phase)")
+    p.add_argument("--amplitude", metavar="A[,A...]", help="per flat output (default: a tenth of its domain)")
+    p.add_argument("--offset", metavar="C[,C...]", help="per flat output (default: its nominal value)")
+    p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
+    p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
+    _budget_options(p)
 
     p = add("inspect")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+    _budget_options(p)
 
     _network_arguments(add("network"))
     _bench_arguments(add("bench"))
@@ -196,7 +221,7 @@ def build(args: argparse.Namespace) -> int:
         print(f"codegen build --check: {args.out} is up to date for {args.model}")
         return 0
     module = build.build(args.model, args.out, **_build_options(args), force=args.force,
-                         max_seconds=args.max_seconds, max_memory=args.max_memory)
+                         **_budget(args))
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")
@@ -215,7 +240,7 @@ def build(args: argparse.Namespace) -> int:
 def inspect(args: argparse.Namespace) -> int:
     from dfeif_codegen.symbolic import inspect_model
 
-    info = inspect_model.inspect(args.model, ts=args.ts)
+    info = inspect_model.inspect(args.model, ts=args.ts, **_budget(args))
     print(inspect_model.render_json(info) if args.json else inspect_model.render_text(info))
     return 0
 
@@ -227,7 +252,7 @@ def verify(args: argparse.Namespace) -> int:
     result = verify.verify(args.model, target=args.target, precision=args.precision, sanitize=args.sanitize,
                            scenario=args.scenario, inputs=args.inputs, max_lag=args.max_lag, nodes=args.nodes,
                            oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                           progress=lambda line: print(line, flush=True))
+                           progress=lambda line: print(line, flush=True), **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")
@@ -242,7 +267,7 @@ def simulate(args: argparse.Namespace) -> int:
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
-        results=args.results, csv=args.csv, resume=args.resume)
+        results=args.results, csv=args.csv, resume=args.resume, param_error=args.param_error, **_budget(args))
     print(result.to_json() if args.json == "-" else result.report())
     if result.failures:  # a run that failed or diverged is a result to act on, not a footnote
         print(f"codegen simulate: {result.failure_line()}", file=sys.stderr)
@@ -283,7 +308,8 @@ def bench(args: argparse.Namespace) -> int:
 def scenario(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import starter
 
-    text = starter.scenario(args.model, out=args.out)
+    text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
+                            offset=args.offset, phase=args.phase, period=args.period, **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 
@@ -306,7 +332,7 @@ def network(args: argparse.Namespace) -> int:
     result = run.network(args.model, scenario=args.scenario, row=args.row, seed=args.seed,
                          precision=args.precision, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
                          nodes=args.nodes, max_lag=args.max_lag, duration=args.duration, key=args.key,
-                         flip_rate=args.flip_rate, keep=args.keep)
+                         flip_rate=args.flip_rate, keep=args.keep, **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")

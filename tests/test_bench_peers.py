@@ -32,13 +32,17 @@ def test_growth_fit_recovers_a_power_law():
 
 def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
     """c_peers raises unless the dense-loop and the straight-line filters end where the generated
-    filter ends after 200 steps (1e-9); the straight-line one exists for the 3-state motor only."""
+    filter ends after 200 steps (1e-9), each with the generated filter's predictor (held: the
+    ETD2RK mean calling the model function, E P E' + Q; brunovsky: the linear chain); the
+    straight-line one exists for the 3-state motor only."""
     require_tool("valgrind", "valgrind")
-    md = harness.build_model("dc_motor_link", tmp_path / "b")
-    out = bench_peers.c_peers("dc_motor_link", md, tmp_path / "w")
-    assert set(out["instructions"]) == set(out["ns"]) == {"generated", "dense", "straight"}
-    # the hand-written filter does strictly less work than the generated one, which checks its inputs
-    assert 0 < out["instructions"]["straight"] < out["instructions"]["generated"]
+    for pred in bench_peers.PREDICTORS:
+        md = harness.build_model("dc_motor_link", tmp_path / f"b{pred}", **bench_peers.with_predictor(pred))
+        assert md.options.get("predictor") == pred
+        out = bench_peers.c_peers("dc_motor_link", md, tmp_path / f"w{pred}")
+        assert set(out["instructions"]) == set(out["ns"]) == {"generated", "dense", "straight"}
+        # the hand-written filter does strictly less work than the generated one, which checks its inputs
+        assert 0 < out["instructions"]["straight"] < out["instructions"]["generated"] < out["instructions"]["dense"]
     arm = harness.build_model("two_link_arm", tmp_path / "a")
     assert set(bench_peers.c_peers("two_link_arm", arm, tmp_path / "wa")["instructions"]) == {"generated", "dense"}
 
@@ -83,18 +87,18 @@ def test_worst_case_counts_every_public_entry_point(host_cc, tmp_path):
 
 
 def test_looped_filter_kernels_grow_as_n_squared(tmp_path):
-    """On chains of 7 integrators and more, node_predict and info are loops over parts of O(n^2)
-    straight-line code (kernels.LOOP_OPS): their Cortex-M4F .text from n = 7 to 10 grows by less than (10/7)^2 =
-    2.04 (lower-order terms only lower the ratio). Their straight-line code, Theta(n^3) bytes,
-    grows by 3.2 over the same step."""
+    """On chains of 7 integrators and more, info is a loop over parts of O(n^2) straight-line code
+    (kernels.LOOP_OPS), node_predict stays straight-line (the per-step kernel, up to 2,500
+    operations): info's Cortex-M4F .text from n = 7 to 10 grows by less than (10/7)^2 = 2.04
+    (lower-order terms only lower the ratio); its straight-line code, Theta(n^3) bytes, grew by 3.3."""
     require_tool("arm-none-eabi-gcc", "gcc-arm-none-eabi")
     from dfeif_codegen.check import kernel_text
     from dfeif_codegen.codegen import kernels
 
     flat = flatness.derive(model_mod.load(str(_chain(7, tmp_path))))
-    assert len(kernels.build(flat, Options(ts=flat.model.ts), "chain7").loops) == 2
+    assert set(kernels.build(flat, Options(ts=flat.model.ts), "chain7").loops) == {"chain7_kern_info"}
     size = {}
     for n in (7, 10):
         per, _ = kernel_text.chain_kernels(n, tmp_path)
-        size[n] = per["node_predict"] + per["info"]
+        size[n] = per["info"]
     assert size[10] / size[7] < (10 / 7) ** 2

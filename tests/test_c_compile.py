@@ -46,6 +46,9 @@ VARIANTS = {
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
     "free-double": (str(Path(__file__).parent / "data" / "free_cart.toml"), {}),
     "free-float": (str(Path(__file__).parent / "data" / "free_cart.toml"), {"precision": "float"}),
+    # a dynamic extension: the controller's integrators (extension_step)
+    "pvtol-float": ("pvtol", {"precision": "float"}),
+    "unicycle-double": ("unicycle", {}),
 }
 FLOAT_VARIANTS = [k for k, (_, o) in VARIANTS.items() if o.get("precision") == "float"]
 
@@ -774,8 +777,8 @@ def test_spd_inverse_once_equals_numpy():
 
 
 def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
-    """node_predict and info of a chain of 8 integrators printed as loops (the default above
-    kernels.LOOP_OPS operations) and as straight-line code, double and float: x1 and the Cholesky
+    """node_predict and info of a chain of 8 integrators printed as loops (kernels.LOOP_OPS at 0,
+    as a chain of 13 or more gets them) and as straight-line code, double and float: x1 and the Cholesky
     pivots are the same operations in the same order, so bit-equal (without -ffp-contract, which
     the library's flags leave at its ISO default, off); P1 sums the same products in another order
     (each entry of A P A' two sums of at most 8 products, A's rows summing to at most 1.01 here:
@@ -794,11 +797,10 @@ def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
     assert np.linalg.cond(P) < 100
     x, c = rng.standard_normal(n), rng.standard_normal(n)
     post = np.concatenate([x, [P[i, j] for j in range(n) for i in range(j + 1)]])
-    default = kernels.LOOP_OPS
     for precision, dtype, tol in (("double", np.float64, (1e-13, 1e-11)), ("float", np.float32, (1e-5, 1e-3))):
         got = {}
-        for loop_ops in (default, 10 ** 6):
-            monkeypatch.setattr(kernels, "LOOP_OPS", loop_ops)
+        for loop_ops in (0, 10 ** 6):
+            monkeypatch.setattr(kernels, "LOOP_OPS", {"node_predict": loop_ops, "info": loop_ops})
             folder = tmp_path / f"{precision}{loop_ops}"
             mod = build.build(str(spec), folder, precision=precision)
             lib = shared_library(mod.path, folder)
@@ -808,7 +810,7 @@ def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
             ptr = [a.ctypes.data_as(ctypes.c_void_p) for a in args]
             assert lib.chain8_kern_node_predict(*ptr[:5]) == 0
             assert lib.chain8_kern_info(*ptr[5:]) == 0
-            got[loop_ops == default] = [args[i].astype(float) for i in (3, 4, 8, 9, 10)]
+            got[loop_ops == 0] = [args[i].astype(float) for i in (3, 4, 8, 9, 10)]
         (x1, P1, Y, y, piv), (x1s, P1s, Ys, ys, pivs) = got[True], got[False]
         assert np.array_equal(x1, x1s) and np.array_equal(piv, pivs), precision
         for a, b, t in ((P1, P1s, tol[0]), (Y, Ys, tol[1]), (y, ys, tol[1])):
@@ -817,8 +819,8 @@ def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
 
 
 def test_filter_kernels_of_a_long_chain(tmp_path):
-    """A flat chain of 7 integrators (any user model), whose node_predict and info are printed as
-    loops (above kernels.LOOP_OPS operations): the master's predict, a call of node_predict on packed copies,
+    """A flat chain of 7 integrators (any user model), whose info is printed as loops (above its
+    kernels.LOOP_OPS operations): the master's predict, a call of node_predict on packed copies,
     equals CasADi's own evaluation of the unshared predict expression: each entry of A P A' is
     two sums of at most 7 products in either, A's rows sum to at most 1.01 here, so the two
     differ by at most 2 * 7 * 1.01^2 eps max|P| = 3.2e-15 max|P1| (max|P1| >= max|P|, as A's
@@ -844,7 +846,7 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     assert lib("kern_predict", x, P.ravel().copy(), v, q, x1, P1) == 0
     b = Chains(flatness.derive(model.load(str(spec))), Options(ts=0.01))
     x1_ref, P1_ref = (np.array(a) for a in node.predict(b, "p")(x, P, v, q))
-    assert {"chain7_kern_node_predict", "chain7_kern_info"} <= set(kernels.build(b.flat, b.opts, "chain7").loops)
+    assert set(kernels.build(b.flat, b.opts, "chain7").loops) == {"chain7_kern_info"}
     np.testing.assert_allclose(x1, x1_ref.ravel(), rtol=1e-13)
     np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=0, atol=1e-13 * np.abs(P1_ref).max())
     assert np.array_equal(P1.reshape(n, n), P1.reshape(n, n).T)

@@ -46,11 +46,32 @@ def test_generated_scenario_closes_the_loop(tmp_path, name, text):
 
 def test_motor_q_matches_the_hand_calibration(tmp_path):
     """On the motor the one-step residual gives the q the paper scenario chose by hand (20, from
-    NEES sweeps on other seeds, docs/experiment.md): within a factor of 2."""
+    NEES sweeps on other seeds, docs/experiment.md): within a factor of 2. The NEES match then
+    raises it (the hand calibration's NEES, 3.5 for n = 3, is above n)."""
     out = tmp_path / "motor.toml"
     assert cli.main(["scenario", "dc_motor_link", "--out", str(out)]) == 0
-    q = scenario.load(str(out)).q
-    assert 10 <= q[0] <= 40
+    text = out.read_text()
+    residual = float(text.split("along the closed loop: q = [")[1].split("]")[0])
+    assert 10 <= residual <= 40
+    assert scenario.load(str(out)).q[0] > residual
+
+
+def test_calibrated_q_puts_the_master_nees_in_its_band(tmp_path):
+    """The arm: with the residual's q its master NEES is 8.0-9.1 for n = 6 (docs/experiment.md);
+    the written q brings it to n within 20% on seeds the calibration did not use (0-3; rows
+    without and with the paper's longest delays), inside the 95% band of 4 runs. 20%: the
+    calibration matches n to 10% over 2 runs of 20 s; the NEES's run-to-run spread over 4 runs
+    of 20 s is a few percent (measured 3.4-3.5% on the motor)."""
+    out = tmp_path / "arm.toml"
+    assert cli.main(["scenario", "two_link_arm", "--out", str(out)]) == 0
+    sc = scenario.load(str(out))
+    flat = ex._flat("two_link_arm")
+    lo, hi = simulate.nees_band(flat.n, 4)
+    for ri in (0, len(sc.grid) - 1):
+        nees = np.mean([ex.run(simulate.make_config(sc, "two_link_arm", 2, 32, "sinusoid", sc.grid[ri], "replay",
+                                                    "difference", s)).metrics["nees_master"].mean()
+                        for s in range(4)])
+        assert lo <= nees <= hi and abs(nees / flat.n - 1) < 0.2, (ri, nees)
 
 
 def test_too_fast_a_mode_is_flagged(tmp_path):

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from dfeif_codegen import __version__
-from dfeif_codegen.check import bench_peers, harness, target
+from dfeif_codegen.check import bench_peers, bench_target, harness, target
 from dfeif_codegen.check.bench_report import BenchResult
 from dfeif_codegen.codegen import render
 from dfeif_codegen.errors import CodegenError, SetupError
@@ -113,8 +113,9 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
     if isinstance(repeat, bool) or not isinstance(repeat, int) or not 1 <= repeat <= 1000:
         raise CodegenError(f"--repeat must be an integer between 1 and 1000, got {repeat!r}")
     harness.host_compiler()
-    for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size"):
+    for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "arm-none-eabi-nm", "qemu-system-arm"):
         target.require(tool)
+    target.require_newlib()
     models = [model] if model not in (None, "all") and model not in MODELS else list(MODELS)
     sections = []
     with tempfile.TemporaryDirectory(prefix="codegen-bench-") as tmp:
@@ -126,14 +127,25 @@ def bench(model: str | None = None, *, repeat: int = 5, command: str | None = No
         if progress:
             progress("codegen bench: peers")
         for sec in sections:
-            md = harness.build_model(sec["name"], work / sec["name"] / "peers-build")
-            sec["peers"] = bench_peers.c_peers(sec["name"], md, work / sec["name"] / "peers")
-            sec["py_peers"] = bench_peers.python_peers(sec["name"])
+            name, w = sec["name"], work / sec["name"]
+            sec["peers"] = {}
+            for pred in bench_peers.PREDICTORS:
+                md = harness.build_model(name, w / f"peers-{pred}-build", **bench_peers.with_predictor(pred))
+                sec["peers"][pred] = bench_peers.c_peers(name, md, w / f"peers-{pred}")
+            sec["py_peers"] = bench_peers.python_peers(name)
+            if progress:
+                progress(f"codegen bench: {name} on the emulated Cortex-M4F")
+            sec["target"] = bench_target.model(name, w / "target")
+            sec["target_peers"] = {pred: bench_target.peers(name, w / f"target-peers-{pred}", pred)
+                                   for pred in bench_peers.PREDICTORS}
         comparisons = {}
         if not quick:
             if progress:
                 progress("codegen bench: scaling")
             comparisons["scaling"] = bench_peers.scaling(work / "scaling", callgrind)
+            if progress:
+                progress("codegen bench: scaling on the emulated Cortex-M4F")
+            comparisons["target_scaling"] = bench_target.scaling(work / "target-scaling")
             if progress:
                 progress("codegen bench: closed-loop Monte Carlo")
             comparisons["mc"] = bench_peers.monte_carlo(work / "mc")

@@ -29,7 +29,22 @@ from dfeif_codegen.check import harness, target
 from dfeif_codegen.codegen import render
 from dfeif_codegen.errors import SetupError
 
-CHAINS = tuple(range(2, 11))
+CHAINS = tuple(range(2, 13))
+
+def _predictors() -> tuple:
+    """The predictors the C peers are measured with, the default first (builds from before the
+    held predictor know only the Brunovsky one: None)."""
+    from dfeif_codegen.codegen.options import Options
+
+    return ("held", "brunovsky") if "predictor" in Options.__dataclass_fields__ else (None,)
+
+
+PREDICTORS = _predictors()
+
+
+def with_predictor(predictor) -> dict:
+    """build_model's keyword for a predictor of PREDICTORS."""
+    return {} if predictor is None else {"predictor": predictor}
 NODES = (1, 2, 4, 8, 16)
 WINDOWS = (8, 16, 32, 64, 128)
 
@@ -49,22 +64,53 @@ def chain_model(n: int) -> str:
 
 # --- peers of one node step ------------------------------------------------------------------------
 
-def _peers_program(spec: str, md: harness.ModelDir, work: Path) -> Path:
+def render_peers(spec: str, md: harness.ModelDir, work: Path) -> Path:
+    """templates/harness/peers.c.j2 for this model, in the build's precision."""
     from dfeif_codegen.symbolic import flatness, model as model_mod
 
     flat = flatness.derive(model_mod.load(spec))
     ts = float(md.options.get("ts") or flat.model.ts)
-    A, B, _ = flat.discrete(ts)
-    Q = flat.process_noise(ts, np.ones(flat.m))
-    lit = render.literal("double")
-    env = render.environment("double")
-    straight = flat.n == 3 and flat.m == 1
+    lit = render.literal(md.precision)
+    arr = lambda a: [lit(v) for v in np.ravel(a)]  # noqa: E731
+    held = md.options.get("predictor") == "held"
+    if held:
+        from dfeif_codegen.symbolic import sampling
+
+        H = sampling.held_sampling(flat, ts)
+        Ac, Bc, _ = flat.canonical()
+        model_c, work_size = _model_function(flat, md.precision)
+        consts = {"Q": arr(H.Q(np.ones(flat.m))), "E": arr(H.E), "Psi": arr(H.Psi), "Ac": arr(Ac), "Bc": arr(Bc),
+                  "G2": arr(H.G2), "L0": arr(H.L0), "model_c": model_c, "model_work": work_size}
+    else:
+        A, B, _ = flat.discrete(ts)
+        consts = {"A": arr(A), "B": arr(B), "Q": arr(flat.process_noise(ts, np.ones(flat.m)))}
+    env = render.environment(md.precision)
+    work.mkdir(parents=True, exist_ok=True)
     src = work / "peers.c"
     src.write_text(env.get_template("harness/peers.c.j2").render(
-        p=md.name, P=md.name.upper(), straight=straight,
-        A=[lit(a) for a in np.ravel(A)], B=[lit(b) for b in np.ravel(B)], Q=[lit(q) for q in np.ravel(Q)],
-        heads=flat.heads, angles=[int(c.angle) for c in flat.chains],
+        p=md.name, P=md.name.upper(), straight=flat.n == 3 and flat.m == 1, precision=md.precision, held=held,
+        heads=flat.heads, angles=[int(c.angle) for c in flat.chains], **consts,
         banner=render.banner("harness/peers.c.j2", md.name, __version__)))
+    return src
+
+
+def _model_function(flat, precision: str) -> tuple[str, int]:
+    """The model's top derivatives v = F(z) + G(z) u at the default parameters as C
+    (`peer_v(z, u, v, w)`, w its work array): what a user of a filter library writes for it."""
+    import casadi as ca
+
+    from dfeif_codegen.codegen.kernels import csource
+    from dfeif_codegen.symbolic import sampling
+
+    z, u = ca.SX.sym("z", flat.n), ca.SX.sym("u", flat.m)
+    top = sampling.remainder_function(flat)(z, u, ca.DM(flat.param_vector))[0]
+    text, _ = csource.c_source([ca.Function("peer_v", [z, u], [top], ["z", "u"], ["v"])], "real", precision)
+    text = text.replace("int peer_v(", "static int peer_v(")
+    return text, int(re.search(r"real w\[(\d+)\]", text).group(1))
+
+
+def _peers_program(spec: str, md: harness.ModelDir, work: Path) -> Path:
+    src = render_peers(spec, md, work)
     return harness.compile_program([*md.sources(), src], work / "peers", [md.path], [harness.BIND_NOW])
 
 
@@ -86,9 +132,13 @@ def c_peers(spec: str, md: harness.ModelDir, work: Path) -> dict:
 
 def _callgrind(exe: Path, work: Path) -> tuple[dict, dict]:
     counts, stdout = harness.callgrind(exe, work)
-    finals = {m.group(1): [float(v) for v in m.group(2).split()]
-              for m in re.finditer(r"^final (\w+) (.*)$", stdout, re.M)}
-    return counts, finals
+    return counts, finals(stdout)
+
+
+def finals(stdout: str) -> dict[str, list[float]]:
+    """Each peer's final estimate, as the peers program prints it."""
+    return {m.group(1): [float(v) for v in m.group(2).split()]
+            for m in re.finditer(r"^final (\w+) (.*)$", stdout, re.M)}
 
 
 def python_peers(model: str, steps: int = 2000, repeat: int = 5) -> dict:
@@ -153,7 +203,8 @@ def scaling(work: Path, callgrind) -> dict:
         text = {name: z.text for name, z in target.sizes(objs).items()}
         out["chains"][n] = {"step": c["node_update"] + c["node_predict"],
                             "kernel_text": text[f"chain{n}_kernels_filter.o"],
-                            "filter_text": text[f"chain{n}_kernels_filter.o"] + text[f"chain{n}_node.o"]}
+                            "filter_text": text[f"chain{n}_kernels_filter.o"] + text[f"chain{n}_node.o"],
+                            "fusion_text": text[f"chain{n}_kernels_fusion.o"]}
     for M in NODES:
         row = {}
         for fusion in ("difference", "ci"):

@@ -9,7 +9,7 @@ import statistics
 from dataclasses import dataclass
 
 from dfeif_codegen import __version__
-from dfeif_codegen.check import bench_peers, target
+from dfeif_codegen.check import bench_peers, bench_target, target
 
 LAGS = (1, 8, 25, 32)
 
@@ -62,6 +62,8 @@ def _markdown(r: "BenchResult") -> str:
            f"- target: `{arm}`, `{' '.join(target.CPU_FLAGS)} -Os`, float; sizes of the library's own "
            "objects (no newlib), stack from `-fstack-usage` over GCC's call graph (`-fcallgraph-info=su`), "
            "newlib leaf functions (`ceilf`, `sinf`, `memset`, ...) not included",
+           "- Cortex-M4F instructions and cycles: " + bench_target.ASSUMPTIONS.format(
+               flags=" ".join([*target.CPU_FLAGS, bench_target.OPT, *target.CFLAGS]), calls=bench_target.CALLS),
            f"- build time: wall clock of `codegen build` in a fresh process (imports included), "
            f"median of {repeat}", ""]
     for s in sections:
@@ -101,6 +103,8 @@ def _markdown(r: "BenchResult") -> str:
         for kind in ("node", "master", "packet"):
             out.append(f"| `{name}_{kind}` | {sf[kind]} | {sd[kind]} | {sd[kind] / sf[kind]:.2f} |")
         out.append("")
+        if "target" in s:
+            out += bench_target.markdown(name, s["target"])
     return "\n".join(out)
 
 
@@ -135,27 +139,52 @@ def _ratio(a, b) -> str:
 
 
 def _peers(sections: list[dict]) -> list[str]:
-    """The generated filter beside the C and Python peers, one node step."""
+    """The generated filter beside the C and Python peers, one node step, with each predictor."""
     out = ["## Peers side by side (one node step: update with an on-time frame, then predict)", "",
            "Host, double. C instruction counts from callgrind; wall time median of 7 timed loops of "
-           "20,000 steps (C) or of 5 loops of 2,000 steps (Python). The C peers are checked to give the "
-           "generated filter's estimate (1e-9) before they are reported.", "",
-           "| model | filter | instructions | x generated | ns per step | x generated |",
-           "|---|---|---:|---:|---:|---:|"]
+           "20,000 steps (C) or of 5 loops of 2,000 steps (Python). Each C peer predicts as the generated filter it "
+           "is compared with (held: the mean by one ETD2RK step with the input held, calling the model's "
+           "top derivatives `F + G u` as a user's model function, `P = E P E' + Q`; brunovsky: the chapter's "
+           "linear chain) and is checked to give that filter's estimate (1e-9) before it is reported.", "",
+           "| model | predictor | filter | instructions | x generated | ns per step | x generated |",
+           "|---|---|---|---:|---:|---:|---:|"]
+    labels = {"generated": "generated (this tool)", "dense": "dense-loop C (embedded-library style)",
+              "straight": "hand-written straight-line C (n = 3 limit)"}
     for sec in sections:
-        pe, py = sec["peers"], sec["py_peers"]
-        gi, gn = pe["instructions"]["generated"], pe["ns"]["generated"]
-        labels = {"generated": "generated (this tool)", "dense": "dense-loop C (embedded-library style)",
-                  "straight": "hand-written straight-line C (n = 3 limit)"}
-        for key, label in labels.items():
-            if key in pe["instructions"]:
-                i, t = pe["instructions"][key], pe["ns"][key]
-                out.append(f"| {sec['name']} | {label} | {_fmt(i)} | {i / gi:.2f} | {t:.1f} | {t / gn:.2f} |")
-        for label, t in py.items():
-            out.append(f"| {sec['name']} | {label} | - | - | {'-' if t is None else f'{t:,.0f}'} | "
+        for pred in bench_peers.PREDICTORS:
+            pe = sec["peers"][pred]
+            gi, gn = pe["instructions"]["generated"], pe["ns"]["generated"]
+            for key, label in labels.items():
+                if key in pe["instructions"]:
+                    i, t = pe["instructions"][key], pe["ns"][key]
+                    out.append(f"| {sec['name']} | {pred or 'brunovsky'} | {label} | {_fmt(i)} | {i / gi:.2f} | {t:.1f} | "
+                               f"{t / gn:.2f} |")
+        gn = sec["peers"][bench_peers.PREDICTORS[0]]["ns"]["generated"]
+        for label, t in sec["py_peers"].items():
+            out.append(f"| {sec['name']} | - | {label} | - | - | {'-' if t is None else f'{t:,.0f}'} | "
                        f"{_ratio(t, gn)} |")
     out.append("")
-    return out
+    return out + bench_target.peers_markdown([(s["name"], pred, s["target_peers"][pred],
+                                               s["peers"][pred]["instructions"])
+                                              for s in sections if "target_peers" in s for pred in bench_peers.PREDICTORS])
+
+
+def _peer_targets(sec: dict) -> list[str]:
+    """The node step against the hand-written filter with the same predictor (targets: 1.5x on
+    the M4F, 1.4x host)."""
+    rows = []
+    for pred in bench_peers.PREDICTORS:
+        tp, hp = sec.get("target_peers", {}).get(pred, {}), sec["peers"][pred]["instructions"]
+        if "straight" not in hp:
+            continue
+        g, s = hp["generated"], hp["straight"]
+        rows.append(f"| node step / hand-written, {pred or 'brunovsky'} predictor, host instructions | {_fmt(g)} / {_fmt(s)} = "
+                    f"{g / s:.2f}x | 1.4x |")
+        if "straight" in tp:
+            g, s = tp["generated"]["instructions"], tp["straight"]["instructions"]
+            rows.append(f"| node step / hand-written, {pred or 'brunovsky'} predictor, Cortex-M4F instructions | {_fmt(g)} / "
+                        f"{_fmt(s)} = {g / s:.2f}x | 1.5x |")
+    return rows
 
 
 def _targets(sections: list[dict]) -> list[str]:
@@ -169,6 +198,7 @@ def _targets(sections: list[dict]) -> list[str]:
         out += [f"### Targets, {sec['name']} (host, double)", "", "| figure | measured | target |",
                 "|---|---:|---:|",
                 f"| node predict + update | {_fmt(step)} | 350 (dc_motor_link) |",
+                *_peer_targets(sec),
                 f"| replay, per replayed step (lag 8 -> 32) | {_fmt(per)} = {per / step:.2f}x a plain step | 1.0x |",
                 f"| update_delayed, lag 25, replay | {_fmt(c['node_update_delayed_lag25'])} | 10,000 (dc_motor_link) |",
                 f"| update_delayed, lag 32, replay / retrodict | {_fmt(c['node_update_delayed_lag32'])} / "
@@ -188,13 +218,17 @@ def _scaling(sc: dict) -> list[str]:
     ns = sorted(ch)
     out += ["## Scaling (host, double instructions; Cortex-M4F float -Os sizes)", "",
             "Synthetic flat chains: one output, relative degree n (`n` integrators).", "",
-            "| n | node step instructions | filter kernels .text [B] | kernels + node .text [B] |",
-            "|---:|---:|---:|---:|"]
-    for n in ns:
-        out.append(f"| {n} | {_fmt(ch[n]['step'])} | {ch[n]['kernel_text']} | {ch[n]['filter_text']} |")
+            "| n | node step instructions | x previous n | filter kernels .text [B] | kernels + node .text [B] "
+            "| fusion kernels .text [B] |", "|---:|---:|---:|---:|---:|---:|"]
+    for a, n in enumerate(ns):
+        prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
+        out.append(f"| {n} | {_fmt(ch[n]['step'])} | {prev} | {ch[n]['kernel_text']} | {ch[n]['filter_text']} "
+                   f"| {ch[n]['fusion_text']} |")
     out += ["", f"Fitted growth over n = {ns[0]}..{ns[-1]}: node step ~ n^"
             f"{bench_peers.growth(ns, [ch[n]['step'] for n in ns]):.2f}, filter kernel .text ~ n^"
-            f"{bench_peers.growth(ns, [ch[n]['kernel_text'] for n in ns]):.2f} (target: no faster than n^2).", ""]
+            f"{bench_peers.growth(ns, [ch[n]['kernel_text'] for n in ns]):.2f}, fusion kernel .text ~ n^"
+            f"{bench_peers.growth(ns, [ch[n]['fusion_text'] for n in ns]):.2f} (targets: each n at most 1.6x "
+            "the previous, .text no faster than n^2).", ""]
     nd = sc["nodes"]
     Ms = sorted(nd)
     out += ["| nodes M (dc_motor_link) | master fuse, difference | CI, identical nodes | CI, distinct nodes "
@@ -252,6 +286,8 @@ def _markdown_more(sections: list[dict], comp: dict) -> str:
     out = _peers(sections) + _targets(sections)
     if comp.get("scaling"):
         out += _scaling(comp["scaling"])
+    if comp.get("target_scaling"):
+        out += bench_target.scaling_markdown(comp["target_scaling"])
     if comp.get("mc"):
         out += _monte_carlo(comp["mc"])
     return "\n".join(out)

@@ -28,7 +28,7 @@ import numpy as np
 
 from dfeif_codegen.check import harness, loader
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment.plant import Camera, Plant, _fixed
+from dfeif_codegen.experiment.plant import Camera, Plant, _fixed, parametric_step
 from dfeif_codegen.symbolic import numeric
 
 FAILED_PLANT = 7        # failed_call of the closed-loop driver: the plant's state is not finite
@@ -57,9 +57,11 @@ def build_key(cfg: ex.Config) -> tuple:
 
 def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]:
     """C for the true plant's period, the camera and Phi (CasADi's code generator) and the size of
-    the work array they need."""
+    the work array they need. The period and Phi come twice: with the model's parameters built in
+    (a run without model error: the numbers the numpy engine's plant uses) and as functions of
+    the parameter vector (`_p`: a run whose plant differs from the model, experiment/model_error.py)."""
     model = flat.model
-    plant = Plant(model, ts, substeps)
+    plant = Plant(model, ts, substeps, flat.extension)
     n, m = model.n, model.m
     xs, us = ca.SX.sym("x", n), ca.SX.sym("u", m)
     step = ca.Function(f"{prefix}_plant_step", [xs, us], [plant._step.function(xs, us)])
@@ -69,11 +71,16 @@ def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]
     z = numeric.sx_function("recover", [recover_syms], recover)(obs)
     camera = ca.Function(f"{prefix}_plant_camera", [xs, es], [z])
     phi = ca.Function(f"{prefix}_plant_phi", [xs], [numeric.sx_function("phi", [list(model.x)], _fixed(model, flat.phi))(xs)])
+    ps = ca.SX.sym("p", len(model.p))
+    period_p = parametric_step(model, ts, substeps, flat.extension)
+    step_p = ca.Function(f"{prefix}_plant_step_p", [xs, us, ps], [period_p(xs, us, ps)])
+    phi_p = ca.Function(f"{prefix}_plant_phi_p", [xs, ps],
+                        [numeric.sx_function("phi", [list(model.x), list(model.p)], flat.phi)(xs, ps)])
     cg = ca.CodeGenerator(f"{prefix}_plant", {"casadi_int": "int", "casadi_real": "double", "main": False,
                                                "mex": False, "with_header": False, "with_export": False,
                                                "verbose": False, "include_math": True})
     work = 1
-    for f in (step, camera, phi):
+    for f in (step, camera, phi, step_p, phi_p):
         if f.sz_iw() != 0:
             raise RuntimeError(f"{f.name()}: integer work, unexpected for SX")
         work = max(work, f.sz_w())
@@ -169,7 +176,8 @@ class _Loop:
 
         class Scenario(ctypes.Structure):
             _fields_ = [("steps", ctypes.c_int32), ("n_late", ctypes.c_int32)] + \
-                [(k, vp) for k in ("x0", "noise", "upd", "late_step", "late_node", "late_lag", "source", "ref")]
+                [(k, vp) for k in ("x0", "noise", "upd", "late_step", "late_node", "late_lag", "source", "ref",
+                                   "params")]
 
         class Outputs(ctypes.Structure):
             _fields_ = [(k, vp) for k in harness.Harness._RESULTS] + \
@@ -216,13 +224,15 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     inputs = {"x0": _c(s.x0, f64), "noise": noise, "upd": _c(s.upd, i32), "late_step": _c(late[:, 0], i32),
               "late_node": _c(late[:, 1], i32), "late_lag": _c(late[:, 2], i32),
               "source": _c(s.net.source.T, i32), "ref": _c(s.ref, f64)}
+    params = None if s.plant_p is None else _c(s.plant_p, f64)   # NULL: the model's own
     E = late.shape[0]
     out: dict[str, np.ndarray] = {"x_true": np.zeros((K, n)), "zeta": np.zeros((K, n)), "frames": np.zeros((M, K, m)),
            "late_z": np.zeros((E, m)), "node_x": np.zeros((M, K, n)), "node_P": np.zeros((M, K, n, n)),
            "x": np.zeros((K, n)), "P": np.zeros((K, n, n)), "u": np.zeros((K, m)), "v": np.zeros((K, m)),
            "late_applied": np.zeros(E, dtype=i32)}
     scen = loop.Scenario(K, E, *(inputs[k].ctypes.data for k in ("x0", "noise", "upd", "late_step", "late_node",
-                                                                   "late_lag", "source", "ref")))
+                                                                   "late_lag", "source", "ref")),
+                         None if params is None else params.ctypes.data)
     res = loop.Results(*(out[k].ctypes.data for k in ("x_true", "zeta", "frames", "late_z")),
                        loop.Outputs(*(out[k].ctypes.data for k in harness.Harness._RESULTS), -1, 0))
     err = getattr(lib, f"{p}_loop_run")(state, ctypes.byref(scen), ctypes.byref(res))

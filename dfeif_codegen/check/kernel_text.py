@@ -1,5 +1,5 @@
 """Where the filter kernels' code goes: .text of each kernel of the synthetic flat chains
-(`bench_peers.chain_model`, n = 2..10) as `codegen bench` sizes them (Cortex-M4F, float, -Os, the
+(`bench_peers.chain_model`, n = 2..12) as `codegen bench` sizes them (Cortex-M4F, float, -Os, the
 default replay build: predict, node_predict, update, info), with the fitted growth of each and of
 their sum, and optionally the node step's host instructions (callgrind, double).
 

@@ -14,7 +14,7 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.symbolic.flatness import FlatSystem
 
-FILTERS = ("df", "ekf", "ukf")
+FILTERS = ("df", "ekf", "ukf", "brunovsky")
 
 
 def _pick(values, i):
@@ -31,11 +31,12 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
     return ex.Config(
         model=model, ts=sc.ts, duration=sc.duration, substeps=sc.substeps, q=tuple(sc.q), poles=tuple(sc.poles),
         p0_std=tuple(sc.p0_std), initial_error=sc.initial_error, reference=ref, amplitude=tuple(sc.amplitude),
-        period=sc.period, offset=tuple(sc.offset), harmonics=sc.harmonics,
+        period=sc.period, offset=tuple(sc.offset), harmonics=sc.harmonics, phase=tuple(sc.phase),
+        cycles=tuple(int(c) for c in sc.cycles), tracking_bound=tuple(sc.tracking_bound),
         noise_scale=tuple(_pick(sc.noise_scale, i) for i in range(nodes)),
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
-        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from)
+        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error)
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:
@@ -136,13 +137,18 @@ def _list_runs(p: Plan) -> None:
 
 
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
-         filters, plot_dir) -> Plan:
-    """Load and check everything, then list each distinct run once."""
+         filters, plot_dir, param_error=None) -> Plan:
+    """Load and check everything, then list each distinct run once. `param_error`
+    (experiment/model_error.from_option's text) replaces the scenario's [model_error]."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
         raise ScenarioError(f"--seed {seed!r}: a whole number from 0 to 2^32 - 1")
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
     flat = ex._flat(model)   # the derivation every run of this process (and its workers) uses
+    if param_error is not None:
+        from dfeif_codegen.experiment import model_error
+        sc.model_error = model_error.from_option(param_error)
+        sc.model_error.check(flat.model, lambda key: "--param-error")
     if plot_dir:                          # a missing matplotlib is said before the runs, not after
         from dfeif_codegen.experiment import figures as figs
         figs.pyplot()

@@ -62,6 +62,7 @@ class SimulationResult:
     figures: dict = field(default_factory=dict, repr=False)   # the time series the figures show
     written: list[str] = field(default_factory=list)          # figure files written (plot=DIR)
     plot_dir: str | None = None
+    paired: list[dict] = field(default_factory=list)   # with filters: experiment/pairing.py's ratios
 
     @property
     def ok(self) -> bool:
@@ -85,7 +86,7 @@ class SimulationResult:
             "tables": [{"reference": t.reference, "method": t.method, "fusion": t.fusion, "filter": t.filter,
                         "rows": t.rows} for t in self.tables],
             "bounds": [{"rmse_central": b.rmse_central, "rmse_nodes": b.rmse_nodes} for b in self.bounds],
-            "failures": self.failures, "figures": self.figures})
+            "failures": self.failures, "figures": self.figures, "paired": self.paired})
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict())
@@ -244,10 +245,10 @@ def print_filters(out, r: SimulationResult) -> None:
                 s = r.table(ref, label, rule).rows[ri]
                 failed = runs - s.get("runs", 0)
                 if not s.get("runs"):
-                    print(f"  {ref} {row_label(row)}  {label:11s} every run failed", file=out)
+                    print(f"  {ref} {row_label(row)}  {label:16s} every run failed", file=out)
                     continue
                 rm, us = s["rmse_master"], s["us_per_step"]
-                print(f"  {ref} {row_label(row)}  {label:11s} x1 {_fmt(rm['mean'][0], rm['ci95'][0]):>20}  "
+                print(f"  {ref} {row_label(row)}  {label:16s} x1 {_fmt(rm['mean'][0], rm['ci95'][0]):>20}  "
                       f"NEES {s['nees_master']['mean']:6.2f}  failed {failed:3d}/{runs}  "
                       f"{_fmt(us['mean'], us['ci95']):>20} us/step", file=out)
     ops = ", ".join(f"{k} {v['predict']}/{v['update']}" for k, v in r.settings["operations"].items())
@@ -262,10 +263,15 @@ def _print_report(out, r: SimulationResult) -> None:
           f"{s['duration']:g} s runs, N_max = {s['max_lag']}, q = {s['q']}, poles {s['poles']}, "
           f"seeds {first}..{last}, {s['distinct_runs']} runs in {s['elapsed_s']:.0f} s on {s['ran_on']} "
           f"({s['engine']} engine{f', {reused} resumed' if reused else ''})\n", file=out)
+    if "per_seed" in s.get("model_error", {}):
+        from dfeif_codegen.experiment import model_error
+        model_error.report(out, s["model_error"])
     print_tables(out, r.rows, r.tables, r.states, s["nodes"], r.bounds)
     if "filters" in s:
+        from dfeif_codegen.experiment import pairing
         print(file=out)
         print_filters(out, r)
+        pairing.print_ratios(out, r.paired, r.rows, s["operations"], row_label, len(r.states))
     print_summary(out, r.rows, r.tables)
     if r.failures:
         print(f"\n{len(r.failures)} run(s) failed (left out of the averages):", file=out)

@@ -18,19 +18,21 @@ from dfeif_codegen.symbolic.model import _key_lines
 from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
 from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
+from dfeif_codegen.experiment import model_error
 from dfeif_codegen.experiment.trajectory import KINDS
 
-BUILTIN = ("paper",)
+BUILTIN = ("paper", "unicycle", "pvtol")
 
 _ALLOWED = {
     "scenario": {"name", "description", "duration", "ts", "runs", "substeps", "metrics_from", "references",
                  "oosm", "fusion", "baselines"},
     "filter": {"q", "p0_std", "initial_error"},
     "control": {"poles"},
-    "reference": {"amplitude", "period", "offset", "harmonics"},
+    "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound"},
     "nodes": {"noise_scale", "noise_std"},
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
+    "model_error": model_error.KEYS,
 }
 
 
@@ -72,17 +74,23 @@ class Scenario:
     period: float = 5.0
     offset: list[float] = field(default_factory=lambda: [0.0])
     harmonics: int = 4
+    phase: list[float] = field(default_factory=lambda: [0.0])
+    cycles: list[float] = field(default_factory=lambda: [1.0])
+    tracking_bound: list[float] = field(default_factory=list)   # default: twice the amplitude
     noise_scale: list[float] = field(default_factory=lambda: [1.0, 1.0])
     noise_std: list[list[float] | None] = field(default_factory=lambda: [None, None])
     uplink: Link = field(default_factory=Link)
     grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
+    model_error: model_error.ParamError = model_error.NONE    # the plant's parameters against the model's
     _lines: dict = field(default_factory=dict, repr=False)
 
     def where(self, key: str) -> str:
         """`file:line: key`; entry i of an array of tables is looked up as `grid#i` and shown as `grid[i+1]`."""
         head = key.split(".")[0]
         inside = [n for k, n in self._lines.items() if k.startswith(head + ".")]
-        line = self._lines.get(key) or self._lines.get(head) or (min(inside) if inside else None)
+        parent = key.rsplit(".", 1)[0] if key.count(".") > 1 else None    # model_error.relative.R
+        line = self._lines.get(key) or (parent and self._lines.get(parent)) or self._lines.get(head) \
+            or (min(inside) if inside else None)
         shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
 
@@ -96,6 +104,12 @@ class Scenario:
         def fail(key: str, message: str):
             raise ScenarioError(f"{self.where(key)}: {message}{hint}")
 
+        def at(key: str) -> str:      # a spread over `params` is named on the params line
+            if key.startswith("spread.") and "model_error.params" in self._lines:
+                key = "params"
+            return self.where(key if key == "model_error" else f"model_error.{key}")
+
+        self.model_error.check(flat.model, at)
         ts = self.ts or flat.model.ts
         if self.runs > MAX_RUNS:
             fail("scenario.runs", f"{self.runs} runs: at most {MAX_RUNS} (each is a closed-loop simulation)")
@@ -105,7 +119,9 @@ class Scenario:
             fail("scenario.duration", f"{self.duration:g} s at Ts = {ts:g} s is {self.duration / ts:.3g} steps; "
                                       f"at most {MAX_STEPS:g} per run")
         for key, values in (("filter.q", self.q), ("control.poles", self.poles),
-                            ("reference.amplitude", self.amplitude), ("reference.offset", self.offset)):
+                            ("reference.amplitude", self.amplitude), ("reference.offset", self.offset),
+                            ("reference.phase", self.phase), ("reference.cycles", self.cycles),
+                            *((("reference.tracking_bound", self.tracking_bound),) if self.tracking_bound else ())):
             if len(values) not in (1, m):
                 fail(key, f"needs 1 or {m} values (one per flat output) for model {flat.model.name}, "
                           f"got {len(values)}")
@@ -259,6 +275,12 @@ def _read_settings(r: _Reader, data: dict) -> None:
     sc.offset = r.numbers(ref, "reference", "offset", sc.offset, positive=False)
     sc.period = r.number(ref, "reference", "period", sc.period, positive=True, allow_zero=False)
     sc.harmonics = r.number(ref, "reference", "harmonics", sc.harmonics, positive=True, allow_zero=False, integer=True)
+    sc.phase = r.numbers(ref, "reference", "phase", sc.phase, positive=False)
+    sc.cycles = r.numbers(ref, "reference", "cycles", sc.cycles)
+    if "tracking_bound" in ref:
+        sc.tracking_bound = r.numbers(ref, "reference", "tracking_bound", [])
+    if any(c != int(c) or c < 1 for c in sc.cycles):
+        r.fail("reference.cycles", f"needs whole numbers of cycles per period (>= 1), got {sc.cycles}")
 
 
 def _read_network(r: _Reader, data: dict) -> None:
@@ -302,4 +324,6 @@ def loads(text: str, source: str = "<string>") -> Scenario:
     _read_head(r, data.get("scenario", {}))
     _read_settings(r, data)
     _read_network(r, data)
+    if "model_error" in data:
+        r.sc.model_error = model_error.from_table(data["model_error"], r.fail)
     return r.sc

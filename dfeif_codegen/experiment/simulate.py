@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment import sweep
+from dfeif_codegen.experiment import model_error, pairing, sweep
 from dfeif_codegen.experiment.execute import Outcome, execute
 from dfeif_codegen.experiment.plan import FILTERS, Plan, _pick, check_outputs, configurations, make_config, plan
 from dfeif_codegen.experiment.report import SimulationResult, Table, row_label
@@ -38,11 +38,13 @@ def _settings(p: Plan, o: Outcome) -> dict:
            "seeds": [p.seed, p.seed + p.runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
            "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": o.engine, "ran_on": o.where,
-           "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3)}
+           "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3),
+           "model_error": model_error.summary(sc.model_error, p.flat.model, p.seeds)}
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
-        out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps)
+        out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
+                                               out["filters"])
     return out
 
 
@@ -63,20 +65,25 @@ def result_of(p: Plan, o: Outcome) -> SimulationResult:
     """The tables (mean and 95% CI per row) and everything the report says, from the runs."""
     tables = [Table(ref, m, f, [summarize(o.results.get((ref, m, f, ri), []), p.flat.n) for ri in range(len(p.rows))])
               for ref in p.refs for m, f in p.labels]
+    paired = pairing.entries(o.per_run, p.refs, p.rows, ["df", *p.filters]) if p.filters else []
     return SimulationResult(_settings(p, o), p.rows, [str(z) for z in p.flat.zeta], tables, o.bound, o.failures,
-                            p.total_runs, _figures(p, o))
+                            p.total_runs, _figures(p, o), paired=paired)
 
 
 def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: str = "paper", runs: int | None = None,
              seed: int = 0, nodes: int | None = None, max_lag: int = 32, oosm=None, fusion=None, reference=None,
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              workers: int | None = None, scheduler: str | None = None, results: str | None = None,
-             csv: str | None = None, resume: str | None = None) -> SimulationResult:
+             csv: str | None = None, resume: str | None = None, max_seconds: float | None = None,
+             max_memory: float | None = None, param_error=None) -> SimulationResult:
     """The chapter's experiment on `engine` (experiment/sweep.py): returns the result and writes
     what was asked for (JSON to `json_path` unless "-", CSV, per-run records, figures into `plot`).
-    Bad input raises a CodegenError before any run; failed or diverged runs are in `.failures`."""
+    Bad input raises a CodegenError before any run; failed or diverged runs are in `.failures`.
+    The derivation runs under `max_seconds` CPU seconds and `max_memory` GB (None: build's).
+    `param_error` replaces the scenario's [model_error] (experiment/model_error.from_option)."""
     check_outputs(json_path, plot, csv, results)
-    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
+    ex.derive(model, max_seconds, max_memory)
+    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, param_error)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
     if csv:
         sweep.write_csv(csv, o.per_run, p.flat.n, nodes=p.nodes)

@@ -16,7 +16,10 @@ What a user would otherwise guess, derived from the model:
   residual variance. One closed-loop round, not a fixed point: the residual grows with q (a
   noisier estimate makes a noisier u, which the plant holds and the model does not), so
   iterating drifts upwards without settling (motor: 1.4, 17.5, 120, 580, ...); one round gives
-  the motor 17.5, where the paper's hand calibration chose 20.
+  the motor 17.5, where the paper's hand calibration chose 20. That fixes the chains'
+  proportions; their common scale is then set so that the master's NEES, averaged over two 20 s
+  closed loops without delays, is n (within 10%), the middle of its 95% band (`match_nees`),
+  with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings).
 - a warning, as a comment, when an oscillatory mode of the plant (eigenvalues of its Jacobian
   along the reference) turns by more than 0.3 rad per period: the flat controller holds u over
   Ts and cannot cancel such a mode, whatever q (the comment says which Ts would do).
@@ -27,6 +30,7 @@ stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e
 
 from __future__ import annotations
 
+import importlib
 import math
 from pathlib import Path
 
@@ -35,10 +39,10 @@ import numpy as np
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.experiment import shapes
 from dfeif_codegen.experiment.trajectory import flags
 
 MARKER = "# Starting scenario written by `codegen scenario`"
-PERIOD, AMPLITUDE = 5.0, 0.5
 
 
 def _unit_q(flat, ts) -> np.ndarray:
@@ -46,25 +50,33 @@ def _unit_q(flat, ts) -> np.ndarray:
     return np.diag(flat.process_noise(ts, np.ones(flat.m)))
 
 
-def implied_q(flat, ts, zeta, v) -> np.ndarray:
-    """Per chain, the q whose Q_d covers every component of the one-step residual (zeta (K, n),
-    v (K, m): states and inputs of the canonical model along a trajectory)."""
-    A, B, _ = flat.discrete(ts)
-    res = zeta[1:] - zeta[:-1] @ A.T - v[:-1] @ B.T
+def implied_q(flat, ts, zeta, v, u=None, predictor: str = "brunovsky") -> np.ndarray:
+    """Per chain, the q whose Q covers every component of the one-step residual of the filters'
+    model (zeta (K, n), v and u (K, m): canonical states, the controller's v and the applied u
+    along a trajectory): the chapter's Brunovsky chain driven by v, or another predictor of
+    reference/predictor.py (the held-input one of issue 22, driven by u) when the run used it."""
+    if predictor == "brunovsky":
+        A, B, _ = flat.discrete(ts)
+        res, unit = zeta[1:] - zeta[:-1] @ A.T - v[:-1] @ B.T, _unit_q(flat, ts)
+    else:
+        predictors = importlib.import_module("dfeif_codegen.reference.predictor")   # only when asked for
+        pred = predictors.make(predictor, flat, ts, np.ones(flat.m))
+        res = zeta[1:] - np.array([pred.mean(z, w) for z, w in zip(zeta[:-1], u[:-1])])
+        unit = np.diag(pred.Q)
     for c in flat.chains:
         if c.angle:
             res[:, c.offset] = (res[:, c.offset] + math.pi) % (2 * math.pi) - math.pi
-    ratio = np.mean(res ** 2, axis=0) / _unit_q(flat, ts)
+    ratio = np.mean(res ** 2, axis=0) / unit
     return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
 
 
-def _reference_q(flat, spec, ts, substeps, amplitude) -> np.ndarray:
+def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
     """Residual along the reference: the plant started on each reference state, driven one step
     by the feedforward input of that state."""
     plant = ex._plant(spec, ts, substeps)
-    cfg = ex.Config(model=spec, amplitude=tuple(amplitude), period=PERIOD)
+    cfg = ex.Config(model=spec, **shape.config())
     refs = ex.references(cfg, flat.m)
-    t = np.arange(int(round(PERIOD / ts)) + 1) * ts
+    t = np.arange(int(round(shape.period / ts)) + 1) * ts
     zeta, v = [], []
     p = flat.param_vector
     for tk in t:
@@ -82,19 +94,28 @@ def _reference_q(flat, spec, ts, substeps, amplitude) -> np.ndarray:
 
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
-              duration: float = 5.0, seed: int = 1000, rounds: int = 3) -> tuple[np.ndarray, list[str]]:
-    """q per chain and a log of the rounds (see the module docstring)."""
-    q = _reference_q(flat, spec, ts, substeps, [AMPLITUDE])
-    floor = 1e-6 * np.array([(AMPLITUDE * (2 * math.pi / PERIOD) ** c.degree) ** 2 * PERIOD for c in flat.chains])
+              duration: float = 5.0, seed: int = 1000, rounds: int = 3,
+              shape: shapes.Shape | None = None, **options) -> tuple[np.ndarray, list[str]]:
+    """q per chain and a log of the rounds (see the module docstring). `options`: the filters'
+    settings of the closed loops (closed_loop.Config fields, e.g. the predictor the scenario
+    selects), so q is calibrated for the filter that will run."""
+    shape = shape or shapes.from_domains(flat)
+    q = _reference_q(flat, spec, ts, substeps, shape)
+    floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
+                             for a, c in zip(shape.amplitude, flat.chains)])
     q = np.maximum(q, floor)
     log = [f"along the reference: q = {_fmt(q)}"]
+
+    def config(q, run_seed, duration=duration):
+        return ex.Config(model=spec, ts=ts, duration=duration, substeps=substeps, q=tuple(q), poles=tuple(poles),
+                         p0_std=tuple(p0_std), **shape.config(),
+                         noise_std=tuple(None if s is None else tuple(s) for s in noise_std),
+                         noise_scale=(1.0, 1.25), seed=run_seed, watch_nees=False, **options)
+        # too small a q is what these loops are run to measure: their NEES is meant to be high,
+        # only a plant that leaves its domain or overflows ends one
+
     for _ in range(rounds):
-        cfg = ex.Config(model=spec, ts=ts, duration=duration, substeps=substeps, q=tuple(q), poles=tuple(poles),
-                        p0_std=tuple(p0_std), amplitude=(AMPLITUDE,), period=PERIOD,
-                        noise_std=tuple(None if s is None else tuple(s) for s in noise_std),
-                        noise_scale=(1.0, 1.25), seed=seed, watch_nees=False)  # too small a q is what
-        # this loop is run to measure: its NEES is meant to be high, only a plant that leaves its
-        # domain or overflows ends it
+        cfg = config(q, seed)
         try:
             res = ex.run(cfg)
         except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
@@ -102,19 +123,75 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             log.append(f"closed loop diverged: q x 10 -> {_fmt(q)}")
             continue
         k0 = int(round(cfg.metrics_from / ts))
-        q = np.maximum(implied_q(flat, ts, res.zeta[k0:], res.recording.v[k0:]), q)
+        rec = res.recording      # the residual of the predictor the loop ran (the chapter's on main)
+        q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
+                                 getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
         break
+    return match_nees(flat, q, config, [seed + i for i in range(NEES_RUNS)], log)
+
+
+NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 2, 1.1, 8, 20.0
+
+
+def _master_nees(config, q, seeds) -> float:
+    """The master's NEES averaged over the steps and the runs (inf when a run fails)."""
+    values = []
+    for s in seeds:
+        try:
+            values.append(float(np.mean(ex.run(config(q, s, NEES_SECONDS)).metrics["nees_master"])))
+        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
+            return math.inf
+    return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
+
+
+def match_nees(flat, q, config, seeds, log) -> tuple[np.ndarray, list[str]]:
+    """Scale q (every chain alike, keeping the residual's proportions) until the master's NEES,
+    averaged over `seeds` closed loops without delays of NEES_SECONDS (the length of a
+    scenario's runs: the NEES of a filter with little process noise drifts over a run, so a
+    shorter run would match another q), is n within a factor NEES_TOL: the middle of its 95%
+    band for any number of runs. A secant on log NEES against log scale (NEES falls as q
+    grows); at most NEES_EVALS evaluations, keeping the closest. The residual alone does not get
+    there: it is coloured (correlated from step to step), which white noise of the same variance
+    does not describe, and the estimate's own error feeds back through u."""
+    n = flat.n
+    tried = []                                   # (log scale, log NEES / n)
+    scale = 0.0
+    for _ in range(NEES_EVALS):
+        nees = _master_nees(config, q * math.exp(scale), seeds)
+        if not math.isfinite(nees):
+            scale += math.log(10.0)             # too small a q lost a run: ten times more
+            continue
+        tried.append((scale, math.log(nees / n)))
+        if abs(tried[-1][1]) <= math.log(NEES_TOL):
+            break
+        if len(tried) < 2 or tried[-1][0] == tried[-2][0]:
+            slope = -1.0                         # NEES ~ 1/q, the first guess
+        else:
+            (s0, e0), (s1, e1) = tried[-2], tried[-1]
+            slope = (e1 - e0) / (s1 - s0) if s1 != s0 else -1.0
+            slope = min(slope, -0.05)            # NEES falls with q; a flat stretch takes large steps
+        scale = tried[-1][0] - max(-3.0, min(3.0, tried[-1][1] / slope))   # within e^+-3 per step
+    if not tried:
+        log.append("master NEES: every scale of q lost a closed loop; q kept from the residual")
+        return q, log
+    best = min(tried, key=lambda t: abs(t[1]))
+    q = q * math.exp(best[0])
+    inside = abs(best[1]) <= math.log(NEES_TOL)
+    log.append(f"master NEES over {len(seeds)} runs without delays: {n * math.exp(best[1]):.3g} at q = {_fmt(q)} "
+               f"(x{math.exp(best[0]):.3g}; target n = {n}" + ("" if inside else f", not reached in {len(tried)} tries")
+               + ")")
     return q, log
 
 
-def fastest_oscillation(flat, spec: str, ts: float, points: int = 12) -> float:
+def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: shapes.Shape | None = None) -> float:
     """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]."""
+    shape = shape or shapes.from_domains(flat)
     plant = ex._plant(spec, ts, 1)
-    cfg = ex.Config(model=spec, amplitude=(AMPLITUDE,), period=PERIOD)
+    cfg = ex.Config(model=spec, **shape.config())
     refs = ex.references(cfg, flat.m)
     p, n, worst = flat.param_vector, flat.n, 0.0
-    for tk in np.linspace(0, PERIOD, points, endpoint=False):
+    for tk in np.linspace(0, shape.period, points, endpoint=False):
         fl = flags(refs, flat.degrees, tk)
         z = ex.state_of_flags(flat, fl)
         top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
@@ -131,20 +208,26 @@ def _fmt(values) -> str:
     return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
 
 
-def starting_scenario(spec: str) -> tuple[str, list[str]]:
+def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str, list[str]]:
     """The TOML text of a starting scenario for model `spec`, and the calibration log."""
     flat = ex._flat(spec)
+    shape = shape or shapes.from_domains(flat)
     model = flat.model
     ts = float(model.ts)
-    omega = 2 * math.pi / PERIOD
     poles = [round(0.1 / ts, 6)]
-    p0_std = [float(f"{0.05 * AMPLITUDE * (2 * omega) ** k:.3g}") for k in range(max(flat.degrees))]
+    scale = max(abs(a) for a in shape.amplitude)
+    p0_std = [float(f"{0.05 * scale * (2 * shape.omega) ** k:.3g}") for k in range(max(flat.degrees))]
     noise_std: list[list[float] | None] = [None, None]
     if model.measurement is None:
-        std = [float(f"{0.004 * AMPLITUDE:.3g}")] * flat.m
+        std = [float(f"{0.004 * abs(a):.3g}") for a in shape.amplitude]
         noise_std = [std, [1.25 * s for s in std]]
-    q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std)
-    omega_max = fastest_oscillation(flat, spec, ts)
+    q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape)
+    if all(entry.startswith("closed loop diverged") for entry in log[1:]):
+        raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged "
+                            f"(q up to {_fmt(q)} on a {shape.kind} of amplitude {_fmt(shape.amplitude)} around "
+                            f"{_fmt(shape.offset)}): the loop does not close on that reference; try "
+                            "--amplitude, --offset, --period or --shape")
+    omega_max = fastest_oscillation(flat, spec, ts, shape=shape)
     warn = []
     if omega_max * ts > 0.3:
         warn = [f"# WARNING: the plant oscillates at up to {omega_max:.3g} rad/s, {omega_max * ts:.2f} rad per "
@@ -164,27 +247,29 @@ def starting_scenario(spec: str) -> tuple[str, list[str]]:
         "[scenario]",
         f'name = "{model.name}_start"',
         f'description = "starting scenario for {model.name}, generated by codegen scenario"',
-        "duration = 20.0",
+        f"duration = {max(20.0, shape.period):g}",
         "runs = 4",
         "substeps = 10",
         "metrics_from = 1.0",
-        'references = ["sinusoid", "seesaw"]',
+        f'references = ["{shape.config()["reference"]}"]',
         'oosm = ["replay"]',
         'fusion = ["difference", "paper"]',
         'baselines = ["discard", "as-current"]',
         "",
         "[filter]",
-        f"q = {_toml_list(q)}               # per chain, from the one-step residual",
+        f"q = {_toml_list(q)}               # per chain: the one-step residual, scaled to NEES = n",
         f"p0_std = {_toml_list(p0_std)}   # per derivative order",
         "initial_error = true",
         "",
         "[control]",
         f"poles = {poles[0]:g}              # every pole at -0.1/Ts",
         "",
-        "[reference]",
-        f"amplitude = {AMPLITUDE:g}",
-        f"period = {PERIOD:g}",
-        "offset = 0.0",
+        f"[reference]           # {shape.kind}, from the flat outputs' declared domains",
+        f"amplitude = {_toml_list(shape.amplitude)}",
+        f"period = {shape.period:g}",
+        f"offset = {_toml_list(shape.offset)}",
+        f"phase = {_toml_list(shape.phase)}",
+        f"cycles = {_toml_list(shape.cycles)}",
         "harmonics = 4",
         "",
     ]
@@ -201,9 +286,12 @@ def _toml_list(values) -> str:
     return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
 
 
-def scenario(model: str, out: str | None = None) -> str:
+def scenario(model: str, out: str | None = None, max_seconds: float | None = None,
+             max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
+             phase=None, period: float | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
-    model; written to `out` when given (only over a file this command wrote before)."""
+    model; written to `out` when given (only over a file this command wrote before). The
+    derivation runs under `max_seconds` CPU seconds and `max_memory` GB."""
     path = Path(out) if out else None
     if path is not None and path.exists():
         try:
@@ -215,7 +303,14 @@ def scenario(model: str, out: str | None = None) -> str:
     if path is not None:
         from dfeif_codegen.paths import writable_file
         writable_file(path, "--out")
-    text, _ = starting_scenario(model)
+    flat = ex.derive(model, max_seconds, max_memory)
+    ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
+    try:
+        text, _ = starting_scenario(model, ref)
+    except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
+                            f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "
+                            "--offset, --period or --shape") from None
     scenario_mod.loads(text, str(path or "<generated>")).check_model(ex._flat(model))
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")

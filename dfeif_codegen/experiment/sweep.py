@@ -70,6 +70,8 @@ REFERENCE = ReferenceEngine()
 def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
     """`kind`: the filter judged on the run's recording (experiment/compare.py), "df" for the run's own."""
     key = (engine, cfg) if kind == "df" else (engine, cfg, kind)
+    if cfg.plant_error.active:          # out of Config's repr, so error-free runs keep their ids
+        key = (*key, cfg.plant_error)
     return hashlib.sha256(repr(key).encode()).hexdigest()[:20]
 
 

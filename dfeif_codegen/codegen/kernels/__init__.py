@@ -37,10 +37,15 @@ from dfeif_codegen.codegen.options import Options
 LOCAL_WORK = ("update", "node_predict", "retro_step", "retro_finish", "info")
 
 # node_predict and info are printed as loops (`Loop`) when their straight-line code would have
-# more operations than this (CasADi's count): from a chain of 7 integrators on (548 and 601; a
-# chain of 6 has 371 and 410, two_link_arm 196 and 410), where the loops are 32% smaller and
-# the node step 1.8 times slower (Cortex-M4F and host figures in docs/algorithms.md).
-LOOP_OPS = 500
+# more operations (CasADi's count) than their limit here. The limits differ because what the
+# loops cost does (chains of n integrators, docs/algorithms.md "Looped kernels"): node_predict
+# runs every step and every replayed step, and its loops take about twice the straight line's
+# instructions (looped from 500 operations, n = 7, the node step jumped 2.8x from n = 6); info runs
+# once per packet and its loops save the most bytes (its straight-line code grows as n^2.5). With
+# node_predict straight-line up to 2,500 operations (a chain of 12 has 2,288) and info looped above
+# 500 (n >= 7: 601; two_link_arm 410), the node step grows at most 1.6x per n over n = 2..12 and
+# the filter kernels' .text as n^1.85.
+LOOP_OPS = {"node_predict": 2500, "info": 500}
 
 # A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
 # canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
@@ -81,9 +86,9 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     fus += [fusion.advance(s, name("advance")), fusion.input_step(s, name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
     # so its Theta(n^3) straight-line code is not printed twice
-    looped = {f.name(): loop(s, f.name()) for f, loop in ((node_predict, loops.node_predict_loop),
-                                                          (info, loops.info_loop))
-              if f.n_instructions() > LOOP_OPS}
+    looped = {f.name(): loop(s, f.name()) for key, f, loop in (("node_predict", node_predict, loops.node_predict_loop),
+                                                               ("info", info, loops.info_loop))
+              if f.n_instructions() > LOOP_OPS[key]}
     return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"))]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
                      wrappers={name("predict"): name("node_predict")}, loops=looped)

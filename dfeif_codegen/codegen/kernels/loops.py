@@ -1,8 +1,8 @@
 """node_predict and info of a long chain as C loops over small straight-line parts (`Loop`).
 
-Straight-line code of Theta(n^3) operations is Theta(n^3) bytes: above the orchestrator's
-LOOP_OPS, these two node kernels are printed as loops over static parts of O(n^2) code instead,
-the same work in a fraction of the bytes (docs/algorithms.md, looped kernels).
+Straight-line code of Theta(n^3) operations is Theta(n^3) bytes: above their limit in the
+orchestrator's LOOP_OPS, these two node kernels are printed as loops over static parts of O(n^2)
+code instead, the same work in a fraction of the bytes (docs/algorithms.md, looped kernels).
 """
 
 from __future__ import annotations

@@ -1,0 +1,220 @@
+"""Model error: the true plant's parameters differ from the model's, so a user can measure how a
+filter copes with a model that is wrong.
+
+Only the plant (its dynamics `f`, `g` and the truth's canonical coordinates `Phi`, i.e. the true
+flat outputs and their derivatives) takes the perturbed values; the filters (derivative-free,
+EKF, UKF), the controller and the cameras' `recover` keep the model's nominal ones. Per
+parameter p with nominal value p0:
+
+    p = p0 (1 + r + delta) + a
+
+r: a fixed relative offset, a: a fixed absolute one, delta: drawn per run, uniform on
+[-s, s] or Gaussian with std s (truncated at 3 s by redrawing), s the parameter's spread. The
+draw comes from the run's seed through its own stream (spawn key 3 of the seed, beside the
+network, noise and initial-state streams): every filter, method and delay row of one seed sees
+the same plant, so their results stay paired, and a run is reproducible from its seed. A
+relative change of 100% or more (|r| + s >= 1, or 3 s for a Gaussian) could flip a parameter's
+sign and is refused.
+
+Scenario TOML:
+
+    [model_error]
+    relative = { R = 0.2 }       # the plant's R is 1.2 times the model's
+    absolute = { k_d = 0.01 }    # added to the model's value
+    draw = "uniform"             # per run: "uniform" (+-spread), "normal" (std spread), "none"
+    spread = 0.05                # relative; a number for every parameter (or those in `params`),
+    params = ["J", "R"]          #   or a table per parameter: spread = { J = 0.05, R = 0.2 }
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dfeif_codegen.errors import ScenarioError
+
+DRAWS = ("none", "uniform", "normal")
+KEYS = {"relative", "absolute", "draw", "spread", "params"}
+STREAM = 3          # spawn key of the run's seed that draws the parameters
+ALL = "*"           # `spread` entry meaning every parameter not named
+
+
+@dataclass(frozen=True)
+class ParamError:
+    """What the plant's parameters are, relative to the model's: plain, hashable, picklable."""
+
+    relative: tuple = ()      # ((name, r), ...)
+    absolute: tuple = ()      # ((name, a), ...)
+    draw: str = "none"
+    spread: tuple = ()        # ((name or ALL, s), ...)
+
+    @property
+    def active(self) -> bool:
+        return bool(self.relative or self.absolute or (self.draw != "none" and any(s for _, s in self.spread)))
+
+    def check(self, model, where) -> None:
+        """Against the model: every name a parameter, no sign flip. `where(key)` names the line."""
+        known = [q.name for q in model.parameters]
+        for key, items in (("relative", self.relative), ("absolute", self.absolute), ("spread", self.spread)):
+            for name, _ in items:
+                if name != ALL and name not in known:
+                    raise ScenarioError(f"{where(f'{key}.{name}')}: '{name}' is not a parameter of model {model.name} "
+                                        f"(its parameters: {', '.join(known) or 'none'})")
+        if self.active and not known:
+            raise ScenarioError(f"{where('model_error')}: model {model.name} has no parameters to perturb")
+        rel, _, spread = self._vectors(model)
+        reach = np.abs(rel) + (3.0 if self.draw == "normal" else 1.0) * spread * (self.draw != "none")
+        if np.any(reach >= 1.0):
+            i = int(np.argmax(reach))
+            raise ScenarioError(f"{where('relative' if rel[i] else 'spread')}: parameter {known[i]} could change "
+                                f"by {100 * reach[i]:.0f}% of its value (sign flip): keep |relative| + "
+                                f"{'3 x ' if self.draw == 'normal' else ''}spread below 1")
+
+    def _vectors(self, model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        index = {q.name: i for i, q in enumerate(model.parameters)}
+        rel, ab, spread = (np.zeros(len(index)) for _ in range(3))
+        for name, s in self.spread:
+            if name == ALL:
+                spread[:] = s
+        for vec, items in ((rel, self.relative), (ab, self.absolute), (spread, self.spread)):
+            for name, value in items:
+                if name != ALL:
+                    vec[index[name]] = value
+        return rel, ab, spread
+
+    def values(self, model, seed: int) -> np.ndarray | None:
+        """The plant's parameter vector (model order) for the run of `seed`; None: the model's own."""
+        if not self.active:
+            return None
+        p0 = np.array([q.value for q in model.parameters], dtype=float)
+        rel, ab, spread = self._vectors(model)
+        return p0 * (1.0 + rel + spread * self._delta(len(p0), seed)) + ab
+
+    def _delta(self, count: int, seed: int) -> np.ndarray:
+        """One draw per parameter of the model (drawn for all, whichever are perturbed, so adding
+        a parameter to the list leaves the others' draws unchanged)."""
+        if self.draw == "none":
+            return np.zeros(count)
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM,)))
+        if self.draw == "uniform":
+            return rng.uniform(-1.0, 1.0, count)
+        z = rng.standard_normal(count)
+        while np.any(np.abs(z) > 3.0):
+            bad = np.abs(z) > 3.0
+            z[bad] = rng.standard_normal(int(bad.sum()))
+        return z
+
+    def describe(self) -> str:
+        parts = [f"{n} {100 * r:+.3g}%" for n, r in self.relative] + [f"{n} {a:+.4g}" for n, a in self.absolute]
+        text = ("fixed: " + ", ".join(parts)) if parts else ""
+        if self.draw != "none" and any(s for _, s in self.spread):
+            how = "uniform +-" if self.draw == "uniform" else "Gaussian, std "
+            drawn = ", ".join(("every parameter" if n == ALL else n) + f" {how}{100 * s:.3g}%"
+                              for n, s in self.spread if s)
+            text = (text + "; " if text else "") + f"drawn per run: {drawn}"
+        return text or "none"
+
+
+NONE = ParamError()
+
+
+# --- reading it ---------------------------------------------------------------------------------
+
+def from_table(table: dict, fail) -> ParamError:
+    """A [model_error] table; `fail(key, message)` raises with the line."""
+    for key in table:
+        if key not in KEYS:
+            fail(f"model_error.{key}", f"unknown field (expected one of {', '.join(sorted(KEYS))})")
+
+    def number(value) -> bool:
+        return isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+
+    def named(key) -> tuple:
+        value = table.get(key, {})
+        if not isinstance(value, dict) or not all(number(v) for v in value.values()):
+            fail(f"model_error.{key}", f"must be a table of parameter = number, got {value!r}")
+        return tuple(sorted((str(k), float(v)) for k, v in value.items()))
+
+    draw = table.get("draw", "uniform" if "spread" in table else "none")
+    if draw not in DRAWS:
+        fail("model_error.draw", f"must be one of {', '.join(DRAWS)}, got {draw!r}")
+    spread_value = table.get("spread", 0.0)
+    if isinstance(spread_value, dict):
+        spread = named("spread")
+        if "params" in table:
+            fail("model_error.params", "give either spread per parameter (a table) or params, not both")
+    elif number(spread_value):
+        params = table.get("params", [ALL])
+        if not isinstance(params, list) or not params or not all(isinstance(p, str) for p in params):
+            fail("model_error.params", f"must be a non-empty list of parameter names, got {params!r}")
+        spread = tuple((p, float(spread_value)) for p in dict.fromkeys(params))
+    else:
+        fail("model_error.spread", f"must be a number or a table of parameter = number, got {spread_value!r}")
+    if any(s < 0 for _, s in spread):
+        fail("model_error.spread", "must be >= 0")
+    if draw != "none" and not any(s for _, s in spread):
+        fail("model_error.spread", f"draw = \"{draw}\" needs a spread > 0")
+    return ParamError(named("relative"), named("absolute"), draw, spread if draw != "none" else ())
+
+
+def from_option(text: str) -> ParamError:
+    """`--param-error`: `S` draws every parameter uniformly in +-S (relative) per run; `NAME=R,...`
+    sets fixed relative offsets; `0` is the exact model (overriding the scenario's)."""
+    where = "--param-error"
+    text = str(text).strip()
+    try:
+        spread = float(text)
+    except ValueError:
+        spread = None
+    if spread is not None:
+        if not np.isfinite(spread) or spread < 0:
+            raise ScenarioError(f"{where}: {text}: needs a spread >= 0 (0.2: every parameter +-20% per run)")
+        return ParamError(draw="uniform", spread=((ALL, spread),)) if spread > 0 else NONE
+    offsets = {}
+    for item in text.split(","):
+        name, _, value = item.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not name.strip() or not np.isfinite(number):
+            raise ScenarioError(f"{where}: '{item}' is neither a spread (0.2) nor NAME=RELATIVE (R=0.2)")
+        offsets[name.strip()] = number
+    return ParamError(relative=tuple(sorted(offsets.items())))
+
+
+# --- saying it -----------------------------------------------------------------------------------
+
+def summary(spec: ParamError, model, seeds) -> dict:
+    """What was asked and every run's parameter vector (the JSON settings; `report` prints it)."""
+    out = {"describe": spec.describe(), "relative": dict(spec.relative), "absolute": dict(spec.absolute),
+           "draw": spec.draw, "spread": dict(spec.spread), "parameters": [q.name for q in model.parameters],
+           "nominal": [float(q.value) for q in model.parameters]}
+    if spec.active:
+        out["per_seed"] = {int(s): spec.values(model, s).tolist() for s in seeds}
+    return out
+
+
+def report(out, summary: dict) -> None:
+    """The model-error block of `simulate`: what was asked and, per perturbed parameter, its model
+    value and the plant's over the runs (min / mean / max; one run: its value)."""
+    print(f"Model error (the plant's parameters; the filters and the controller keep the model's): "
+          f"{summary['describe']}", file=out)
+    if "per_seed" not in summary:
+        return
+    values = np.array(list(summary["per_seed"].values()))
+    p0 = np.array(summary["nominal"])
+    single = len(values) == 1
+    head = "plant" if single else f"plant over {len(values)} runs: min / mean / max"
+    print(f"  {'parameter':12s} {'model':>10s}   {head}", file=out)
+    for i in np.nonzero(np.any(values != p0, axis=0))[0]:
+        v = values[:, i]
+        rel = 100 * (v - p0[i]) / p0[i] if p0[i] else np.full_like(v, np.nan)
+        if single:
+            cells, rels = f"{v[0]:.5g}", f"{rel[0]:+.2f}%"
+        else:
+            cells = f"{v.min():.5g} / {v.mean():.5g} / {v.max():.5g}"
+            rels = f"{rel.min():+.2f}% / {rel.mean():+.2f}% / {rel.max():+.2f}%"
+        print(f"  {summary['parameters'][i]:12s} {p0[i]:10.5g}   {cells}   ({rels})", file=out)
+    print(file=out)
