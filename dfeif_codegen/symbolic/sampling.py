@@ -61,12 +61,22 @@ def phi_matrices(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np
 
 
 def van_loan(A: np.ndarray, b: np.ndarray, h: float) -> np.ndarray:
-    """∫₀ʰ e^{A s} b bᵀ e^{Aᵀ s} ds for unit white noise entering through the column b."""
+    """∫₀ʰ e^{A s} b bᵀ e^{Aᵀ s} ds for unit white noise entering through the column b: Van
+    Loan's exponential over a span t = h / 2^s short enough that ‖A t‖ ≤ 1, then s doublings
+    Q(2t) = Q(t) + e^{A t} Q(t) e^{Aᵀ t}. Van Loan over the whole span would exponentiate -A h,
+    which a fast stable mode makes huge (e^{500 · 0.32} for the motor's current over 32 periods),
+    and lose every digit of Q to cancellation; the doublings only add positive terms."""
     n = len(A)
+    norm = np.max(np.sum(np.abs(A), axis=1)) * h
+    s = max(0, int(np.ceil(np.log2(norm)))) if norm > 0 else 0
+    t = h * ldexp(1.0, -s)
     M = np.zeros((2 * n, 2 * n))
     M[:n, :n], M[:n, n:], M[n:, n:] = -A, np.outer(b, b), A.T
-    X = expm(M * h)
-    Q = X[n:, n:].T @ X[:n, n:]
+    X = expm(M * t)
+    Q, E = X[n:, n:].T @ X[:n, n:], X[n:, n:].T
+    for _ in range(s):
+        Q = Q + E @ Q @ E.T
+        E = E @ E
     return (Q + Q.T) / 2
 
 
@@ -93,10 +103,11 @@ class HeldSampling:
 
     def ahead(self, steps: int) -> "HeldSampling":
         """The same linearization over `steps` periods: E = Φ₀^steps and the noise of that span."""
-        return _assemble(self.A, self.Bc, self.L0, self.zeta0, self.u0, steps * self.ts)
+        return assemble(self.A, self.Bc, self.L0, self.zeta0, self.u0, steps * self.ts)
 
 
-def _assemble(A, Bc, L0, zeta0, u0, ts) -> HeldSampling:
+def assemble(A, Bc, L0, zeta0, u0, ts) -> HeldSampling:
+    """The constants for the linear part A = A_c + B_c L₀ at period ts."""
     E, G1, G2 = phi_matrices(A, Bc, ts)
     U = np.array([van_loan(A, Bc[:, j], ts) for j in range(Bc.shape[1])])
     return HeldSampling(float(ts), np.asarray(zeta0, float), np.asarray(u0, float), L0, Bc, A, E, G1, G2, U)
@@ -143,4 +154,4 @@ def held_sampling(flat, ts: float, x=None, u=None) -> HeldSampling:
     if not np.all(np.isfinite(L0)):
         raise ModelError(f"{flat.model.where('states')}: dF/dzeta + dG/dzeta u is not finite at the nominal state")
     Ac, Bc, _ = flat.canonical()
-    return _assemble(Ac + Bc @ L0, Bc, L0, zeta0, u0, ts)
+    return assemble(Ac + Bc @ L0, Bc, L0, zeta0, u0, ts)
