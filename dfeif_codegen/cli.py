@@ -64,6 +64,9 @@ def parser() -> argparse.ArgumentParser:
                        help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
         p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
                        help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
+        p.add_argument("--predictor", choices=["held", "brunovsky"], default="held",
+                       help="the filters' prediction: the canonical dynamics with the applied u held (default) "
+                            "or the chapter's Brunovsky chain driven by v = F + G u")
 
     p = add("build")
     p.add_argument("--out", default="generated", help="output folder (default generated)")
@@ -146,7 +149,8 @@ def parser() -> argparse.ArgumentParser:
 
 def _build_options(args: argparse.Namespace) -> dict:
     return dict(precision=args.precision, max_lag=args.max_lag, nodes=args.nodes, oosm=args.oosm or "replay",
-                fusion=args.fusion or "difference", ts=args.ts, singular_rtol=args.singular_rtol)
+                fusion=args.fusion or "difference", ts=args.ts, singular_rtol=args.singular_rtol,
+                predictor=args.predictor)
 
 
 def build(args: argparse.Namespace) -> int:
@@ -165,7 +169,7 @@ def build(args: argparse.Namespace) -> int:
                          max_seconds=args.max_seconds, max_memory=args.max_memory * 1e9)
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
-          f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")
+          f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion}, predictor {o.predictor})")
     width = max(len(f) for f in module.files)
     for fname in module.files:
         print(f"  {fname:<{width}}  {(module.path / fname).stat().st_size:>7} bytes")
@@ -207,7 +211,7 @@ def simulate(args: argparse.Namespace) -> int:
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
-        results=args.results, csv=args.csv, resume=args.resume)
+        results=args.results, csv=args.csv, resume=args.resume, predictor=args.predictor)
 
 
 def bench(args: argparse.Namespace) -> int:

@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from dfeif_codegen.errors import CodegenError
+from dfeif_codegen.symbolic.sampling import PREDICTORS
 
 MAX_LAG_LIMIT = 4096
 NODES_LIMIT = 16
@@ -29,6 +30,7 @@ class Options:
     fusion: str = "difference"
     precision: str = "double"
     singular_rtol: float = 1e-6  # control returns ERR_SINGULAR below this fraction of |det G| nominal
+    predictor: str = "held"      # the filters' prediction: u held (default) or the chapter's Brunovsky chain
 
     def __post_init__(self) -> None:
         ts = self.ts
@@ -44,6 +46,11 @@ class Options:
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= limit:
                 flag = "--" + name.replace("_", "-")
                 raise BuildError(f"{flag} must be an integer between 1 and {limit}, got {value!r}")
-        for name, allowed in (("oosm", OOSM_METHODS), ("fusion", FUSION_RULES), ("precision", PRECISIONS)):
+        for name, allowed in (("oosm", OOSM_METHODS), ("fusion", FUSION_RULES), ("precision", PRECISIONS),
+                              ("predictor", PREDICTORS)):
             if getattr(self, name) not in allowed:
                 raise BuildError(f"--{name} must be one of {', '.join(allowed)}, got {getattr(self, name)!r}")
+        if self.oosm == "retrodict" and self.predictor != "brunovsky":
+            raise BuildError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the "
+                             f"transition over the lag, ill-conditioned for the {self.predictor} predictor's); "
+                             "use --oosm replay")

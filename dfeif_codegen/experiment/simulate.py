@@ -32,6 +32,7 @@ from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import bounds
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import sweep
+from dfeif_codegen.reference import predictor as predictors
 
 
 # --- statistics ---------------------------------------------------------------------------------
@@ -82,7 +83,7 @@ def configurations(oosm: list[str], fusion: list[str], baselines: list[str]) -> 
 
 
 def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method: str, fusion: str,
-                seed: int) -> ex.Config:
+                seed: int, predictor: str = predictors.DEFAULT) -> ex.Config:
     return ex.Config(
         model=model, ts=sc.ts, duration=sc.duration, substeps=sc.substeps, q=tuple(sc.q), poles=tuple(sc.poles),
         p0_std=tuple(sc.p0_std), initial_error=sc.initial_error, reference=ref, amplitude=tuple(sc.amplitude),
@@ -90,7 +91,7 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         noise_scale=tuple(_pick(sc.noise_scale, i) for i in range(nodes)),
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
-        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from)
+        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, predictor=predictor)
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:
@@ -337,6 +338,7 @@ class Plan:
     rows: list
     wanted: dict             # (cfg, kind) -> [(reference, method label, fusion, row, seed)]
     figure_keys: set
+    predictor: str = predictors.DEFAULT    # the derivative-free filters' (reference/predictor.py)
 
     @property
     def seeds(self) -> range:
@@ -373,7 +375,7 @@ def _filters_of(filters) -> list[str]:
 
 
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
-         filters, plot_dir) -> Plan:
+         filters, plot_dir, predictor: str = predictors.DEFAULT) -> Plan:
     """Load and check everything, then list each distinct run once."""
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
@@ -395,16 +397,21 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
         raise ScenarioError(f"--runs: needs at least 1, got {runs}")
     refs = list(reference or sc.references)
     configs = list(dict.fromkeys(configurations(list(oosm or sc.oosm), list(fusion or sc.fusion), sc.baselines)))
+    for method, _ in configs:
+        try:
+            predictors.check(predictor, method if method in ex.OOSM else "replay")
+        except ValueError as exc:
+            raise ScenarioError(str(exc) if oosm else f"{sc.where('oosm')}: {exc}") from None
     rows = [scenario_mod.Row([_pick(r.d, i) for i in range(nodes)], r.p, r.p_drop) for r in sc.grid]
-    p = Plan(sc, flat, model, nodes, max_lag, runs, seed, refs, configs, kinds, rows, {}, set())
+    p = Plan(sc, flat, model, nodes, max_lag, runs, seed, refs, configs, kinds, rows, {}, set(), predictor)
     for ref in refs:
         for ri, row in enumerate(rows):
             for s in p.seeds:
                 for method, rule in configs:
-                    cfg = make_config(sc, model, nodes, max_lag, ref, row, method, rule, s)
+                    cfg = make_config(sc, model, nodes, max_lag, ref, row, method, rule, s, predictor)
                     p.wanted.setdefault((_canonical(cfg), "df"), []).append((ref, method, rule, ri, s))
                 for label, rule in p.labels[len(configs):]:
-                    cfg = make_config(sc, model, nodes, max_lag, ref, row, "replay", rule, s)
+                    cfg = make_config(sc, model, nodes, max_lag, ref, row, "replay", rule, s, predictor)
                     p.wanted.setdefault((cfg, label), []).append((ref, label, rule, ri, s))
     for cfg in {c.reference: c for c, _ in p.wanted}.values():
         try:  # a reference outside the model's domain is bad input, known before any run
@@ -500,11 +507,13 @@ def _settings(p: Plan, o: Outcome, engine: str) -> dict:
            "seeds": [p.seed, p.seed + p.runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
            "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": engine, "ran_on": o.where,
-           "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3)}
+           "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3),
+           "predictor": p.predictor}
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
-        out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps)
+        out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
+                                               p.predictor)
     return out
 
 
@@ -546,14 +555,16 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
              nodes: int | None = None, max_lag: int = 32, oosm=None, fusion=None, reference=None,
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              engine: str = "c", workers: int | None = None, scheduler: str | None = None,
-             results: str | None = None, csv: str | None = None, resume: str | None = None, out=None) -> int:
+             results: str | None = None, csv: str | None = None, resume: str | None = None, out=None,
+             predictor: str = predictors.DEFAULT) -> int:
     """The chapter's experiment: tables on `out` (stdout), optionally JSON, CSV, per-run records and
     figures. `filters`: any of "df", "ekf", "ukf" (or one comma-separated string); the EKF and UKF
     run on the recordings of the replay + difference closed loops. Returns 0, or 1 when a run
-    failed or diverged. Bad input raises a CodegenError before any run."""
+    failed or diverged. Bad input raises a CodegenError before any run. `predictor`: the
+    derivative-free filters' prediction, "held" (u held, the default) or "brunovsky" (the chapter's)."""
     out = out or sys.stdout
     _check_outputs(json_path, plot)
-    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot)
+    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, predictor)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
     bound = o.bound
     if csv:
