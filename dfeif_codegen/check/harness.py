@@ -171,7 +171,8 @@ INPUTS = ("recorded", "own")
 
 def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
     """The driver's inputs, C-contiguous, reals in the build's precision, integers int32;
-    `v_in` is the reference's broadcast input, for runs that predict with the recorded inputs."""
+    `v_in` is the reference's broadcast input (u for the held predictor, v for the Brunovsky one),
+    for runs that predict with the recorded inputs."""
     K = rec.ref.shape[0]
     source = np.full((K, rec.nodes), -1, dtype=np.int32)
     source[np.asarray(rec.pkt_step, int), np.asarray(rec.pkt_node, int)] = rec.pkt_src
@@ -184,7 +185,7 @@ def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
         "z": real(rec.z), "gamma": int32(rec.gamma), "ref": real(rec.ref),
         "late_step": int32(rec.late_step), "late_node": int32(rec.late_node),
         "late_lag": int32(rec.late_lag), "late_z": real(np.reshape(rec.late_z, (-1, rec.m))),
-        "source": source, "v_in": real(rec.v),
+        "source": source, "v_in": real(rec.u if getattr(rec, "predictor", "brunovsky") == "held" else rec.v),
     }
 
 
