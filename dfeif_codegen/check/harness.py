@@ -138,11 +138,15 @@ class ModelDir:
 
 
 def build_model(model: str, out: Path, precision: str = "double", oosm: str = "replay",
-                fusion: str = "difference", nodes: int = 2, max_lag: int = 32, ts: float | None = None) -> ModelDir:
-    """Build a model into `out` through the public build API and open what it wrote."""
+                fusion: str = "difference", nodes: int = 2, max_lag: int = 32, ts: float | None = None,
+                predictor: str | None = None) -> ModelDir:
+    """Build a model into `out` through the public build API and open what it wrote (`predictor`
+    None: Brunovsky with retrodiction, else the default)."""
     from dfeif_codegen.codegen.build import build
+    from dfeif_codegen.reference import predictor as predictors
 
-    module = build(model, out, precision=precision, oosm=oosm, fusion=fusion, nodes=nodes, max_lag=max_lag, ts=ts)
+    module = build(model, out, precision=precision, oosm=oosm, fusion=fusion, nodes=nodes, max_lag=max_lag, ts=ts,
+                   predictor=predictors.for_method(predictor, oosm))
     return ModelDir.open(module.path)
 
 

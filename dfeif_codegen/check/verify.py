@@ -162,17 +162,22 @@ def record(*args, **kw):
 
 def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", reference: str = "sinusoid",
                 row: int = 2, nodes: int = 2, max_lag: int = 32, seed: int = 0, duration: float | None = None,
-                uplink=None, sensor_drop: float | None = None, scenario_spec: str = "paper"):
+                uplink=None, sensor_drop: float | None = None, scenario_spec: str = "paper",
+                predictor: str | None = None):
     """One closed-loop run of a scenario (default the built-in paper one) with the Python reference
     (an experiment.Result). `row` indexes the scenario's delay grid; `uplink` (a network Link) makes
-    node -> master packets late or lost; `sensor_drop` adds camera frame drops."""
+    node -> master packets late or lost; `sensor_drop` adds camera frame drops; `predictor` None:
+    Brunovsky with retrodiction, else the default (predictor.for_method)."""
+    from dfeif_codegen.reference import predictor as predictors
+
     import dataclasses
 
     from dfeif_codegen.experiment import scenario, simulate
     from dfeif_codegen.experiment import closed_loop as experiment
 
     sc = scenario.load(scenario_spec)
-    cfg = simulate.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
+    cfg = simulate.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed,
+                               predictors.for_method(predictor, oosm))
     changes = {}
     if duration is not None:
         changes["duration"] = duration

@@ -30,6 +30,12 @@ def check(name: str, oosm: str = "replay") -> None:
                          f"over the lag, ill-conditioned for the {name} predictor's); use --oosm replay")
 
 
+def for_method(predictor: str | None, oosm: str) -> str:
+    """`predictor`, or when None the one a late-measurement method works with: Brunovsky for
+    retrodiction (the only one it can use), else the default."""
+    return predictor or ("brunovsky" if oosm == "retrodict" else DEFAULT)
+
+
 def held_mean_sx(flat, H: sampling.HeldSampling, x: ca.SX, u: ca.SX, p) -> ca.SX:
     """One ETD2RK step of the canonical dynamics with u held (the C prints the same graph):
     a = E x + Γ₁ r(x), x⁺ = a + Γ₂ (r(a) - r(x)), r = F + G u - L₀ ζ."""
