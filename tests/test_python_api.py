@@ -71,8 +71,8 @@ def test_readme_example_runs_as_written_and_matches_the_reference(in_tmp):
             assert node.update_delayed(ns["frames"][1], lag=1)
         master.fuse([node.packet(), None])
         u, v = ctrl(master.x, ns["flags"])
-        node.predict(v)
-        master.predict(v)
+        node.predict(u)
+        master.predict(u)
 
     assert rel(ns["gains"], gains) < RTOL
     assert rel(ns["u"], u) < RTOL and rel(ns["v"], v) < RTOL
