@@ -64,9 +64,9 @@ def parser() -> argparse.ArgumentParser:
                        help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
         p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
                        help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
-        p.add_argument("--predictor", choices=["held", "brunovsky"], default="held",
-                       help="the filters' prediction: the canonical dynamics with the applied u held (default) "
-                            "or the chapter's Brunovsky chain driven by v = F + G u")
+        p.add_argument("--predictor", choices=["held", "brunovsky"], default=None,
+                       help="the filters' prediction: the canonical dynamics with the applied u held (default; "
+                            "brunovsky with --oosm retrodict) or the chapter's Brunovsky chain driven by v = F + G u")
 
     p = add("build")
     p.add_argument("--out", default="generated", help="output folder (default generated)")
@@ -197,7 +197,7 @@ def verify(args: argparse.Namespace) -> int:
     result = verify.verify(args.model, target=args.target, precision=args.precision, sanitize=args.sanitize,
                            scenario=args.scenario, inputs=args.inputs, max_lag=args.max_lag, nodes=args.nodes,
                            oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                           progress=lambda line: print(line, flush=True))
+                           predictor=args.predictor, progress=lambda line: print(line, flush=True))
     print(result.report())
     verify.check(result.errors)
     print("PASS")
@@ -259,7 +259,7 @@ def network(args: argparse.Namespace) -> int:
     result = run.network(args.model, scenario=args.scenario, row=args.row, seed=args.seed,
                          precision=args.precision, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
                          nodes=args.nodes, max_lag=args.max_lag, duration=args.duration, key=args.key,
-                         flip_rate=args.flip_rate, keep=args.keep)
+                         flip_rate=args.flip_rate, keep=args.keep, predictor=args.predictor)
     print(result.report())
     verify.check(result.errors)
     print("PASS")

@@ -24,7 +24,7 @@ import jinja2
 import sympy as sp
 
 from dfeif_codegen import __version__, budget
-from dfeif_codegen.symbolic import flatness, model
+from dfeif_codegen.symbolic import flatness, model, sampling
 from dfeif_codegen.codegen import kernels, layout, render
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
@@ -141,13 +141,14 @@ def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
                        singular_rtol, predictor) -> tuple[model.Model, Options]:
     m = spec if isinstance(spec, model.Model) else model.load(str(spec))
     return m, Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
-                      precision=precision, singular_rtol=singular_rtol, predictor=predictor)
+                      precision=precision, singular_rtol=singular_rtol,
+                      predictor=sampling.for_method(predictor, oosm))
 
 
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float = budget.MAX_SECONDS,
-          max_memory: float = budget.MAX_MEMORY, predictor: str = "held") -> list[str]:
+          max_memory: float = budget.MAX_MEMORY, predictor: str | None = None) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
     compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
@@ -168,7 +169,7 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, force: bool = False,
           max_seconds: float = budget.MAX_SECONDS, max_memory: float = budget.MAX_MEMORY,
-          compile_check: bool = True, predictor: str = "held") -> GeneratedModule:
+          compile_check: bool = True, predictor: str | None = None) -> GeneratedModule:
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options and the output folder are checked before the derivation starts; the derivation runs

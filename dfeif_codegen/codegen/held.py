@@ -6,12 +6,9 @@ The C stores the chain heads relative to a centre (docs/algorithms.md, "Centred 
 Brunovsky A maps a vector that is zero off the heads to itself, so its prediction commutes with
 the centre; E = e^{(A_c + B_c L₀) Ts} does not (L₀ has entries in the heads' columns), and F, G
 need the absolute state. So these kernels take the centre c (one value per head, Hc its
-embedding): with z = x + Hc the absolute state and r(z) = F(z) + G(z) u - L₀ z,
-
-    a = E x + (E - I) Hc + Γ₁ r(z),     x⁺ = a + Γ₂ (r(a + Hc) - r(z)),
-
-the ETD2RK step of the reference minus Hc, with the relative parts computed relative (in single
-precision the stored values keep their resolution) and (E - I) Hc a constant matrix times c.
+embedding) and add the reference's increment (sampling.held_increment_sx, evaluated at the
+absolute state z = x + Hc) to the relative x: the ETD2RK step of the reference minus Hc, the
+stored values keeping their resolution in single precision.
 The model's parameters are baked in at their values: L₀ is taken with them at build time.
 """
 
@@ -23,11 +20,6 @@ import numpy as np
 from dfeif_codegen.symbolic import sampling
 
 
-def _dm(a) -> ca.DM:
-    """A constant with its exact zeros structural (no work emitted for them)."""
-    return ca.sparsify(ca.DM(np.atleast_2d(a)))
-
-
 class HeldKernels:
     """Kernel builders for one flat system and period; `b` is the kernel builder whose packing
     helpers (pack, unpack, symmetric) the node's storage uses."""
@@ -36,32 +28,24 @@ class HeldKernels:
         self.flat, self.b = flat, b
         self.n, self.m = flat.n, flat.m
         self.H = sampling.held_sampling(flat, ts)
-        self.top = sampling.remainder_function(flat)
         self.p = ca.DM(flat.param_vector)
         self.embed = np.zeros((self.n, self.m))
         self.embed[flat.heads, np.arange(self.m)] = 1.0
 
     def mean(self, x: ca.SX, u: ca.SX, c: ca.SX) -> ca.SX:
         """x⁺ relative to the centre c from x relative to it (module docstring)."""
-        H, Hc = self.H, ca.mtimes(_dm(self.embed), c)
-
-        def rem(z):
-            return self.top(z, u, self.p)[0] - ca.mtimes(_dm(H.L0), z)
-
-        r0 = rem(x + Hc)
-        a = ca.mtimes(_dm(H.E), x) + ca.mtimes(_dm((H.E - np.eye(self.n)) @ self.embed), c) + ca.mtimes(_dm(H.G1), r0)
-        return a + ca.mtimes(_dm(H.G2), rem(a + Hc) - r0)
+        return x + sampling.held_increment_sx(self.flat, self.H, x, x + ca.mtimes(sampling.constant(self.embed), c), u, self.p)
 
     def noise(self, q: ca.SX) -> ca.SX:
         """Q₀ = Σ_j q_j U_j."""
         out = ca.SX(self.n, self.n)
         for j in range(self.m):
-            out = out + q[j] * _dm(self.H.U[j])
+            out = out + q[j] * sampling.constant(self.H.U[j])
         return out
 
     def covariance(self, P: ca.SX, q: ca.SX) -> ca.SX:
         """Φ₀ P Φ₀ᵀ + Q₀ from the upper triangle of P."""
-        E = _dm(self.H.E)
+        E = sampling.constant(self.H.E)
         return ca.mtimes(ca.mtimes(E, self.b.symmetric(P)), E.T) + self.noise(q)
 
     def node_predict(self, name: str) -> ca.Function:

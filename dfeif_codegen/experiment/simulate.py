@@ -338,7 +338,7 @@ class Plan:
     rows: list
     wanted: dict             # (cfg, kind) -> [(reference, method label, fusion, row, seed)]
     figure_keys: set
-    predictor: str = predictors.DEFAULT    # the derivative-free filters' (reference/predictor.py)
+    predictor: str | None = None    # the filters' (reference/predictor.py); None: for_method
 
     @property
     def seeds(self) -> range:
@@ -375,7 +375,7 @@ def _filters_of(filters) -> list[str]:
 
 
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
-         filters, plot_dir, predictor: str = predictors.DEFAULT) -> Plan:
+         filters, plot_dir, predictor: str | None = None) -> Plan:
     """Load and check everything, then list each distinct run once."""
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
@@ -399,7 +399,8 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
     configs = list(dict.fromkeys(configurations(list(oosm or sc.oosm), list(fusion or sc.fusion), sc.baselines)))
     for method, _ in configs:
         try:
-            predictors.check(predictor, method if method in ex.OOSM else "replay")
+            oosm_of = method if method in ex.OOSM else "replay"
+            predictors.check(predictors.for_method(predictor, oosm_of), oosm_of)
         except ValueError as exc:
             raise ScenarioError(str(exc) if oosm else f"{sc.where('oosm')}: {exc}") from None
     rows = [scenario_mod.Row([_pick(r.d, i) for i in range(nodes)], r.p, r.p_drop) for r in sc.grid]
@@ -408,10 +409,12 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
         for ri, row in enumerate(rows):
             for s in p.seeds:
                 for method, rule in configs:
-                    cfg = make_config(sc, model, nodes, max_lag, ref, row, method, rule, s, predictor)
+                    cfg = make_config(sc, model, nodes, max_lag, ref, row, method, rule, s,
+                                      predictors.for_method(predictor, method if method in ex.OOSM else "replay"))
                     p.wanted.setdefault((_canonical(cfg), "df"), []).append((ref, method, rule, ri, s))
                 for label, rule in p.labels[len(configs):]:
-                    cfg = make_config(sc, model, nodes, max_lag, ref, row, "replay", rule, s, predictor)
+                    cfg = make_config(sc, model, nodes, max_lag, ref, row, "replay", rule, s,
+                                      predictors.for_method(predictor, "replay"))
                     p.wanted.setdefault((cfg, label), []).append((ref, label, rule, ri, s))
     for cfg in {c.reference: c for c, _ in p.wanted}.values():
         try:  # a reference outside the model's domain is bad input, known before any run
@@ -508,12 +511,12 @@ def _settings(p: Plan, o: Outcome, engine: str) -> dict:
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
            "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": engine, "ran_on": o.where,
            "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3),
-           "predictor": p.predictor}
+           "predictor": p.predictor or f"{predictors.DEFAULT} (brunovsky with retrodict)"}
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
         out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
-                                               p.predictor)
+                                               predictors.for_method(p.predictor, "replay"))
     return out
 
 
@@ -556,12 +559,13 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              engine: str = "c", workers: int | None = None, scheduler: str | None = None,
              results: str | None = None, csv: str | None = None, resume: str | None = None, out=None,
-             predictor: str = predictors.DEFAULT) -> int:
+             predictor: str | None = None) -> int:
     """The chapter's experiment: tables on `out` (stdout), optionally JSON, CSV, per-run records and
     figures. `filters`: any of "df", "ekf", "ukf" (or one comma-separated string); the EKF and UKF
     run on the recordings of the replay + difference closed loops. Returns 0, or 1 when a run
     failed or diverged. Bad input raises a CodegenError before any run. `predictor`: the
-    derivative-free filters' prediction, "held" (u held, the default) or "brunovsky" (the chapter's)."""
+    derivative-free filters' prediction, "held" (u held) or "brunovsky" (the chapter's); None:
+    held, and brunovsky for retrodiction (the only one it can use)."""
     out = out or sys.stdout
     _check_outputs(json_path, plot)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, predictor)

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dfeif_codegen.symbolic.sampling import for_method
 from dfeif_codegen.check import harness, verify
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
@@ -58,6 +59,7 @@ class Options:
     duration: float | None = 5.0
     key: str | None = None            # 32 hex digits: keyed tags on every frame
     flip_rate: float = 0.0            # bit error rate on node -> master packets
+    predictor: str | None = None      # None: held, brunovsky with retrodict (sampling.for_method)
     faults: tuple = ()
     step_timeout: float = 1.0         # relay: how long a master tick waits for missing packets
     command_timeout: float = 2.0      # plant: how long it waits for the master's command
@@ -86,7 +88,8 @@ def make_config(o: Options) -> ex.Config:
     sc.check_model(ex._flat(o.model))
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
-    cfg = simulate.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed)
+    cfg = simulate.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed,
+                               for_method(o.predictor, o.oosm))
     if o.duration is not None:
         cfg = dataclasses.replace(cfg, duration=o.duration, metrics_from=min(cfg.metrics_from, o.duration / 2))
     return cfg
@@ -141,7 +144,8 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
     work.mkdir(parents=True, exist_ok=True)
     cfg = make_config(o)
     s = session.setup(cfg)
-    md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts)
+    md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts,
+                             cfg.predictor)
     progs = programs.build_programs(md, work / "programs")
     lay = wire.Layout.of_folder(md.path)
     K, M = s.K, s.nodes
@@ -301,7 +305,7 @@ class Network:
 def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int = 2, seed: int = 0,
             precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int = 2,
             max_lag: int = 32, duration: float | None = 5.0, key: str | None = None, flip_rate: float = 0.0,
-            keep: str | Path | None = None) -> Network:
+            keep: str | Path | None = None, predictor: str | None = None) -> Network:
     """One run of the estimator as separate processes, compared with the reference replaying the
     logged arrivals. Bad options raise (one line) before anything is built; `keep` (an empty or
     new folder) keeps the programs and logs."""
@@ -313,7 +317,8 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
     if not 0 <= flip_rate < 1:
         raise ScenarioError(f"--flip-rate {flip_rate}: not in [0, 1)")
     o = Options(model=model, scenario=scenario, row=row, seed=seed, precision=precision, oosm=oosm,
-                fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate)
+                fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate,
+                predictor=predictor)
     if keep and Path(keep).exists() and any(Path(keep).iterdir()):
         raise ScenarioError(f"--keep {keep}: not empty (the run writes its programs and logs there)")
     make_config(o)   # bad scenario or row: one line, before any build

@@ -16,9 +16,7 @@ import casadi as ca
 import numpy as np
 
 from dfeif_codegen.symbolic import numeric, sampling
-from dfeif_codegen.symbolic.sampling import PREDICTORS
-
-DEFAULT = "held"
+from dfeif_codegen.symbolic.sampling import DEFAULT, PREDICTORS, for_method  # noqa: F401 (re-exported)
 
 
 def check(name: str, oosm: str = "replay") -> None:
@@ -30,28 +28,9 @@ def check(name: str, oosm: str = "replay") -> None:
                          f"over the lag, ill-conditioned for the {name} predictor's); use --oosm replay")
 
 
-def for_method(predictor: str | None, oosm: str) -> str:
-    """`predictor`, or when None the one a late-measurement method works with: Brunovsky for
-    retrodiction (the only one it can use), else the default."""
-    return predictor or ("brunovsky" if oosm == "retrodict" else DEFAULT)
-
-
 def held_mean_sx(flat, H: sampling.HeldSampling, x: ca.SX, u: ca.SX, p) -> ca.SX:
-    """One ETD2RK step of the canonical dynamics with u held (the C prints the same graph):
-    a = E x + Γ₁ r(x), x⁺ = a + Γ₂ (r(a) - r(x)), r = F + G u - L₀ ζ."""
-    top = sampling.remainder_function(flat)
-
-    def rem(z):
-        return top(z, u, p)[0] - ca.mtimes(_dm(H.L0), z)
-
-    r0 = rem(x)
-    a = ca.mtimes(_dm(H.E), x) + ca.mtimes(_dm(H.G1), r0)
-    return a + ca.mtimes(_dm(H.G2), rem(a) - r0)
-
-
-def _dm(a: np.ndarray) -> ca.DM:
-    """A constant with its exact zeros structural, so CasADi emits no work for them."""
-    return ca.sparsify(ca.DM(np.atleast_2d(a)))
+    """One ETD2RK step of the canonical dynamics with u held (the C prints the same increment)."""
+    return x + sampling.held_increment_sx(flat, H, x, x, u, p)
 
 
 class Brunovsky:

@@ -8,7 +8,11 @@ remainder n(ζ, u) = F(ζ) + G(ζ) u - L₀ ζ (what A leaves out; it enters thr
 
     a  = E ζ + Γ₁ n(ζ, u),     ζ⁺ = a + Γ₂ (n(a, u) - n(ζ, u)),
 
-with E = e^{A Ts}, Γ₁ = Ts φ₁(A Ts) B_c, Γ₂ = Ts φ₂(A Ts) B_c. The covariance moves by the
+with E = e^{A Ts}, Γ₁ = Ts φ₁(A Ts) B_c, Γ₂ = Ts φ₂(A Ts) B_c. Since E = I + Ψ A with
+Ψ = Ts φ₁(A Ts), the first stage is a = ζ + Ψ (A_c ζ + B_c (F(ζ) + G(ζ) u)): an increment, the
+vector field through Ψ, which is how both the reference and the C compute it (E ζ and Γ₁ L₀ ζ
+are large and cancel where the plant has a fast mode, which single precision cannot afford).
+The covariance moves by the
 constant transition Φ₀ = E and Q₀ = Σ_j q_j U_j, U_j the Van Loan integral of unit white noise
 on chain j's top derivative through A. Everything here is computed once, in double, by matrix
 exponentials of augmented matrices: no Jacobian at run time.
@@ -29,6 +33,13 @@ from dfeif_codegen.symbolic.flatness import nominal_state
 PREDICTORS = ("held", "brunovsky")
 """`held`: the mean integrated with u held as the plant holds it (the default); `brunovsky`: the
 chapter's exact model of the canonical chain with v = F + G u held instead."""
+DEFAULT = "held"
+
+
+def for_method(predictor: str | None, oosm: str) -> str:
+    """`predictor`, or when None the one a late-measurement method works with: Brunovsky for
+    retrodiction (the only one it can use), else the default."""
+    return predictor or ("brunovsky" if oosm == "retrodict" else DEFAULT)
 
 
 def expm(M: np.ndarray) -> np.ndarray:
@@ -92,7 +103,8 @@ class HeldSampling:
     Bc: np.ndarray         # (n, m)
     A: np.ndarray          # A_c + B_c L₀
     E: np.ndarray          # e^{A Ts} = Φ₀
-    G1: np.ndarray         # Ts φ₁(A Ts) B_c
+    Psi: np.ndarray        # Ts φ₁(A Ts): E = I + Ψ A
+    G1: np.ndarray         # Ts φ₁(A Ts) B_c = Ψ B_c
     G2: np.ndarray         # Ts φ₂(A Ts) B_c
     U: np.ndarray          # (m, n, n): Q₀ per unit density of each chain
 
@@ -109,8 +121,9 @@ class HeldSampling:
 def assemble(A, Bc, L0, zeta0, u0, ts) -> HeldSampling:
     """The constants for the linear part A = A_c + B_c L₀ at period ts."""
     E, G1, G2 = phi_matrices(A, Bc, ts)
+    Psi = phi_matrices(A, np.eye(len(A)), ts)[1]
     U = np.array([van_loan(A, Bc[:, j], ts) for j in range(Bc.shape[1])])
-    return HeldSampling(float(ts), np.asarray(zeta0, float), np.asarray(u0, float), L0, Bc, A, E, G1, G2, U)
+    return HeldSampling(float(ts), np.asarray(zeta0, float), np.asarray(u0, float), L0, Bc, A, E, Psi, G1, G2, U)
 
 
 def remainder_function(flat) -> ca.Function:
@@ -124,6 +137,23 @@ def remainder_function(flat) -> ca.Function:
             G[i, j] = numeric.to_casadi(flat.G[i, j], table, f"G-bar[{i},{j}]")
     top = F + ca.mtimes(G, u)
     return ca.Function("top", [z, u, p], [top, ca.jacobian(top, z)])
+
+
+def held_increment_sx(flat, H: HeldSampling, x: ca.SX, z: ca.SX, u: ca.SX, p) -> ca.SX:
+    """x⁺ - x for one ETD2RK step with u held, from the absolute state z (x may be z relative to
+    a centre on the chain heads: A_c never reads a head). In the increment form of the module
+    docstring of sampling.py: d = Ψ (A_c x + B_c v(z)), a = z + d, and
+    x⁺ - x = d + Γ₂ (v(a) - v(z) - L₀ d), v = F + G u: no large terms that cancel."""
+    top = remainder_function(flat)
+    Ac, _, _ = flat.canonical()
+    v0 = top(z, u, p)[0]
+    d = ca.mtimes(constant(H.Psi), ca.mtimes(constant(Ac), x) + ca.mtimes(constant(H.Bc), v0))
+    return d + ca.mtimes(constant(H.G2), top(z + d, u, p)[0] - v0 - ca.mtimes(constant(H.L0), d))
+
+
+def constant(a) -> ca.DM:
+    """A constant matrix with its exact zeros structural (no work emitted for them)."""
+    return ca.sparsify(ca.DM(np.atleast_2d(a)))
 
 
 def nominal_point(flat, x=None, u=None) -> tuple[np.ndarray, np.ndarray]:
