@@ -17,7 +17,8 @@ import jinja2
 import pytest
 
 from dfeif_codegen import cli
-from dfeif_codegen.codegen import build, kernels, render
+from dfeif_codegen.codegen import build, render
+from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import model
 
@@ -247,7 +248,7 @@ def test_cmake_builds_library_and_example(fresh, tmp_path):
 
 def test_float_post_processing():
     text = "w[1]=sin(w[0]); w[2]=(2.*w[1]); w[3]=1.0000000000000000e-02; w[4]=fmin(w[2],w[3]); a[10]=w12;"
-    out = kernels._float_text(text)
+    out = csource.float_text(text)
     assert out == ("w[1]=sinf(w[0]); w[2]=(2.f*w[1]); w[3]=1.0000000000000000e-02f; w[4]=fminf(w[2],w[3]); "
                    "a[10]=w12;")
 

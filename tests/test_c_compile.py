@@ -35,7 +35,7 @@ VARIANTS = {
     "dc-retro-ci": ("dc_motor_link", {"oosm": "retrodict", "fusion": "ci"}),
     "dc-ci3": ("dc_motor_link", {"fusion": "ci", "nodes": 3}),
     "dc-ci16": ("dc_motor_link", {"fusion": "ci", "nodes": 16}),
-    # 16 nodes: the CI step through the Hessian's factor (kernels.py ci_kernels), in single precision
+    # 16 nodes: the CI step through the Hessian's factor (kernels/ci.py ci_kernels), in single precision
     "dc-float-ci16": ("dc_motor_link", {"precision": "float", "fusion": "ci", "nodes": 16}),
     "dc-float-retro-ci3": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci", "nodes": 3}),
     "dc-float-paper": ("dc_motor_link", {"precision": "float", "fusion": "paper", "max_lag": 5}),
@@ -621,9 +621,9 @@ def test_discrete_constants_match_discretize():
     """The kernels' closed-form A_d(t) for a symbolic t equals discretize's A_d at t = N Ts."""
     import casadi as ca
 
-    from dfeif_codegen.codegen import kernels
+    from dfeif_codegen.codegen.kernels.chains import Chains
     flat = _flat("two_link_arm")
-    b = kernels._Builder(flat, Options(ts=0.01))
+    b = Chains(flat, Options(ts=0.01))
     t = ca.SX.sym("t")
     f = ca.Function("f", [t], [b.A_of(t), b.Q_of(ca.DM([2.0, 3.0]), t)])
     for N in (1, 7, -5):
@@ -753,14 +753,14 @@ def test_spd_inverse_once_equals_numpy():
     machine, so 1e-10 holds whatever LAPACK kernel numpy picks."""
     import casadi as ca
 
-    from dfeif_codegen.codegen import kernels
+    from dfeif_codegen.codegen.kernels import linalg
     rng = np.random.default_rng(13)
     for n in range(2, 11):
         G = rng.standard_normal((n, n))
         S = G @ G.T + n * np.eye(n)
         assert np.linalg.cond(S) < 1e3
         X = ca.SX.sym("S", n, n)
-        Y, piv = kernels.spd_inverse_once(X)
+        Y, piv = linalg.spd_inverse_once(X)
         Y_got, piv_got = (np.array(v) for v in ca.Function("f", [X], [Y, piv])(S))
         np.testing.assert_allclose(Y_got, np.linalg.inv(S), rtol=1e-10, atol=1e-12, err_msg=f"n = {n}")
         assert np.array_equal(Y_got, Y_got.T)          # one expression per distinct entry
@@ -821,6 +821,8 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     1e-10)."""
     from dfeif_codegen.check import bench_peers, harness
     from dfeif_codegen.codegen import kernels
+    from dfeif_codegen.codegen.kernels import node
+    from dfeif_codegen.codegen.kernels.chains import Chains
 
     n = 7
     spec = tmp_path / "chain7.toml"
@@ -834,8 +836,8 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     x, v, q = rng.standard_normal(n), np.array([0.3]), np.array([2.0])
     x1, P1 = np.zeros(n), np.zeros(n * n)
     assert lib("kern_predict", x, P.ravel().copy(), v, q, x1, P1) == 0
-    b = kernels._Builder(flatness.derive(model.load(str(spec))), Options(ts=0.01))
-    x1_ref, P1_ref = (np.array(a) for a in b.predict("p")(x, P, v, q))
+    b = Chains(flatness.derive(model.load(str(spec))), Options(ts=0.01))
+    x1_ref, P1_ref = (np.array(a) for a in node.predict(b, "p")(x, P, v, q))
     assert {"chain7_kern_node_predict", "chain7_kern_info"} <= set(kernels.build(b.flat, b.opts, "chain7").loops)
     np.testing.assert_allclose(x1, x1_ref.ravel(), rtol=1e-13)
     np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=0, atol=1e-13 * np.abs(P1_ref).max())

@@ -36,7 +36,7 @@ def chain_kernels(n: int, work: Path) -> tuple[dict[str, int], int]:
     prefix = f"chain{n}_kern_"
     sizes = {name[len(prefix):]: size for name, size in symbol_sizes(obj).items() if name.startswith(prefix)}
     per: dict[str, int] = {}
-    for name, size in sorted(sizes.items()):   # a kernel's static parts (kernels.Loop) count as its own
+    for name, size in sorted(sizes.items()):   # a kernel's static parts (kernels.csource.Loop) count as its own
         owner = max((k for k in sizes if name.startswith(k + "_")), key=len, default=name)
         per[owner] = per.get(owner, 0) + size
     return per, target.sizes([obj])[obj.name].text

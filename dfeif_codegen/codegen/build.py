@@ -26,6 +26,7 @@ import sympy as sp
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model, sampling
 from dfeif_codegen.codegen import kernels, layout, render
+from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
 
@@ -89,15 +90,15 @@ def context(flat, opts: Options) -> dict:
     real_c = "float" if opts.precision == "float" else "double"
     kernel_code, kernel_list = {}, []
     for group, functions in ks.groups.items():
-        code, infos = kernels.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
+        code, infos = csource.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
                                        local_work=group in ks.local_work, wrappers=ks.wrappers,
-                                       loops=ks.loops)
+                                       loops=ks.loops, own_work=ks.own_work)
         looped = [k.name[len(p) + 6:] for k in infos if k.name in ks.loops]
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + "."
                                     + (f" Printed as loops over static parts: {', '.join(looped)}." if looped else ""))
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w, "local_work": k.local_work,
-                         "signature": kernels.wrap_comment(_comment(k.signature)),
+                         "signature": csource.wrap_comment(_comment(k.signature)),
                          "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real", k.name.upper() + "_SZ_W"),
                                                  ");")}
                         for k in infos]

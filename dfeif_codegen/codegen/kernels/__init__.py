@@ -1,0 +1,89 @@
+"""The filter, fusion and control math as CasADi SX functions: the kernel set of one build.
+
+Why CasADi: it turns the symbolic model into straight-line C with shared subexpressions and the
+known structure folded away (Brunovsky A_d is constant and sparse, C = e_head picks entries), so
+no generic matrix code ships to the microcontroller. Every kernel is one step of work; loops over
+the late-measurement window, over nodes and over the CI iterations are plain C in the templates.
+
+The package, dependencies pointing down the list:
+  linalg    symbolic linear algebra on small SX matrices (Cholesky, inverses, packed storage)
+  chains    the model's chain structure: A, B, C, A_d(t), Q_d(t), angle wrap, gain, posterior
+  csource   CasADi's C text post-processed into typed, styled C (`c_source`, `packed_wrapper`)
+  node      the node filter's kernels (predict, update, node_predict, info)
+  retro     the node's retrodiction kernels (`--oosm retrodict`)
+  loops     node_predict and info of long chains as C loops over small parts
+  fusion    the master's kernels (difference and paper rules, stale-packet prediction)
+  ci        covariance intersection's Newton-step kernels (`--fusion ci`)
+  control   the flatness-based control kernel
+and this module, which picks the kernels the options need (`build`): a new kernel is written in
+its concept's module and listed here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+
+from dfeif_codegen.codegen.kernels import ci, control, fusion, loops, node, retro
+from dfeif_codegen.codegen.kernels.chains import Chains
+from dfeif_codegen.codegen.kernels.csource import Loop
+from dfeif_codegen.codegen.options import Options
+
+# Kernels whose work array is a local of the kernel, not a parameter: then no store into it can
+# alias an argument, and the compiler keeps the intermediates in registers (the node's kernels,
+# called once per step on the hot path; measured: about half their instructions; and info, whose
+# Cortex-M4F code this halves at n = 10).
+LOCAL_WORK = ("update", "node_predict", "retro_step", "retro_finish", "info")
+
+# node_predict and info are printed as loops (`Loop`) when their straight-line code would have
+# more operations than this (CasADi's count): from a chain of 7 integrators on (548 and 601; a
+# chain of 6 has 371 and 410, two_link_arm 196 and 410), where the loops are 32% smaller and
+# the node step 1.8 times slower (Cortex-M4F and host figures in docs/algorithms.md).
+LOOP_OPS = 500
+
+# A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
+# canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
+# quarter (and packing halves it) for at most 3 extra P steps per late measurement.
+CHECK_EVERY = 4
+
+
+@dataclass
+class KernelSet:
+    """The CasADi functions of one model, grouped by the C file they go into."""
+
+    groups: dict[str, list[ca.Function]] = field(default_factory=dict)
+    local_work: set[str] = field(default_factory=set)   # groups whose kernels keep work locally
+    own_work: set[str] = field(default_factory=set)     # kernels with a local work array
+    # kernel -> the kernel it calls on packed copies of its n x n arguments (`packed_wrapper`)
+    wrappers: dict[str, str] = field(default_factory=dict)
+    # kernel -> the C loops that compute it instead of its straight-line code (`Loop`)
+    loops: dict[str, Loop] = field(default_factory=dict)
+
+    def all(self) -> list[ca.Function]:
+        return [f for fs in self.groups.values() for f in fs]
+
+
+def build(flat, opts: Options, prefix: str) -> KernelSet:
+    """All kernels the chosen options need, named `<prefix>_kern_<name>`."""
+    s = Chains(flat, opts)
+    name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
+    node_predict, info = node.node_predict(s, name("node_predict")), node.info(s, name("info"))
+    filt = [node.predict(s, name("predict")), node_predict, node.update(s, name("update")), info]
+    if opts.oosm == "retrodict":
+        filt += [retro.retro_step(s, name("retro_step")), retro.retro_finish(s, name("retro_finish"))]
+    if opts.fusion == "difference":
+        fus = [fusion.master_gain(s, name("master_gain")), fusion.fuse_finish_difference(s, name("fuse_finish"))]
+    else:
+        fus = [fusion.master_info(s, name("master_info")), fusion.fuse_finish(s, name("fuse_finish"))]
+    if opts.fusion == "ci":
+        fus += ci.ci_kernels(s, name)
+    fus += [fusion.advance(s, name("advance")), fusion.input_step(s, name("input_step"))]
+    # the master's predict is the node's on packed copies: the same expressions (bit for bit),
+    # so its Theta(n^3) straight-line code is not printed twice
+    looped = {f.name(): loop(s, f.name()) for f, loop in ((node_predict, loops.node_predict_loop),
+                                                          (info, loops.info_loop))
+              if f.n_instructions() > LOOP_OPS}
+    return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"))]},
+                     local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
+                     wrappers={name("predict"): name("node_predict")}, loops=looped)

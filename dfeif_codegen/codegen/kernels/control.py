@@ -1,0 +1,68 @@
+"""The flatness-based control kernel: u and v from the estimate, the reference and the gains.
+
+The model's F-bar and G-bar (sympy, from `symbolic.flatness`) are converted here by
+`symbolic.numeric.to_casadi`, the one sympy -> CasADi bridge, and CasADi's common-subexpression
+elimination shares their terms.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from dfeif_codegen.symbolic.numeric import to_casadi
+from dfeif_codegen.codegen.kernels.chains import Chains, wrap_angle
+from dfeif_codegen.codegen.kernels.linalg import sym
+
+
+def _clamp(flat, u: ca.SX, m: int) -> tuple[ca.SX, ca.SX]:
+    """u clamped to the declared actuator limits, and the count of inputs clamped."""
+    limits = [(i, w.min, w.max) for i, w in enumerate(flat.model.inputs) if w.bounded]
+    nsat = ca.SX(0)
+    clamped = []
+    for i in range(m):
+        ui = u[i]
+        for j, lo, hi in limits:
+            if j == i and lo is not None:
+                nsat, ui = nsat + (u[i] < lo), ca.fmax(ui, lo)
+            if j == i and hi is not None:
+                nsat, ui = nsat + (u[i] > hi), ca.fmin(ui, hi)
+        clamped.append(ui)
+    return ca.vertcat(*clamped), nsat
+
+
+def control(s: Chains, name: str) -> ca.Function:
+    """u and v = F + G u from the estimate, reference flags and gains (algorithms.md)."""
+    flat, n, m = s.flat, s.n, s.m
+    x, flags, gains = sym("x", n), sym("flags", n + m), sym("gains", n)
+    p = sym("params", len(flat.params))
+    table = dict(zip(flat.zeta, [x[i] for i in range(n)]))
+    table.update(zip(flat.params, [p[i] for i in range(len(flat.params))]))
+    v = []
+    for j, chain in enumerate(flat.chains):
+        r, off = chain.degree, chain.offset
+        base = off + j                            # chain j's flags start here
+        errs = [x[off + i] - flags[base + i] for i in range(r)]
+        if chain.angle:
+            errs[0] = wrap_angle(errs[0])
+        vj = flags[base + r]
+        for i in range(r):
+            vj = vj - gains[off + r - i - 1] * errs[i]
+        v.append(vj)
+    v = ca.vertcat(*v)
+    F = ca.vertcat(*[to_casadi(flat.F[j], table, f"F-bar[{j}]") for j in range(m)])
+    G = ca.SX(m, m)
+    for i in range(m):
+        for j in range(m):
+            G[i, j] = to_casadi(flat.G[i, j], table, f"G-bar[{i},{j}]")
+    if m == 1:
+        u, det = (v - F) / G, G
+    else:
+        u, det = ca.solve(G, v - F), ca.det(G)
+    # declared actuator limits: clamp u, count the clamped inputs, and broadcast the v the
+    # clamped u really produces (v = F + G u), so the filters predict what the plant does
+    nsat = ca.SX(0)
+    if any(w.bounded for w in flat.model.inputs):
+        u, nsat = _clamp(flat, u, m)
+        v = F + ca.mtimes(G, u)
+    return ca.Function(name, [x, flags, gains, p], [u, v, det, nsat],
+                       ["x", "flags", "gains", "params"], ["u", "v", "det", "nsat"], {"cse": True})

@@ -1,0 +1,90 @@
+"""The master's fusion kernels (difference and paper rules) and its prediction of stale packets.
+
+Each packet becomes information about the master's prior (`master_info`, or with the difference
+rule the gain of its update over its prediction, `master_gain`); the C sums them and
+`fuse_finish` turns the sum back into an estimate. Symmetric results are computed once and
+packed row by row (`linalg.packed_rows`); the master keeps these kernels' work in locals.
+The covariance-intersection weights are in `ci`.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from dfeif_codegen.codegen.kernels.chains import Chains
+from dfeif_codegen.codegen.kernels.linalg import packed_rows, spd_inverse, sym, symmetric, unpacked_rows
+
+
+def _info_of(x: ca.SX, P: ca.SX, c: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Y = P^-1 (its upper triangle only: the lower reuses it) and y = Y (x - c), about the
+    master's prior c: the same fused x in exact arithmetic, without the cancellation of Y x
+    terms that |x| / sigma of several hundred causes in single precision."""
+    Yi, piv = spd_inverse(P)
+    Y = symmetric(Yi)
+    return Y, ca.mtimes(Y, x - c), piv
+
+
+def _finish_of(Y: ca.SX, y: ca.SX, c: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    Pi, piv = spd_inverse(Y)
+    P = symmetric(Pi)
+    return c + ca.mtimes(P, y), P, piv
+
+
+def master_info(s: Chains, name: str) -> ca.Function:
+    """One packet's information (paper and ci rules), Y packed."""
+    n = s.n
+    x, P, c = sym("x", n), sym("P", n, n), sym("c", n)
+    Y, y, piv = _info_of(x, P, c)
+    return ca.Function(name, [x, P, c], [packed_rows(Y), y, piv], ["x", "P", "c"], ["Y", "y", "piv"])
+
+
+def master_gain(s: Chains, name: str) -> ca.Function:
+    """One packet's information gain (difference rule): its update's information less its
+    prediction's, packed, with both factorisations' pivots."""
+    n = s.n
+    x, P, xp, Pp, c = sym("x", n), sym("P", n, n), sym("xp", n), sym("Pp", n, n), sym("c", n)
+    Y, y, piv = _info_of(x, P, c)
+    Yp, yp, pivp = _info_of(xp, Pp, c)
+    return ca.Function(name, [x, P, xp, Pp, c], [packed_rows(Y - Yp), y - yp, ca.vertcat(piv, pivp)],
+                       ["x", "P", "xp", "Pp", "c"], ["dY", "dy", "piv"])
+
+
+def fuse_finish(s: Chains, name: str) -> ca.Function:
+    """x = c + P y, P = Y^-1 from the fused information (Y packed)."""
+    n = s.n
+    Y, y, c = sym("Y", n * (n + 1) // 2), sym("y", n), sym("c", n)
+    x, P, piv = _finish_of(unpacked_rows(Y, n), y, c)
+    return ca.Function(name, [Y, y, c], [x, P, piv], ["Y", "y", "c"], ["x", "P", "piv"])
+
+
+def fuse_finish_difference(s: Chains, name: str) -> ca.Function:
+    """The difference rule's end: Y = P_prior^-1 + sum of gains (packed), y = 0 + sum of gains
+    (the prior's information about itself is 0); then x = c + P y, P = Y^-1."""
+    n = s.n
+    Pc, dY, dy, c = sym("Pc", n, n), sym("dY", n * (n + 1) // 2), sym("dy", n), sym("c", n)
+    Yc, pivc = spd_inverse(Pc)
+    x, P, piv = _finish_of(symmetric(Yc) + unpacked_rows(dY, n), dy, c)
+    return ca.Function(name, [Pc, dY, dy, c], [x, P, ca.vertcat(pivc, piv)], ["Pc", "dY", "dy", "c"],
+                       ["x", "P", "piv"])
+
+
+def advance(s: Chains, name: str) -> ca.Function:
+    """A stale packet's estimate brought N steps forward at once: x1 = A(N Ts) x + effect and
+    P1 = A(N Ts) P A(N Ts)' + Q_d(N Ts), `effect` the stored inputs' effect over those steps
+    (`input_step`). Exactly the N one-step predictions (sum_i A^i Q A^i' = Q_d(N Ts) for the
+    chains' white-noise model), in the work of one: a packet N_max steps old costs the master
+    one kernel call instead of N_max."""
+    n, m = s.n, s.m
+    N, x, P, e, q = sym("N"), sym("x", n), sym("P", n, n), sym("effect", n), sym("q", m)
+    t = N * s.opts.ts
+    A = s.A_of(t)
+    P1 = symmetric(ca.mtimes(ca.mtimes(A, symmetric(P)), A.T) + s.Q_of(q, t))
+    return ca.Function(name, [N, x, P, e, q], [ca.mtimes(A, x) + e, P1], ["N", "x", "P", "effect", "q"],
+                       ["x1", "P1"])
+
+
+def input_step(s: Chains, name: str) -> ca.Function:
+    """One stored input's step of that effect: A effect + B v (from 0 at the packet's step)."""
+    e, v = sym("effect", s.n), sym("v", s.m)
+    return ca.Function(name, [e, v], [ca.mtimes(s.A, e) + ca.mtimes(s.B, v)], ["effect", "v"],
+                       ["effect1"])
