@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from dfeif_codegen.errors import CodegenError
-from dfeif_codegen.symbolic.sampling import PREDICTORS
+from dfeif_codegen.symbolic.sampling import PREDICTORS, for_method
 
 MAX_LAG_LIMIT = 4096
 NODES_LIMIT = 16
@@ -30,7 +30,7 @@ class Options:
     fusion: str = "difference"
     precision: str = "double"
     singular_rtol: float = 1e-6  # control returns ERR_SINGULAR below this fraction of |det G| nominal
-    predictor: str = "held"      # the filters' prediction: u held (default) or the chapter's Brunovsky chain
+    predictor: str | None = None  # u held (None: held, brunovsky with retrodict) or the chapter's Brunovsky chain
 
     def __post_init__(self) -> None:
         ts = self.ts
@@ -41,6 +41,7 @@ class Options:
             raise BuildError(f"--singular-rtol must be a number in [0, 1), got {rtol!r}")
         object.__setattr__(self, "singular_rtol", float(rtol))
         object.__setattr__(self, "ts", float(ts))
+        object.__setattr__(self, "predictor", for_method(self.predictor, self.oosm))
         for name, limit in (("max_lag", MAX_LAG_LIMIT), ("nodes", NODES_LIMIT)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= limit:
