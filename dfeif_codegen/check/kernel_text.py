@@ -1,7 +1,8 @@
 """Where the filter kernels' code goes: .text of each kernel of the synthetic flat chains
-(`bench_peers.chain_model`, n = 2..10) as `codegen bench` sizes them (Cortex-M4F, float, -Os, the
-replay build with the Brunovsky predictor, whose node_predict is looped: predict, node_predict, update, info), with the fitted growth of each and of
-their sum, and optionally the node step's host instructions (callgrind, double).
+(`bench_peers.chain_model`, n = 2..10) as `codegen bench` sizes them (Cortex-M4F, float, -Os, a
+replay build with the Brunovsky predictor, whose node_predict is looped: predict, node_predict,
+update, info), with the fitted growth of each and of their sum, and optionally the node step's
+host instructions (callgrind, double).
 
     python -m dfeif_codegen.check.kernel_text [--steps] [WORK]
 """
