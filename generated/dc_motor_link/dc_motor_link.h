@@ -251,7 +251,7 @@ int dc_motor_link_node_update(dc_motor_link_node* node,
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int dc_motor_link_node_update_delayed(dc_motor_link_node* node,
                                       const dc_motor_link_real z[DC_MOTOR_LINK_NY], int32_t lag);
-/** Predict to step k + 1 with the broadcast input (after update() of step k): u, the input applied over the step. */
+/** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int dc_motor_link_node_predict(dc_motor_link_node* node,
                                const dc_motor_link_real input[DC_MOTOR_LINK_NY]);
 /** Current estimate; either output may be NULL. */
@@ -280,7 +280,7 @@ int dc_motor_link_master_init(dc_motor_link_master* master,
 int dc_motor_link_master_fuse(dc_motor_link_master* master,
                               const dc_motor_link_packet packets[DC_MOTOR_LINK_NNODES],
                               const uint8_t present[DC_MOTOR_LINK_NNODES]);
-/** Predict to step k + 1 with the broadcast input (u, as the nodes). */
+/** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int dc_motor_link_master_predict(dc_motor_link_master* master,
                                  const dc_motor_link_real input[DC_MOTOR_LINK_NY]);
 /** Fused estimate; either output may be NULL. */

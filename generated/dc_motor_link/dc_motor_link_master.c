@@ -54,7 +54,6 @@ static void master_recentre(dc_motor_link_master* master)
     }
 }
 
-
 /* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
  * P_in itself when the packet is from this step, else predicted step by step with the stored
  * inputs (the held mean is not linear: no one-step form) into P_buf; *P_out says which.

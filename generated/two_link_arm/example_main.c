@@ -2,9 +2,10 @@
  * 0.1.0; regenerate with `codegen build two_link_arm`. */
 /* Host demo (the only file that uses stdio): TWO_LINK_ARM_NNODES camera nodes and the master
  * track a sinusoidal reference for 300 steps. The plant is simulated in canonical coordinates
- * (with u held, by the filters' own mean map); node 0 loses every 7th measurement and node 1 (if any)
- * receives every 5th one 3 steps late. Prints a few steps and the health counters; exits 1 if
- * the fused tracking error is implausible. Build: cc -std=c99 -I. *.c -lm */
+ * with u held, by the filters' own mean map; node 0 loses every 7th measurement and node 1
+ * (if any) receives every 5th one 3 steps late.
+ * Prints a few steps and the health counters; exits 1 if the fused tracking error is
+ * implausible. Build: cc -std=c99 -I. *.c -lm */
 #include <stdio.h>
 #include <math.h>
 #include <string.h>
@@ -39,8 +40,8 @@ static real normal(void)
 }
 
 /* One step of the canonical plant with u held over Ts: the filters' own mean map (the held
- * predictor's kernel, from two_link_arm_kernels.h; its covariance output is not used), so the demo
- * shows the filter and not a model error. */
+ * predictor's kernel; its covariance output is not used), so the demo shows the filter and not
+ * a model error. */
 static void plant(real zeta[NX], const real u[NY])
 {
     real P[NX * NX], P1[NX * NX], x1[NX], q[NY], c[NY];
@@ -140,7 +141,8 @@ int main(void)
         }
         sq_err += (x[0] - zeta[0]) * (x[0] - zeta[0]);
         plant(zeta, TWO_LINK_ARM_PREDICTS_WITH_U ? u : v);
-        for (i = 0; i < TWO_LINK_ARM_NNODES; i++) { /* the broadcast input of the build's predictor */
+        /* the broadcast input of the build's predictor */
+        for (i = 0; i < TWO_LINK_ARM_NNODES; i++) {
             rc |= two_link_arm_node_predict(&nodes[i], TWO_LINK_ARM_PREDICTS_WITH_U ? u : v);
         }
         rc |= two_link_arm_master_predict(&master, TWO_LINK_ARM_PREDICTS_WITH_U ? u : v);

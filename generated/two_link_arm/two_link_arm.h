@@ -257,7 +257,7 @@ int two_link_arm_node_update(two_link_arm_node* node, const two_link_arm_real z[
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int two_link_arm_node_update_delayed(two_link_arm_node* node,
                                      const two_link_arm_real z[TWO_LINK_ARM_NY], int32_t lag);
-/** Predict to step k + 1 with the broadcast input (after update() of step k): u, the input applied over the step. */
+/** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int two_link_arm_node_predict(two_link_arm_node* node,
                               const two_link_arm_real input[TWO_LINK_ARM_NY]);
 /** Current estimate; either output may be NULL. */
@@ -285,7 +285,7 @@ int two_link_arm_master_init(two_link_arm_master* master,
 int two_link_arm_master_fuse(two_link_arm_master* master,
                              const two_link_arm_packet packets[TWO_LINK_ARM_NNODES],
                              const uint8_t present[TWO_LINK_ARM_NNODES]);
-/** Predict to step k + 1 with the broadcast input (u, as the nodes). */
+/** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int two_link_arm_master_predict(two_link_arm_master* master,
                                 const two_link_arm_real input[TWO_LINK_ARM_NY]);
 /** Fused estimate; either output may be NULL. */
