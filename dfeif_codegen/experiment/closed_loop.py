@@ -127,7 +127,12 @@ class Config:
     max_lag: int = 32
     method: str = "replay"            # one of METHODS
     fusion: str = "difference"
-    predictor: str = predictors.DEFAULT   # the filters' prediction (reference/predictor.py)
+    predictor: str | None = None      # the filters' prediction (reference/predictor.py); None: held,
+                                      # brunovsky with retrodict (the only one it takes)
+
+    def __post_init__(self) -> None:
+        oosm = self.method if self.method in OOSM else "replay"
+        object.__setattr__(self, "predictor", predictors.for_method(self.predictor, oosm))
     seed: int = 0
     metrics_from: float = 1.0         # [s] metrics skip the initial transient
     watch_nees: bool = True           # a run whose master NEES stays huge has diverged (off: calibration)
