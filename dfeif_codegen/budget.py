@@ -18,7 +18,7 @@ import time
 from dfeif_codegen.errors import CodegenError
 
 MAX_SECONDS = 60.0
-MAX_MEMORY = 2e9  # bytes
+MAX_MEMORY = 2.0  # GB, the unit of --max-memory
 
 
 class BudgetError(CodegenError):
@@ -34,10 +34,10 @@ def _mapped() -> int:
         return 0
 
 
-def _child(conn, fn, args, max_memory) -> None:
+def _child(conn, fn, args, max_bytes: float) -> None:
     try:
         import resource
-        limit = int(_mapped() + max_memory)  # on top of what is mapped already (libraries, BLAS)
+        limit = int(_mapped() + max_bytes)  # on top of what is mapped already (libraries, BLAS)
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     except (ImportError, ValueError, OSError):
         pass
@@ -65,8 +65,9 @@ def _child(conn, fn, args, max_memory) -> None:
 
 
 def bounded(fn, args: tuple, max_seconds: float, max_memory: float, what: str):
-    """`fn(*args, progress=...)` within max_seconds and max_memory bytes; BudgetError (exit 2)
-    naming the stage when either runs out. CodegenErrors raised inside come out unchanged."""
+    """`fn(*args, progress=...)` within max_seconds seconds and max_memory GB (the units of
+    --max-seconds and --max-memory); BudgetError (exit 2) naming the stage when either runs
+    out. CodegenErrors raised inside come out unchanged."""
     for flag, value in (("--max-seconds", max_seconds), ("--max-memory", max_memory)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or value != value:
             raise BudgetError(f"{flag} must be a positive number, got {value!r}")
@@ -74,7 +75,7 @@ def bounded(fn, args: tuple, max_seconds: float, max_memory: float, what: str):
         return fn(*args, progress=None)
     ctx = mp.get_context("fork")
     parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(child, fn, args, max_memory), daemon=True)
+    proc = ctx.Process(target=_child, args=(child, fn, args, max_memory * 1e9), daemon=True)
     proc.start()
     child.close()
     stage, deadline = "starting", time.monotonic() + max_seconds
@@ -102,7 +103,7 @@ def bounded(fn, args: tuple, max_seconds: float, max_memory: float, what: str):
             elif kind == "error":
                 raise pickle.loads(payload)
             elif kind == "memory":
-                raise BudgetError(f"{what}: out of the {max_memory / 1e9:g} GB memory budget while {stage} "
+                raise BudgetError(f"{what}: out of the {max_memory:g} GB memory budget while {stage} "
                                   "(simplify the expression or raise --max-memory)")
             elif kind == "recursion":
                 raise BudgetError(f"{what}: expression nested too deeply while {stage}")

@@ -43,35 +43,25 @@ def _model_arg(p: argparse.ArgumentParser) -> None:
                    help=f"built-in model name or path to a .toml model file (default {DEFAULT_MODEL})")
 
 
-def parser() -> argparse.ArgumentParser:
-    top = _Parser(prog="codegen", description=(
-        "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
-        "derivative-free Kalman filtering under packet drops and variable delays."))
-    top.add_argument("--version", action="version", version=f"dfeif-codegen {__version__}")
-    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+def _filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
+    """The build options of the estimator (repeatable where a command compares several)."""
+    p.add_argument("--max-lag", type=int, default=32, metavar="N", help="late-measurement window (default 32)")
+    p.add_argument("--nodes", type=int, default=None if many else 2, metavar="M",
+                   help="camera nodes (default: " + ("the scenario's)" if many else "2)"))
+    kind = dict(action="append") if many else dict(default=None)
+    p.add_argument("--oosm", choices=["retrodict", "replay"], **kind,
+                   help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
+    p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
+                   help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
+    p.add_argument("--predictor", choices=["held", "brunovsky"], default=None,
+                   help="the filters' prediction: the canonical dynamics with the applied u held (default; "
+                        "brunovsky with --oosm retrodict) or the chapter's Brunovsky chain driven by v = F + G u")
 
-    def add(name: str) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
-        _model_arg(p)
-        return p
 
-    def filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
-        p.add_argument("--max-lag", type=int, default=32, metavar="N", help="late-measurement window (default 32)")
-        p.add_argument("--nodes", type=int, default=None if many else 2, metavar="M",
-                       help="camera nodes (default: " + ("the scenario's)" if many else "2)"))
-        kind = dict(action="append") if many else dict(default=None)
-        p.add_argument("--oosm", choices=["retrodict", "replay"], **kind,
-                       help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
-        p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
-                       help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
-        p.add_argument("--predictor", choices=["held", "brunovsky"], default=None,
-                       help="the filters' prediction: the canonical dynamics with the applied u held (default; "
-                            "brunovsky with --oosm retrodict) or the chapter's Brunovsky chain driven by v = F + G u")
-
-    p = add("build")
+def _build_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="generated", help="output folder (default generated)")
     p.add_argument("--precision", choices=["double", "float"], default="double")
-    filter_options(p)
+    _filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
     p.add_argument("--check", action="store_true",
                    help="write nothing: exit 0 if DIR/<model> equals a fresh build, 1 (listing the files) if "
@@ -85,7 +75,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
                    help="memory budget of the symbolic derivation in GB (default 2)")
 
-    p = add("verify")
+
+def _verify_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target", choices=["host", "cortex-m4f"], default="host")
     p.add_argument("--precision", choices=["double", "float"], default=None,
                    help="default: double on the host, float on cortex-m4f")
@@ -95,13 +86,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--inputs", choices=["recorded", "own"], default="recorded",
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")
-    filter_options(p)
+    _filter_options(p)
 
-    p = add("simulate")
+
+def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
     p.add_argument("--runs", type=int, default=None, help="seeds to average over")
     p.add_argument("--seed", type=int, default=0, help="first seed")
-    filter_options(p, many=True)
+    _filter_options(p, many=True)
     p.add_argument("--reference", choices=["sinusoid", "seesaw"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
                    help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
@@ -118,14 +110,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", metavar="FILE",
                    help="continue the sweep recorded in FILE (a --results file): finished runs are not rerun")
 
-    p = add("scenario")
-    p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
 
-    p = add("inspect")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
-
-    p = add("network")
+def _network_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml")
     p.add_argument("--row", type=int, default=2, help="the scenario's delay row (default 2)")
     p.add_argument("--seed", type=int, default=0, help="seed of noise, initial error and network (default 0)")
@@ -138,12 +124,39 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--bench", metavar="FILE", nargs="?", const="BENCHMARKS.md", default=None,
                    help="measure wire sizes, master throughput, latency and CPU; write the network section "
                         "of FILE (default BENCHMARKS.md) instead of one compared run")
-    filter_options(p)
+    _filter_options(p)
 
-    p = add("bench")
+
+def _bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="BENCHMARKS.md", help="where to write the report")
     p.add_argument("--repeat", type=int, default=5, help="repetitions for timed figures (median reported)")
     p.add_argument("--quick", action="store_true", help="skip the scaling sweeps and the Monte Carlo figures")
+
+
+def parser() -> argparse.ArgumentParser:
+    top = _Parser(prog="codegen", description=(
+        "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
+        "derivative-free Kalman filtering under packet drops and variable delays."))
+    top.add_argument("--version", action="version", version=f"dfeif-codegen {__version__}")
+    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    def add(name: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=COMMANDS[name], description=COMMANDS[name])
+        _model_arg(p)
+        return p
+
+    _build_arguments(add("build"))
+    _verify_arguments(add("verify"))
+    _simulate_arguments(add("simulate"))
+    p = add("scenario")
+    p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
+
+    p = add("inspect")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+
+    _network_arguments(add("network"))
+    _bench_arguments(add("bench"))
     return top
 
 
@@ -166,7 +179,7 @@ def build(args: argparse.Namespace) -> int:
         print(f"codegen build --check: {args.out} is up to date for {args.model}")
         return 0
     module = build.build(args.model, args.out, **_build_options(args), force=args.force,
-                         max_seconds=args.max_seconds, max_memory=args.max_memory * 1e9)
+                         max_seconds=args.max_seconds, max_memory=args.max_memory)
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion}, predictor {o.predictor})")
@@ -205,13 +218,19 @@ def verify(args: argparse.Namespace) -> int:
 
 
 def simulate(args: argparse.Namespace) -> int:
-    from dfeif_codegen.experiment import simulate
+    """`codegen simulate`: the tables (or the JSON with `--json -`); exit 1 when a run failed or diverged."""
+    from dfeif_codegen import api
 
-    return simulate.simulate(
+    result = api.simulate(
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
         results=args.results, csv=args.csv, resume=args.resume, predictor=args.predictor)
+    print(result.to_json() if args.json == "-" else result.report())
+    if result.failures:  # a run that failed or diverged is a result to act on, not a footnote
+        print(f"codegen simulate: {result.failure_line()}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def bench(args: argparse.Namespace) -> int:
@@ -223,9 +242,10 @@ def bench(args: argparse.Namespace) -> int:
     writable_file(args.out, "--out")
     command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
         else None
-    text = bench.bench(args.model, repeat=args.repeat, command=command, quick=args.quick,
-                       progress=lambda line: print(line, file=sys.stderr))
+    result = bench.bench(args.model, repeat=args.repeat, command=command, quick=args.quick,
+                         progress=lambda line: print(line, file=sys.stderr))
     out = Path(args.out)
+    text = result.report()
     text = bench.keep_network_section(text, out.read_text() if out.exists() else "")
     out.write_text(text)
     print(text)

@@ -4,13 +4,14 @@ write, and the text files (models, scenarios) it reads, each refused in one line
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from dfeif_codegen.errors import CodegenError
 
-try:  # the standard library's TOML reader from Python 3.11, its backport before
+if sys.version_info >= (3, 11):  # the standard library's TOML reader from Python 3.11, its backport before
     import tomllib  # novermin
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 

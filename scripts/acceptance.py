@@ -21,7 +21,7 @@ import numpy as np
 
 from dfeif_codegen.check import closed_loop_c
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment import scenario, simulate
+from dfeif_codegen.experiment import plan, scenario
 
 METHODS = ("replay", "discard", "retrodict")
 ENGINE = "reference" if "--reference" in sys.argv else "c"    # the compiled closed loop by default
@@ -33,7 +33,7 @@ def matched_one(model, ri, seed):
     between the master's covariance and the centralized Riccati recursion of the same arrivals."""
     from dfeif_codegen.experiment import bounds, matched
     sc = scenario.load("paper")
-    cfg = simulate.make_config(sc, model, 2, 32, "sinusoid", sc.grid[ri], "replay", "difference", seed)
+    cfg = plan.make_config(sc, model, 2, 32, "sinusoid", sc.grid[ri], "replay", "difference", seed)
     out = matched.run(cfg)
     m = matched.metrics(cfg, out)
     flat = ex._flat(model)
@@ -56,7 +56,7 @@ def one(args):
     for method in (("replay",) if with_filters else METHODS):
         if ri == 0 and method != "replay":
             continue
-        cfg = simulate.make_config(sc, model, 2, 32, "sinusoid", row, method, "difference", seed)
+        cfg = plan.make_config(sc, model, 2, 32, "sinusoid", row, method, "difference", seed)
         try:
             res = closed_loop_c.run(cfg) if ENGINE == "c" else ex.run(cfg)
         except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:

@@ -18,7 +18,7 @@ import numpy as np
 
 from dfeif_codegen.check import closed_loop_c
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment import matched, scenario, simulate
+from dfeif_codegen.experiment import matched, plan, scenario, stats
 
 
 def node_correlation(node_x, zeta) -> np.ndarray:
@@ -31,12 +31,12 @@ def main():
     sc = scenario.load("paper")
     flat = ex._flat(model)
     A, B, _ = flat.discrete(flat.model.ts)
-    lo, hi = simulate.nees_band(flat.n, runs)
+    lo, hi = stats.nees_band(flat.n, runs)
     for q in qs:
         for ri in (0, len(sc.grid) - 1):
             nm, nn, var, ac, rm, c_real, c_matched = [], [], [], [], [], [], []
             for s in range(runs):
-                cfg = simulate.make_config(sc, model, 2, 32, "sinusoid", sc.grid[ri], "replay", "difference", s)
+                cfg = plan.make_config(sc, model, 2, 32, "sinusoid", sc.grid[ri], "replay", "difference", s)
                 cfg = ex.Config(**{**cfg.__dict__, "q": (q,) * len(cfg.q)})
                 res = closed_loop_c.run(cfg)
                 nm.append(res.metrics["nees_master"])

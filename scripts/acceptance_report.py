@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-from dfeif_codegen.experiment import bounds, scenario, simulate
+from dfeif_codegen.experiment import bounds, plan, scenario, stats
 from dfeif_codegen.experiment import closed_loop as ex
 
 SC = scenario.load("paper")
@@ -46,7 +46,7 @@ def seeds_of(data, rows):
 
 
 def ci(values):
-    mean, half = simulate.mean_ci(np.asarray(values, dtype=float))
+    mean, half = stats.mean_ci(np.asarray(values, dtype=float))
     return mean, half
 
 
@@ -62,7 +62,7 @@ def bound_ratios(model, seeds):
     """Exact centralized bound per row over `seeds`: RMSE (rows, n)."""
     out = []
     for row in SC.grid:
-        cfgs = [simulate.make_config(SC, model, 2, 32, "sinusoid", row, "replay", "difference", s) for s in seeds]
+        cfgs = [plan.make_config(SC, model, 2, 32, "sinusoid", row, "replay", "difference", s) for s in seeds]
         out.append(bounds.row_bound(cfgs))
     return out
 
@@ -118,7 +118,7 @@ def real(model, data):
         print(f"| {LABELS[ri]} | {efmt(*ci(tr))} ({fmt(*ci(trr))}) | {efmt(*ci(en[:, 0]))} | {efmt(*ci(en[:, 1]))} "
               f"| {efmt(*ci(em))} ({fmt(*ci(emr))}) |")
     # NEES
-    lo, hi = simulate.nees_band(n, R)
+    lo, hi = stats.nees_band(n, R)
     print(f"\n| row | master NEES, time average (n = {n}, band [{lo:.2f}, {hi:.2f}] for {R} runs) | steps in band | met |")
     print("|---|---|---|---|")
     for ri in rows:
@@ -191,7 +191,7 @@ def matched_report(model, data):
     seeds = seeds_of(data, rows)
     R = len(seeds)
     bnd = bound_ratios(model, seeds)
-    lo, hi = simulate.nees_band(n, R)
+    lo, hi = stats.nees_band(n, R)
     print(f"\n### {model}, matched linear plant, replay + difference, {R} runs\n")
     print("| row | master RMSE / exact bound " + " | ".join(f"x{i + 1}" for i in range(n)) +
           " | within ±5%? | max rel. gap master P vs centralized Riccati | "
@@ -201,7 +201,7 @@ def matched_report(model, data):
         mse = np.array([data[(ri, s)]["matched"]["mse_master"] for s in seeds])      # (R, n)
         rms = np.sqrt(mse.mean(axis=0))
         # delta method for the interval of sqrt(mean mse) / bound
-        half = simulate.t_quantile(0.975, R - 1) * mse.std(axis=0, ddof=1) / np.sqrt(R) / (2 * rms)
+        half = stats.t_quantile(0.975, R - 1) * mse.std(axis=0, ddof=1) / np.sqrt(R) / (2 * rms)
         ratio, rh = rms / bnd[ri].rmse_central, half / bnd[ri].rmse_central
         ok = all(abs(ratio[i] - 1) + rh[i] <= 0.05 for i in range(n))
         gap = max(data[(ri, s)]["matched"]["P_gap"] for s in seeds)

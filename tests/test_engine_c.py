@@ -358,12 +358,12 @@ def test_a_worker_needs_none_of_the_callers_files(host_cc, tmp_path):
     (folder / "cart.toml").write_text(CART)
     cfg = ex.Config(model=str(folder / "cart.toml"), duration=1.0, q=(20.0,), poles=(10.0,), metrics_from=0.2,
                     sensor=(Link(0.5, 3), Link(0.5, 4)), seed=3)
-    shipped = sweep.prepare([cfg], "c")
+    shipped = sweep.prepare([cfg], closed_loop_c.ENGINE)
     assert shipped["models"] == {str(folder / "cart.toml"): CART}
-    here = sweep.batch([("r", cfg, None)], "c", shipped)
+    here = sweep.batch([("r", cfg, None)], closed_loop_c.ENGINE, shipped)
     shutil.rmtree(folder)
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
-        there = pool.submit(sweep.batch, [("r", cfg, None)], "c", shipped).result()
+        there = pool.submit(sweep.batch, [("r", cfg, None)], closed_loop_c.ENGINE, shipped).result()
     (_, (mine, _)), = here
     (_, (theirs, _)), = there
     assert isinstance(theirs, dict) and mine.keys() == theirs.keys()

@@ -25,6 +25,7 @@ implementation of the method does better there.
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -253,6 +254,9 @@ def test_verify_api_returns_the_comparison(store, run, monkeypatch):
     names = {e.signal for e in result.errors}
     assert {"node0.x", "node1.P", "master.x", "u", "v", "late_applied"} <= names
     assert all(e.worst <= 1e-10 for e in result.errors) and "master.x" in result.report()
+    doc = json.loads(result.to_json())
+    assert doc["ok"] and doc["settings"] == said[0].removeprefix("codegen verify: ")
+    assert {e["signal"]: e["worst"] for e in doc["errors"]} == {e.signal: float(e.worst) for e in result.errors}
 
 
 @pytest.mark.parametrize("run", [VERIFY_CASE], ids=["default"])

@@ -52,6 +52,12 @@ def test_run_equals_reference_on_logged_arrivals(runs):
     lags = out.setup.net.lag[:, :K]
     due = sum(int(np.sum((lags[i] > 0) & (np.arange(K) + lags[i] < K))) for i in range(M))
     assert len(rec.late_step) == due
+    # the result as data: the comparison table and the figures in its JSON
+    import json
+    doc = json.loads(run.Network(out, run.figures(out), errors, "summary").to_json())
+    assert doc["ok"] and doc["figures"]["steps"] == K and doc["figures"]["datagrams"] == len(sends)
+    assert [(e["signal"], e["worst"], e["step"]) for e in doc["errors"]] == \
+        [(e.signal, float(e.worst), int(e.step)) for e in errors]
 
 
 def test_keyed_run_other_model_equals_reference(runs):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dfeif_codegen as dc
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import compare
 from dfeif_codegen.experiment.network import Link
@@ -135,10 +136,11 @@ def test_simulate_filters_equal_the_compare_path(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text(TINY)
     out = tmp_path / "r.json"
-    rc = simulate.simulate("dc_motor_link", scenario=str(path), runs=2, filters="df,ekf,ukf", json_path=str(out),
-                           quiet=True, workers=1, out=open(tmp_path / "log.txt", "w"))
-    assert rc == 0
+    result = dc.simulate("dc_motor_link", scenario=str(path), runs=2, filters="df,ekf,ukf", json_path=str(out),
+                         quiet=True, workers=1)
+    assert result.ok
     doc = json.loads(out.read_text())
+    assert doc == json.loads(result.to_json())
     tables = {t["method"]: t for t in doc["tables"]}
     assert set(tables) == {"replay", "df-replay", "ekf-replay", "ukf-replay"}
     assert tables["ekf-replay"]["filter"] == "ekf"

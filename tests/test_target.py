@@ -188,5 +188,5 @@ def test_bench_measures_deterministically(store, run, tmp_path, cross_tools):
     normal = bench.callgrind(ci, tmp_path / "ci-a")
     every = bench.callgrind(ci, tmp_path / "ci-b", bench.ci_every_step(ci))
     assert normal["master_fuse"] < normal["master_fuse_distinct"] < every["master_fuse_distinct"]
-    sizes = bench.target_sizeof(model, tmp_path / "sizeof")
+    sizes = target.struct_sizes(model, tmp_path / "sizeof")
     assert sizes["packet"] == 4 + 4 * (1 + 2 * 3 + 2 * 9)  # step + centre, x, P, x_pred, P_pred in float

@@ -170,8 +170,7 @@ def scaling(work: Path, callgrind) -> dict:
             md = harness.build_model("dc_motor_link", work / f"win{N}-{oosm}", "double", oosm, "difference", 2, N)
             row[oosm] = callgrind(md, work / f"cg-win{N}-{oosm}")[f"node_update_delayed_lag{N}"]
         mf = harness.build_model("dc_motor_link", work / f"win{N}-sizeof", "double", "replay", "difference", 2, N)
-        from dfeif_codegen.check.bench import target_sizeof
-        row["node_bytes"] = target_sizeof(mf, work / f"win{N}-probe")["node"]
+        row["node_bytes"] = target.struct_sizes(mf, work / f"win{N}-probe")["node"]
         out["windows"][N] = row
     return out
 

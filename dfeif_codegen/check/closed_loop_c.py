@@ -8,7 +8,7 @@ outputs into the same Recording, Result and metrics as the numpy engine's.
 
 The compiled code travels as the shared library's bytes (`Compiled`), so a worker on another
 machine needs no shared filesystem: it writes the bytes to a private temporary file, loads it and
-removes the file.
+removes the file. `ENGINE` is this engine as the sweep (experiment/sweep.py) takes it.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import ctypes
 import hashlib
 import os
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -216,7 +217,7 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
               "late_node": _c(late[:, 1], i32), "late_lag": _c(late[:, 2], i32),
               "source": _c(s.net.source.T, i32), "ref": _c(s.ref, f64)}
     E = late.shape[0]
-    out = {"x_true": np.zeros((K, n)), "zeta": np.zeros((K, n)), "frames": np.zeros((M, K, m)),
+    out: dict[str, np.ndarray] = {"x_true": np.zeros((K, n)), "zeta": np.zeros((K, n)), "frames": np.zeros((M, K, m)),
            "late_z": np.zeros((E, m)), "node_x": np.zeros((M, K, n)), "node_P": np.zeros((M, K, n, n)),
            "x": np.zeros((K, n)), "P": np.zeros((K, n, n)), "u": np.zeros((K, m)), "v": np.zeros((K, m)),
            "late_applied": np.zeros(E, dtype=i32)}
@@ -239,3 +240,24 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     ex.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"])
     return ex.finish(s, out["x_true"], out["zeta"], out["frames"], out["node_x"], out["node_P"], out["x"],
                      out["P"], out["u"], out["v"], out["late_applied"].astype(bool), counters)
+
+
+class CEngine:
+    """The compiled closed loop as an engine of experiment/sweep.py (picklable: a module-level class)."""
+
+    name = "c"
+
+    def key(self, cfg: ex.Config) -> tuple:
+        return build_key(cfg)
+
+    def compile(self, keys: list) -> dict:
+        """Each distinct library once, in parallel threads (the compiler runs outside the GIL)."""
+        harness.host_compiler()
+        with ThreadPoolExecutor(max_workers=max(1, min(len(keys), os.cpu_count() or 1))) as pool:
+            return dict(zip(keys, pool.map(compiled, keys)))
+
+    def run(self, cfg: ex.Config, code: Compiled | None) -> ex.Result:
+        return run(cfg, code)
+
+
+ENGINE = CEngine()

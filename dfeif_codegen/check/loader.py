@@ -196,6 +196,7 @@ class _Filter:
 
     _library: Library
     _kind: str   # the C prefix after the model's: "node" or "master"
+    _state: ctypes.Array     # the C struct, owned here
 
     def predict(self, u) -> None:
         """Predict to the next step with the broadcast input: the applied u (a build with the

@@ -102,6 +102,23 @@ def run(elf: Path, cwd: Path, timeout: float = 300.0) -> subprocess.CompletedPro
         raise SetupError(f"qemu-system-arm did not finish {elf.name} within {timeout:.0f} s") from exc
 
 
+def struct_sizes(model, work: Path) -> dict[str, int]:
+    """sizeof the state structs of a built model (check/harness.py ModelDir) as arm-none-eabi-gcc
+    lays them out (read from its assembly)."""
+    work.mkdir(parents=True, exist_ok=True)
+    src = work / "sizeof.c"
+    kinds = ("node", "master", "packet")
+    src.write_text(f'#include "{model.name}.h"\nconst unsigned sizes[] = {{'
+                   + ", ".join(f"sizeof({model.name}_{k})" for k in kinds) + "};\n")
+    gcc = require("arm-none-eabi-gcc")
+    proc = subprocess.run([gcc, *CPU_FLAGS, "-O2", f"-I{model.path}", "-S", "-o", "-", str(src)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SetupError(f"sizeof probe failed:\n{proc.stderr[-2000:]}")
+    words = [int(w) for w in re.findall(r"\.word\s+(\d+)", proc.stdout)]
+    return dict(zip(kinds, words))
+
+
 @dataclass(frozen=True)
 class Size:
     text: int

@@ -16,7 +16,9 @@ A reference that is exactly zero with its scale zero must be matched exactly.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -167,18 +169,15 @@ def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", re
     """One closed-loop run of a scenario (default the built-in paper one) with the Python reference
     (an experiment.Result). `row` indexes the scenario's delay grid; `uplink` (a network Link) makes
     node -> master packets late or lost; `sensor_drop` adds camera frame drops; `predictor` None:
-    Brunovsky with retrodiction, else the default (predictor.for_method)."""
-    from dfeif_codegen.reference import predictor as predictors
-
+    held, brunovsky with retrodict."""
     import dataclasses
 
-    from dfeif_codegen.experiment import scenario, simulate
+    from dfeif_codegen.experiment import plan, scenario
     from dfeif_codegen.experiment import closed_loop as experiment
 
     sc = scenario.load(scenario_spec)
-    cfg = simulate.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed,
-                               predictors.for_method(predictor, oosm))
-    changes = {}
+    cfg = plan.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed, predictor)
+    changes: dict[str, Any] = {}
     if duration is not None:
         changes["duration"] = duration
         changes["metrics_from"] = min(cfg.metrics_from, duration / 2)
@@ -214,6 +213,20 @@ class Verification:
 
     def report(self) -> str:
         return "\n".join(t for t in (table(self.errors), self.target_report, self.yardstick) if t)
+
+    def to_dict(self) -> dict:
+        return {"settings": self.settings, "scenario": self.scenario, "ok": self.ok,
+                "errors": errors_as_dicts(self.errors), "target_report": self.target_report,
+                "yardstick": self.yardstick}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict())
+
+
+def errors_as_dicts(errors: list[SignalError]) -> list[dict]:
+    """The comparison table as data: per signal its worst relative error, where, the tolerance."""
+    return [{"signal": e.signal, "worst": float(e.worst), "step": int(e.step), "index": [int(i) for i in e.index],
+             "tol": float(e.tol), "ok": e.ok} for e in errors]
 
 
 def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str | None = None,

@@ -24,7 +24,7 @@ import jinja2
 import sympy as sp
 
 from dfeif_codegen import __version__, budget
-from dfeif_codegen.symbolic import flatness, model, sampling
+from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.codegen import kernels, layout, render
 from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
@@ -88,7 +88,8 @@ def context(flat, opts: Options) -> dict:
     p = m.name
     ks = kernels.build(flat, opts, p)
     real_c = "float" if opts.precision == "float" else "double"
-    kernel_code, kernel_list = {}, []
+    kernel_code: dict[str, tuple[str, str]] = {}
+    kernel_list: list[dict] = []
     for group, functions in ks.groups.items():
         code, infos = csource.c_source(functions, f"{p}_real", opts.precision, f"{p}_{group}",
                                        local_work=group in ks.local_work, wrappers=ks.wrappers,
@@ -142,8 +143,7 @@ def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
                        singular_rtol, predictor) -> tuple[model.Model, Options]:
     m = spec if isinstance(spec, model.Model) else model.load(str(spec))
     return m, Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
-                      precision=precision, singular_rtol=singular_rtol,
-                      predictor=sampling.for_method(predictor, oosm))
+                      precision=precision, singular_rtol=singular_rtol, predictor=predictor)
 
 
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
@@ -174,9 +174,11 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options and the output folder are checked before the derivation starts; the derivation runs
-    under a time and memory budget; what was written is compiled (host compiler, when there is
-    one) before it replaces the folder, atomically. `force` allows replacing files the toolkit
-    did not write there."""
+    under a time and memory budget (`max_seconds` in seconds, `max_memory` in GB, as the
+    command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
+    there is one) before it replaces the folder, atomically. `force` allows replacing files the
+    toolkit did not write there. `predictor`: "held" (u held) or "brunovsky"; None: held, and
+    brunovsky with retrodict (the only one it can use)."""
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor)
     check_target(Path(out), m.name, force)
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")

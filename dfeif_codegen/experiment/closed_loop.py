@@ -359,7 +359,7 @@ class Setup:
     numpy loop and the compiled one see the same noise, network and initial state."""
 
     cfg: Config
-    flat: object
+    flat: flatness.FlatSystem
     ts: float
     K: int
     t: np.ndarray

@@ -14,6 +14,8 @@ that implies (theta, theta' [rad/s], theta'' [rad/s^2]); the input by its name a
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from dfeif_codegen.errors import SetupError
@@ -181,3 +183,49 @@ def comparison_figure(path, title, flat, row_labels, series):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def simulation_figures(directory: str, figures: dict, flat) -> list[str]:
+    """`simulate --plot`: PNG figures like the chapter's Figs 9-13: states against the
+    reference, the estimation error with its +-3 sigma band, the delays."""
+    pyplot()
+    folder = Path(directory)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    name = flat.model.name
+
+    def save(path):
+        written.append(str(path))
+        return path
+
+    for ref, fig in figures.items():
+        a, b = fig["no_delay"], fig["delay"]
+        how = f"{fig['method']} + {fig['fusion']}"
+        b = {**b, "row": row_text(b["row"])}
+        t = np.asarray(a["t"])
+        states_figure(save(folder / f"fig09_{ref}_master_no_delay.png"),
+                           f"Fig. 9: {name}, master estimate without delays ({ref} reference, {how})", flat,
+                           t, np.asarray(a["x"]), np.asarray(a["zeta"]), np.asarray(a["ref"]), np.asarray(a["u"]),
+                           who="master estimate")
+        ts = float(t[1] - t[0]) if len(t) > 1 else 1.0
+        delay_figure(save(folder / f"fig10_{ref}_delays.png"),
+                          f"Fig. 10: {name}, camera -> node delays at {b['row']}: late with probability p by 1..d_i steps",
+                          np.asarray(b["t"]), b["delays"], ts)
+        node_x = np.asarray(b["node_x"])
+        for i in range(node_x.shape[0]):
+            states_figure(save(folder / f"fig{11 + i}_{ref}_node{i + 1}_delay.png"),
+                               f"Fig. {11 + i}: {name}, node {i + 1} under delays {b['row']} ({ref})", flat,
+                               b["t"], node_x[i], np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
+                               who=f"node {i + 1} estimate")
+        last = 11 + node_x.shape[0]
+        states_figure(save(folder / f"fig{last}_{ref}_master_delay.png"),
+                           f"Fig. {last}: {name}, master under delays {b['row']} ({ref}, {how})", flat,
+                           b["t"], np.asarray(b["x"]), np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
+                           who="master estimate")
+        for key, label in (("no_delay", "without delays"), ("delay", f"under delays {b['row']}")):
+            d = fig[key]
+            if "P_diag" in d:
+                error_figure(save(folder / f"fig{last + 1}_{ref}_master_error_{key}.png"),
+                                  f"{name}: master estimation error {label} ({ref}, {how})", flat,
+                                  np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]))
+    return written

@@ -147,28 +147,16 @@ def load(spec: str) -> Scenario:
     return loads(read_text(path, spec, ScenarioError, "scenario"), spec)
 
 
-def loads(text: str, source: str = "<string>") -> Scenario:
-    data = parse_toml(text, source, ScenarioError)
-    lines = _key_lines(text)
-    sc = Scenario(name=Path(source).stem, source=source, _lines=lines)
-    where = sc.where
+class _Reader:
+    """Typed reads of a scenario's fields, each failing in one line that names the field's line."""
 
-    def fail(key: str, message: str):
-        raise ScenarioError(f"{where(key)}: {message}")
+    def __init__(self, sc: Scenario):
+        self.sc = sc
 
-    for section, value in data.items():
-        if section not in _ALLOWED:
-            fail(section, f"unknown section [{section}] (expected one of {', '.join(sorted(_ALLOWED))})")
-        tables = value if section in ("nodes", "grid") else [value]
-        if not isinstance(value, (dict, list)) or not all(isinstance(t, dict) for t in tables):
-            kind = f"[[{section}]] entries" if section in ("nodes", "grid") else f"a [{section}] table"
-            fail(section, f"must be {kind}")
-        for i, table in enumerate(tables):
-            for key in table:
-                if key not in _ALLOWED[section]:
-                    fail(f"{section}#{i}.{key}" if section in ("nodes", "grid") else f"{section}.{key}", f"unknown field (expected one of {', '.join(sorted(_ALLOWED[section]))})")
+    def fail(self, key: str, message: str):
+        raise ScenarioError(f"{self.sc.where(key)}: {message}")
 
-    def number(table, section, key, default, positive=False, allow_zero=True, integer=False):
+    def number(self, table, section, key, default, positive=False, allow_zero=True, integer=False):
         value = table.get(key, default)
         ok = isinstance(value, (int, float)) and not isinstance(value, bool)
         if integer:
@@ -180,96 +168,132 @@ def loads(text: str, source: str = "<string>") -> Scenario:
         if not ok:
             kind = "an integer" if integer else "a number"
             sign = " > 0" if positive and not allow_zero else (" >= 0" if positive else "")
-            fail(f"{section}.{key}", f"must be {kind}{sign}, got {value!r}")
+            self.fail(f"{section}.{key}", f"must be {kind}{sign}, got {value!r}")
         return int(value) if integer else float(value)
 
-    def numbers(table, section, key, default, positive=True):
+    def numbers(self, table, section, key, default, positive=True):
         value = table.get(key, default)
         items = value if isinstance(value, list) else [value]
         if not items or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items) \
                 or (positive and not all(v > 0 for v in items)):
-            fail(f"{section}.{key}", f"must be {'a positive' if positive else 'a'} number or a non-empty list "
-                                     f"of them, got {value!r}")
+            self.fail(f"{section}.{key}", f"must be {'a positive' if positive else 'a'} number or a non-empty list "
+                                          f"of them, got {value!r}")
         return [float(v) for v in items]
 
-    def names(table, section, key, default, allowed):
+    def names(self, table, section, key, default, allowed):
         value = table.get(key, default)
         if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
-            fail(f"{section}.{key}", f"must be a non-empty list of names from {', '.join(allowed)}")
+            self.fail(f"{section}.{key}", f"must be a non-empty list of names from {', '.join(allowed)}")
         for v in value:
             if v not in allowed:
-                fail(f"{section}.{key}", f"'{v}' is not one of {', '.join(allowed)}")
+                self.fail(f"{section}.{key}", f"'{v}' is not one of {', '.join(allowed)}")
         return list(value)
 
-    def link(table, section) -> Link:
-        p = number(table, section, "p", 0.0, positive=True)
-        d = number(table, section, "d", 0, positive=True, integer=True)
-        lk = Link(p, d, number(table, section, "p_drop", 0.0, positive=True))
+    def link(self, table, section) -> Link:
+        p = self.number(table, section, "p", 0.0, positive=True)
+        d = self.number(table, section, "d", 0, positive=True, integer=True)
+        lk = Link(p, d, self.number(table, section, "p_drop", 0.0, positive=True))
         if lk.problem():
-            fail(section, lk.problem())
+            self.fail(section, lk.problem())
         return lk
 
-    head = data.get("scenario", {})
+
+def _check_keys(r: _Reader, data: dict) -> None:
+    """Unknown sections and fields are errors (a typo is not silently a default)."""
+    for section, value in data.items():
+        if section not in _ALLOWED:
+            r.fail(section, f"unknown section [{section}] (expected one of {', '.join(sorted(_ALLOWED))})")
+        tables = value if section in ("nodes", "grid") else [value]
+        if not isinstance(value, (dict, list)) or not all(isinstance(t, dict) for t in tables):
+            kind = f"[[{section}]] entries" if section in ("nodes", "grid") else f"a [{section}] table"
+            r.fail(section, f"must be {kind}")
+        for i, table in enumerate(tables):
+            for key in table:
+                if key not in _ALLOWED[section]:
+                    r.fail(f"{section}#{i}.{key}" if section in ("nodes", "grid") else f"{section}.{key}",
+                           f"unknown field (expected one of {', '.join(sorted(_ALLOWED[section]))})")
+
+
+def _read_head(r: _Reader, head: dict) -> None:
+    """[scenario]: name, run length, sampling, seeds, what to compare."""
+    sc = r.sc
     sc.name = head.get("name", sc.name)
     if not isinstance(sc.name, str):
-        fail("scenario.name", "must be a string")
+        r.fail("scenario.name", "must be a string")
     sc.description = str(head.get("description", ""))
-    sc.duration = number(head, "scenario", "duration", sc.duration, positive=True, allow_zero=False)
+    sc.duration = r.number(head, "scenario", "duration", sc.duration, positive=True, allow_zero=False)
     if "ts" in head:
-        sc.ts = number(head, "scenario", "ts", None, positive=True, allow_zero=False)
+        sc.ts = r.number(head, "scenario", "ts", None, positive=True, allow_zero=False)
         if sc.ts > sc.duration:
-            fail("scenario.ts", f"sampling period {sc.ts} s is longer than the run ({sc.duration} s)")
-    sc.runs = number(head, "scenario", "runs", sc.runs, positive=True, allow_zero=False, integer=True)
-    sc.substeps = number(head, "scenario", "substeps", sc.substeps, positive=True, allow_zero=False, integer=True)
-    sc.metrics_from = number(head, "scenario", "metrics_from", sc.metrics_from, positive=True)
+            r.fail("scenario.ts", f"sampling period {sc.ts} s is longer than the run ({sc.duration} s)")
+    sc.runs = r.number(head, "scenario", "runs", sc.runs, positive=True, allow_zero=False, integer=True)
+    sc.substeps = r.number(head, "scenario", "substeps", sc.substeps, positive=True, allow_zero=False, integer=True)
+    sc.metrics_from = r.number(head, "scenario", "metrics_from", sc.metrics_from, positive=True)
     if sc.metrics_from >= sc.duration:
-        fail("scenario.metrics_from", f"{sc.metrics_from} s leaves nothing of a {sc.duration} s run to measure")
-    sc.references = names(head, "scenario", "references", sc.references, KINDS)
-    sc.oosm = names(head, "scenario", "oosm", sc.oosm, OOSM)
-    sc.fusion = names(head, "scenario", "fusion", sc.fusion, RULES)
+        r.fail("scenario.metrics_from", f"{sc.metrics_from} s leaves nothing of a {sc.duration} s run to measure")
+    sc.references = r.names(head, "scenario", "references", sc.references, KINDS)
+    sc.oosm = r.names(head, "scenario", "oosm", sc.oosm, OOSM)
+    sc.fusion = r.names(head, "scenario", "fusion", sc.fusion, RULES)
     value = head.get("baselines", sc.baselines)
-    sc.baselines = [] if value == [] else names(head, "scenario", "baselines", value, BASELINES)
+    sc.baselines = [] if value == [] else r.names(head, "scenario", "baselines", value, BASELINES)
 
+
+def _read_settings(r: _Reader, data: dict) -> None:
+    """[filter], [control], [reference]."""
+    sc = r.sc
     filt = data.get("filter", {})
-    sc.q = numbers(filt, "filter", "q", sc.q)
-    sc.p0_std = numbers(filt, "filter", "p0_std", sc.p0_std)
+    sc.q = r.numbers(filt, "filter", "q", sc.q)
+    sc.p0_std = r.numbers(filt, "filter", "p0_std", sc.p0_std)
     sc.initial_error = filt.get("initial_error", sc.initial_error)
     if not isinstance(sc.initial_error, bool):
-        fail("filter.initial_error", "must be true or false")
-    sc.poles = numbers(data.get("control", {}), "control", "poles", sc.poles)
-
+        r.fail("filter.initial_error", "must be true or false")
+    sc.poles = r.numbers(data.get("control", {}), "control", "poles", sc.poles)
     ref = data.get("reference", {})
-    sc.amplitude = numbers(ref, "reference", "amplitude", sc.amplitude, positive=False)
-    sc.offset = numbers(ref, "reference", "offset", sc.offset, positive=False)
-    sc.period = number(ref, "reference", "period", sc.period, positive=True, allow_zero=False)
-    sc.harmonics = number(ref, "reference", "harmonics", sc.harmonics, positive=True, allow_zero=False, integer=True)
+    sc.amplitude = r.numbers(ref, "reference", "amplitude", sc.amplitude, positive=False)
+    sc.offset = r.numbers(ref, "reference", "offset", sc.offset, positive=False)
+    sc.period = r.number(ref, "reference", "period", sc.period, positive=True, allow_zero=False)
+    sc.harmonics = r.number(ref, "reference", "harmonics", sc.harmonics, positive=True, allow_zero=False, integer=True)
 
+
+def _read_network(r: _Reader, data: dict) -> None:
+    """[[nodes]], [uplink] and the delay rows [[grid]]."""
+    sc = r.sc
     if "nodes" in data:
         if not data["nodes"]:
-            fail("nodes", "needs at least one [[nodes]] entry")
+            r.fail("nodes", "needs at least one [[nodes]] entry")
         sc.noise_scale, sc.noise_std = [], []
         for i, node in enumerate(data["nodes"]):
             at = f"nodes#{i}"
-            sc.noise_scale.append(number(node, at, "noise_scale", 1.0, positive=True, allow_zero=False))
-            sc.noise_std.append(numbers(node, at, "noise_std", None) if "noise_std" in node else None)
+            sc.noise_scale.append(r.number(node, at, "noise_scale", 1.0, positive=True, allow_zero=False))
+            sc.noise_std.append(r.numbers(node, at, "noise_std", None) if "noise_std" in node else None)
     if "uplink" in data:
-        sc.uplink = link(data["uplink"], "uplink")
-
+        sc.uplink = r.link(data["uplink"], "uplink")
     if "grid" in data:
         if not data["grid"]:
-            fail("grid", "needs at least one [[grid]] row")
+            r.fail("grid", "needs at least one [[grid]] row")
         sc.grid = []
         for i, row in enumerate(data["grid"]):
             at = f"grid#{i}"
             d = row.get("d", 0)
             ds = d if isinstance(d, list) else [d]
             if not ds or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in ds):
-                fail(f"{at}.d", f"must be a whole number of steps >= 0 or a list of them (one per node), got {d!r}")
+                r.fail(f"{at}.d", f"must be a whole number of steps >= 0 or a list of them (one per node), got {d!r}")
             if len(ds) not in (1, len(sc.noise_scale)):
-                fail(f"{at}.d", f"needs 1 or {len(sc.noise_scale)} values (one per node), got {len(ds)}")
-            r = Row(list(ds), number(row, at, "p", 0.0, positive=True), number(row, at, "p_drop", 0.0, positive=True))
-            for lk in r.links(len(sc.noise_scale)):
+                r.fail(f"{at}.d", f"needs 1 or {len(sc.noise_scale)} values (one per node), got {len(ds)}")
+            row_ = Row(list(ds), r.number(row, at, "p", 0.0, positive=True),
+                       r.number(row, at, "p_drop", 0.0, positive=True))
+            for lk in row_.links(len(sc.noise_scale)):
                 if lk.problem():
-                    fail(at, lk.problem())
-            sc.grid.append(r)
-    return sc
+                    r.fail(at, lk.problem())
+            sc.grid.append(row_)
+
+
+def loads(text: str, source: str = "<string>") -> Scenario:
+    """A scenario from TOML text; every problem is a ScenarioError naming the field and its line."""
+    data = parse_toml(text, source, ScenarioError)
+    r = _Reader(Scenario(name=Path(source).stem, source=source, _lines=_key_lines(text)))
+    _check_keys(r, data)
+    _read_head(r, data.get("scenario", {}))
+    _read_settings(r, data)
+    _read_network(r, data)
+    return r.sc

@@ -139,11 +139,10 @@ def starting_scenario(spec: str) -> tuple[str, list[str]]:
     omega = 2 * math.pi / PERIOD
     poles = [round(0.1 / ts, 6)]
     p0_std = [float(f"{0.05 * AMPLITUDE * (2 * omega) ** k:.3g}") for k in range(max(flat.degrees))]
+    noise_std: list[list[float] | None] = [None, None]
     if model.measurement is None:
         std = [float(f"{0.004 * AMPLITUDE:.3g}")] * flat.m
         noise_std = [std, [1.25 * s for s in std]]
-    else:
-        noise_std = [None, None]
     q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std)
     omega_max = fastest_oscillation(flat, spec, ts)
     warn = []
@@ -189,9 +188,9 @@ def starting_scenario(spec: str) -> tuple[str, list[str]]:
         "harmonics = 4",
         "",
     ]
-    for i, std in enumerate(noise_std):
-        lines += ["[[nodes]]", f"noise_scale = {1.0 if i == 0 else 1.25:g}" if std is None
-                  else f"noise_std = {_toml_list(std)}", ""]
+    for i, node_std in enumerate(noise_std):
+        lines += ["[[nodes]]", f"noise_scale = {1.0 if i == 0 else 1.25:g}" if node_std is None
+                  else f"noise_std = {_toml_list(node_std)}", ""]
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]

@@ -10,6 +10,9 @@ interrupted sweep continue (`--resume`): a run is identified by a hash of its en
 whole configuration, so a finished run is never recomputed and a changed setting is never reused.
 Results do not depend on where or in which order the runs ran: each run is a pure function of its
 configuration, and the caller orders them by seed before averaging.
+
+The engine that runs one closed loop is handed in (`Engine`): the numpy reference (`REFERENCE`,
+here) or the compiled C (`check.closed_loop_c.ENGINE`, which compiles, so it lives a stage up).
 """
 
 from __future__ import annotations
@@ -21,16 +24,47 @@ import json
 import math
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+from typing import Any, Hashable, Protocol
 
 import numpy as np
 
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
 
-ENGINES = ("c", "reference")
 _CODES: dict = {}          # compiled loops of this worker process (set by the pool's initializer)
+
+
+class Engine(Protocol):
+    """Runs one closed loop: `key` says which compiled code a run needs, `compile` builds each
+    distinct key once in the caller (the result travels to every worker), `run` runs it."""
+
+    name: str
+
+    def key(self, cfg: ex.Config) -> Hashable: ...
+
+    def compile(self, keys: list) -> dict: ...
+
+    def run(self, cfg: ex.Config, code: Any) -> ex.Result: ...
+
+
+class ReferenceEngine:
+    """The numpy closed loop (experiment/closed_loop.py): nothing to compile."""
+
+    name = "reference"
+
+    def key(self, cfg: ex.Config) -> Hashable:
+        return None
+
+    def compile(self, keys: list) -> dict:
+        return {}
+
+    def run(self, cfg: ex.Config, code: Any) -> ex.Result:
+        return ex.run(cfg)
+
+
+REFERENCE = ReferenceEngine()
 
 
 def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
@@ -41,16 +75,12 @@ def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
 
 # --- one batch, wherever it runs ------------------------------------------------------------------
 
-def one(cfg: ex.Config, engine: str, codes: dict, series, kind: str = "df"):
+def one(cfg: ex.Config, engine: Engine, codes: dict, series, kind: str = "df"):
     """One run -> (metrics or the error text, `series(result)` or None). With `kind` "ekf", "ukf"
     (or "df-replay", the derivative-free filter through the same driver) the metrics are those of
     that filter on the run's recording (experiment/compare.py)."""
     try:
-        if engine == "c":
-            from dfeif_codegen.check import closed_loop_c
-            res = closed_loop_c.run(cfg, codes.get(closed_loop_c.build_key(cfg)))
-        else:
-            res = ex.run(cfg)
+        res = engine.run(cfg, codes.get(engine.key(cfg)))
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return f"{type(exc).__name__}: {exc}", None
     if kind != "df":
@@ -60,7 +90,7 @@ def one(cfg: ex.Config, engine: str, codes: dict, series, kind: str = "df"):
     return res.metrics, (series(res) if series else None)
 
 
-def batch(items: list, engine: str, shipped: dict | None = None) -> list:
+def batch(items: list, engine: Engine, shipped: dict | None = None) -> list:
     """items: (run id, cfg, series function or None[, filter kind]) -> [(run id, value)]."""
     if shipped is not None:
         _init_worker(shipped)
@@ -73,20 +103,15 @@ def _init_worker(shipped: dict) -> None:
     _CODES.update(shipped["codes"])
 
 
-def prepare(configs, engine: str) -> dict:
+def prepare(configs, engine: Engine) -> dict:
     """What every worker needs: the compiled loop of each distinct build (built here, once), the
     text of any model file (a worker on another machine cannot read the caller's files) and the
     models' derivations."""
     configs = list(dict.fromkeys(configs))
     models = {c.model: Path(c.model).read_text(encoding="utf-8") for c in configs if Path(c.model).is_file()}
     flats = {c.model: ex._flat(c.model) for c in configs}
-    if engine != "c":
-        return {"codes": {}, "models": models, "flats": flats}
-    from dfeif_codegen.check import closed_loop_c, harness
-    harness.host_compiler()
-    keys = list(dict.fromkeys(closed_loop_c.build_key(c) for c in configs))
-    with ThreadPoolExecutor(max_workers=max(1, min(len(keys), os.cpu_count() or 1))) as pool:  # the compiler runs outside the GIL
-        return {"codes": dict(zip(keys, pool.map(closed_loop_c.compiled, keys))), "models": models, "flats": flats}
+    codes = engine.compile(list(dict.fromkeys(engine.key(c) for c in configs)))
+    return {"codes": codes, "models": models, "flats": flats}
 
 
 def _chunks(items: list, workers: int) -> list[list]:
@@ -116,7 +141,7 @@ def _side(fn, args: tuple, shipped: dict | None = None):
     return fn(*args), time.process_time() - start
 
 
-def execute(items: list, engine: str, shipped: dict, workers: int, client, done, side=()) -> tuple[str, list]:
+def execute(items: list, engine: Engine, shipped: dict, workers: int, client, done, side=()) -> tuple[str, list]:
     """Run every item, calling `done(run id, value)` as results arrive, and each `side` task
     (function, arguments) alongside, submitted first (a long task last would run alone); returns
     where they ran and the side tasks' (result, CPU seconds). `client`: a Dask client (see

@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from dfeif_codegen.symbolic.sampling import for_method
 from dfeif_codegen.check import harness, verify
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
@@ -59,7 +58,7 @@ class Options:
     duration: float | None = 5.0
     key: str | None = None            # 32 hex digits: keyed tags on every frame
     flip_rate: float = 0.0            # bit error rate on node -> master packets
-    predictor: str | None = None      # None: held, brunovsky with retrodict (sampling.for_method)
+    predictor: str | None = None      # None: held, brunovsky with retrodict (ex.Config)
     faults: tuple = ()
     step_timeout: float = 1.0         # relay: how long a master tick waits for missing packets
     command_timeout: float = 2.0      # plant: how long it waits for the master's command
@@ -82,14 +81,14 @@ class Outcome:
 
 
 def make_config(o: Options) -> ex.Config:
-    from dfeif_codegen.experiment import scenario, simulate
+    from dfeif_codegen.experiment import plan, scenario
 
     sc = scenario.load(o.scenario)
     sc.check_model(ex._flat(o.model))
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
-    cfg = simulate.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed,
-                               for_method(o.predictor, o.oosm))
+    cfg = plan.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed,
+                           o.predictor)
     if o.duration is not None:
         cfg = dataclasses.replace(cfg, duration=o.duration, metrics_from=min(cfg.metrics_from, o.duration / 2))
     return cfg
@@ -118,9 +117,9 @@ class _Proc:
         self.name = name
         self.err = open(work / f"{name}.err", "w")
         self.p = subprocess.Popen([str(c) for c in cmd], stderr=self.err, **kw)
-        self.cpu = None
+        self.cpu: float | None = None
 
-    def reap(self, timeout: float) -> int:
+    def reap(self, timeout: float) -> int | None:
         deadline = time.monotonic() + timeout
         while self.cpu is None and self.p.returncode is None:
             try:
@@ -139,17 +138,10 @@ class _Proc:
         return self.p.returncode
 
 
-def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
-    """Build, start every process, run the scenario's first `duration` seconds, collect the logs."""
-    work.mkdir(parents=True, exist_ok=True)
-    cfg = make_config(o)
-    s = session.setup(cfg)
-    md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts,
-                             cfg.predictor)
-    progs = programs.build_programs(md, work / "programs")
-    lay = wire.Layout.of_folder(md.path)
+def _write_configs(o: Options, s: session.Setup, lay: wire.Layout, work: Path, ports: list[int]) -> int:
+    """The relay's and the plant's configuration files; returns the programs' idle timeout (ms)."""
     K, M = s.K, s.nodes
-    relay_port, master_port, plant_port, *node_ports = free_ports(3 + M)
+    relay_port, master_port, plant_port, *node_ports = ports
     rank = np.zeros((M, K), dtype=int)     # the drawn arrival order of late frames
     for i, late in enumerate(s.net.late):
         for a, lags in late.items():
@@ -166,34 +158,57 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
                  "command_timeout": o.command_timeout,
                  "pause_at": sorted({f.at for f in o.faults} | {f.back for f in o.faults})}
     session.write_json(work / "plant.json", plant_cfg)
-    key = ["-k", o.key] if o.key else []
-    to = f"{HOST}:{relay_port}"
-    idle = ["-t", str(idle_ms)]
+    return idle_ms
 
-    def node_cmd(i: int, restart: int = 0) -> list:
+
+@dataclass
+class _Commands:
+    """The command lines of the node and master programs (a restart gets its own log)."""
+
+    o: Options
+    s: session.Setup
+    progs: programs.Programs
+    work: Path
+    ports: list[int]
+    idle_ms: int
+
+    def _tail(self, restart: int) -> list:
+        key = ["-k", self.o.key] if self.o.key else []
+        return ["-s", restart << 24, *key, "-t", str(self.idle_ms)]
+
+    def node(self, i: int, restart: int = 0) -> list:
+        s, work = self.s, self.work
         conf = _reals(work / f"node{i}.cfg", s.x_hat0, s.P0, s.R[i], s.q)
-        return [progs.node, "-i", i, "-l", f"{HOST}:{node_ports[i]}", "-p", to, "-c", conf,
-                "-o", work / f"node{i}.{restart}.log", "-s", restart << 24, *key, *idle]
+        return [self.progs.node, "-i", i, "-l", f"{HOST}:{self.ports[3 + i]}", "-p", f"{HOST}:{self.ports[0]}",
+                "-c", conf, "-o", work / f"node{i}.{restart}.log", *self._tail(restart)]
 
-    def master_cmd(restart: int = 0) -> list:
+    def master(self, restart: int = 0) -> list:
+        s, work = self.s, self.work
         conf = _reals(work / "master.cfg", s.x_hat0, s.P0, s.q, s.gains)
-        return [progs.master, "-l", f"{HOST}:{master_port}", "-p", to, "-c", conf, "-o", work / f"master.{restart}.log",
-                "-s", restart << 24, *key, *idle, *(["-r"] if restart else [])]
+        return [self.progs.master, "-l", f"{HOST}:{self.ports[1]}", "-p", f"{HOST}:{self.ports[0]}", "-c", conf,
+                "-o", work / f"master.{restart}.log", *self._tail(restart), *(["-r"] if restart else [])]
 
-    t0 = time.monotonic()
-    deadline = t0 + (deadline or 60 + 0.2 * K)
-    procs = {"relay": _Proc("relay", [progs.relay, work / "relay.cfg", work / "relay.jsonl"], work)}
-    time.sleep(0.2)
-    procs["master"] = _Proc("master", master_cmd(), work)
-    for i in range(M):
-        procs[f"node{i}"] = _Proc(f"node{i}", node_cmd(i), work)
-    time.sleep(0.1)
-    plant = _Proc("plant", [sys.executable, "-m", "dfeif_codegen.net.plant", work / "plant.json"], work,
-                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+
+def _lines_of(stream) -> queue.Queue:
+    """The lines of a child's stdout, read by a thread ("" at its end)."""
+    lines: queue.Queue = queue.Queue()
+
+    def read() -> None:
+        for x in stream:
+            lines.put(x)
+        lines.put("")
+
+    threading.Thread(target=read, daemon=True).start()
+    return lines
+
+
+def _drive(o: Options, cmds: _Commands, procs: dict, plant: _Proc, deadline: float) -> tuple[bool, dict, list]:
+    """Step the plant until it says done, killing and restarting programs at the faults' steps;
+    returns (finished, restarts per program, the killed processes)."""
     restarts: dict = {}
     retired: list[_Proc] = []
-    lines: queue.Queue = queue.Queue()
-    threading.Thread(target=lambda: [lines.put(x) for x in plant.p.stdout] + [lines.put("")], daemon=True).start()
+    assert plant.p.stdin is not None and plant.p.stdout is not None
+    lines = _lines_of(plant.p.stdout)
     finished = False
     while not finished and time.monotonic() < deadline:
         try:
@@ -213,19 +228,19 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
                     retired.append(procs.pop(name))
                 if f.back == k:
                     restarts[name] = restarts.get(name, 0) + 1
-                    cmd = master_cmd(restarts[name]) if f.who == "master" else node_cmd(f.who, restarts[name])
-                    procs[name] = _Proc(f"{name}.{restarts[name]}", cmd, work)
+                    cmd = cmds.master(restarts[name]) if f.who == "master" else cmds.node(f.who, restarts[name])
+                    procs[name] = _Proc(f"{name}.{restarts[name]}", cmd, cmds.work)
                     time.sleep(0.05)
             plant.p.stdin.write("\n")
             plant.p.stdin.flush()
     plant.p.stdin.close()
-    rcs = {"plant": plant.reap(5 if finished else 0)}
-    for name, pr in procs.items():
-        rcs[name] = pr.reap(10 if finished else 0)
-    wall = time.monotonic() - t0
-    if not finished:
-        raise SetupError(f"codegen network: the run did not finish in time (see {work}/*.err)")
-    n, m = s.flat.n, s.flat.m
+    return finished, restarts, retired
+
+
+def _logs(s: session.Setup, work: Path, restarts: dict) -> tuple[list, dict, list, dict]:
+    """The nodes' and master's logs (the last incarnation's, and the first's as "first"), the
+    relay's events and the plant's arrays."""
+    n, m, M = s.flat.n, s.flat.m, s.nodes
     nodes = [session.parse_node_log(work / f"node{i}.{restarts.get(f'node{i}', 0)}.log", n) for i in range(M)]
     for i in range(M):
         nodes[i]["first"] = session.parse_node_log(work / f"node{i}.0.log", n)
@@ -234,6 +249,37 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
     relay = [json.loads(line) for line in (work / "relay.jsonl").read_text().splitlines() if line]
     with np.load(work / "plant.npz") as data:
         plant_data = {k: data[k] for k in data.files}
+    return nodes, master, relay, plant_data
+
+
+def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
+    """Build, start every process, run the scenario's first `duration` seconds, collect the logs."""
+    work.mkdir(parents=True, exist_ok=True)
+    cfg = make_config(o)
+    s = session.setup(cfg)
+    md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts,
+                             cfg.predictor)
+    progs = programs.build_programs(md, work / "programs")
+    lay = wire.Layout.of_folder(md.path)
+    ports = free_ports(3 + s.nodes)
+    cmds = _Commands(o, s, progs, work, ports, _write_configs(o, s, lay, work, ports))
+    t0 = time.monotonic()
+    procs = {"relay": _Proc("relay", [progs.relay, work / "relay.cfg", work / "relay.jsonl"], work)}
+    time.sleep(0.2)
+    procs["master"] = _Proc("master", cmds.master(), work)
+    for i in range(s.nodes):
+        procs[f"node{i}"] = _Proc(f"node{i}", cmds.node(i), work)
+    time.sleep(0.1)
+    plant = _Proc("plant", [sys.executable, "-m", "dfeif_codegen.net.plant", work / "plant.json"], work,
+                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    finished, restarts, retired = _drive(o, cmds, procs, plant, t0 + (deadline or 60 + 0.2 * s.K))
+    rcs = {"plant": plant.reap(5 if finished else 0)}
+    for name, pr in procs.items():
+        rcs[name] = pr.reap(10 if finished else 0)
+    wall = time.monotonic() - t0
+    if not finished:
+        raise SetupError(f"codegen network: the run did not finish in time (see {work}/*.err)")
+    nodes, master, relay, plant_data = _logs(s, work, restarts)
     cpu = {name: pr.cpu for name, pr in procs.items()}
     errs = {pr.name: Path(pr.err.name).read_text() for pr in [*procs.values(), *retired, plant]}
     return Outcome(o, s, lay, len(plant_data["u"]), nodes, master, relay, plant_data, cpu, rcs, errs, wall)
@@ -300,6 +346,11 @@ class Network:
 
     def report(self) -> str:
         return self.summary + "\n" + verify.table(self.errors)
+
+    def to_json(self) -> str:
+        """The figures and the comparison (the logs themselves stay in `outcome`)."""
+        return json.dumps({"summary": self.summary, "ok": self.ok, "figures": self.figures,
+                           "errors": verify.errors_as_dicts(self.errors)})
 
 
 def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int = 2, seed: int = 0,

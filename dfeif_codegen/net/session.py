@@ -14,12 +14,13 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment.network import Network
 from dfeif_codegen.reference.control import FlatController
 from dfeif_codegen.experiment.trajectory import flags
+from dfeif_codegen.symbolic.flatness import FlatSystem
 
 
 @dataclass
 class Setup:
     cfg: ex.Config
-    flat: object
+    flat: FlatSystem
     ts: float
     K: int
     cams: list

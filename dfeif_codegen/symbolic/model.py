@@ -351,103 +351,112 @@ def load_toml(path: str | Path, source: str | None = None) -> Model:
     return loads_toml(read_text(path, source, ModelError, "model"), source)
 
 
-def loads_toml(text: str, source: str = "<string>") -> Model:
-    data = parse_toml(text, source, ModelError)
-    lines = _key_lines(text)
+class _Doc:
+    """A parsed model file: `where(key)` names a key's file and line; `parse` reads an expression."""
 
-    def where(key: str) -> str:
-        return _where(source, lines, key)
+    def __init__(self, text: str, source: str):
+        self.data = parse_toml(text, source, ModelError)
+        self.source, self.lines = source, _key_lines(text)
+        self.symbols: dict[str, sp.Expr] = {}
 
-    _check_keys(data, where)
+    def where(self, key: str) -> str:
+        return _where(self.source, self.lines, key)
 
-    head = _table(data, "model", source)
-    name = _text(head, "name", where("model"))
-    if not _NAME.match(name):
-        raise ModelError(f"{where('model.name')}: '{name}' must be a C identifier (letters, digits, _)")
-    ts = head.get("ts", 0.01)
-    if not _finite(ts) or not 1e-9 <= ts <= 1e3:
-        raise ModelError(f"{where('model.ts')}: must be a sampling period in seconds in [1e-9, 1e3], got {ts!r}")
+    def parse(self, key: str, expr_text, names: dict | None = None) -> sp.Expr:
+        if not isinstance(expr_text, (str, int, float)) or isinstance(expr_text, bool):
+            raise ModelError(f"{self.where(key)}: expression must be a string")
+        return parse_expression(str(expr_text), self.symbols if names is None else names, self.where(key))
 
-    def variables(key: str) -> list[Variable]:
-        out = []
-        for i, entry in enumerate(_items(data, key, where)):
-            at = where(f"{key}#{i}")
-            bounds = {}
-            for field_name in ("min", "max", "nominal"):
-                value = entry.get(field_name)
-                if value is not None and not _finite(value):
-                    raise ModelError(f"{where(f'{key}#{i}.{field_name}')}: must be a finite number")
-                bounds[field_name] = None if value is None else float(value)
-            out.append(Variable(_text(entry, "name", at), _text(entry, "unit", at, ""),
-                                _text(entry, "description", at, ""), **bounds))
-        return out
 
-    states, inputs = variables("states"), variables("inputs")
+def _variables(doc: _Doc, key: str) -> list[Variable]:
+    """[[states]] or [[inputs]]: name, unit, description and the domain (min, max, nominal)."""
+    out = []
+    for i, entry in enumerate(_items(doc.data, key, doc.where)):
+        at = doc.where(f"{key}#{i}")
+        bounds = {}
+        for field_name in ("min", "max", "nominal"):
+            value = entry.get(field_name)
+            if value is not None and not _finite(value):
+                raise ModelError(f"{doc.where(f'{key}#{i}.{field_name}')}: must be a finite number")
+            bounds[field_name] = None if value is None else float(value)
+        out.append(Variable(_text(entry, "name", at), _text(entry, "unit", at, ""),
+                            _text(entry, "description", at, ""), **bounds))
+    return out
+
+
+def _parameters(doc: _Doc) -> list[Parameter]:
     parameters = []
-    for i, entry in enumerate(_items(data, "parameters", where, required=False)):
-        at = f"{where('parameters')} #{i + 1}"
+    for i, entry in enumerate(_items(doc.data, "parameters", doc.where, required=False)):
+        at = f"{doc.where('parameters')} #{i + 1}"
         value = entry.get("value")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ModelError(f"{at}: field 'value' must be a number")
         parameters.append(Parameter(_text(entry, "name", at), float(value), _text(entry, "unit", at, ""),
                                     _text(entry, "description", at, ""), _text(entry, "source", at, "")))
+    return parameters
 
+
+def _declare(doc: _Doc, states: list, inputs: list, parameters: list, dynamics: dict) -> None:
+    """Every name declared once; the symbols of states, parameters and [dynamics.definitions]."""
     seen: dict[str, str] = {}
     for kind, items in (("states", states), ("inputs", inputs), ("parameters", parameters)):
         for item in items:
             if item.name in seen:
-                raise ModelError(f"{where(kind)}: '{item.name}' is declared twice ({seen[item.name]} and {kind})")
+                raise ModelError(f"{doc.where(kind)}: '{item.name}' is declared twice ({seen[item.name]} and {kind})")
             seen[item.name] = kind
-    symbols: dict[str, sp.Expr] = {v.name: sp.Symbol(v.name) for v in states + parameters}
-    dynamics = _table(data, "dynamics", source)
-    for key, expr_text in _table(dynamics, "definitions", source, required=False).items():
-        if not _NAME.match(key) or key in symbols:
-            raise ModelError(f"{where('dynamics.definitions.' + key)}: '{key}' is not a new name")
-        symbols[key] = parse_expression(_text({key: expr_text}, key, where("dynamics.definitions")),
-                                        symbols, where(f"dynamics.definitions.{key}"))
+    doc.symbols.update({v.name: sp.Symbol(v.name) for v in states + parameters})
+    for key, expr_text in _table(dynamics, "definitions", doc.source, required=False).items():
+        if not _NAME.match(key) or key in doc.symbols:
+            raise ModelError(f"{doc.where('dynamics.definitions.' + key)}: '{key}' is not a new name")
+        doc.symbols[key] = parse_expression(_text({key: expr_text}, key, doc.where("dynamics.definitions")),
+                                            doc.symbols, doc.where(f"dynamics.definitions.{key}"))
 
-    def parse(key: str, expr_text, names=symbols) -> sp.Expr:
-        if not isinstance(expr_text, (str, int, float)) or isinstance(expr_text, bool):
-            raise ModelError(f"{where(key)}: expression must be a string")
-        return parse_expression(str(expr_text), names, where(key))
 
-    f_table = _table(dynamics, "f", source)
-    state_names = [s.name for s in states]
+def _dynamics(doc: _Doc, dynamics: dict, state_names: list[str], input_names: list[str]) -> tuple:
+    """f (one expression per state) and g (a column per input, entries not given 0)."""
+    f_table = _table(dynamics, "f", doc.source)
     for key in f_table:
         if key not in state_names:
-            raise ModelError(f"{where('dynamics.f.' + key)}: '{key}' is not a declared state")
+            raise ModelError(f"{doc.where('dynamics.f.' + key)}: '{key}' is not a declared state")
     missing = [s for s in state_names if s not in f_table]
     if missing:
-        raise ModelError(f"{where('dynamics.f')}: missing field for state(s) {', '.join(missing)}")
-    f = sp.Matrix([parse(f"dynamics.f.{s}", f_table[s]) for s in state_names])
-
-    g_table = _table(dynamics, "g", source)
-    input_names = [u.name for u in inputs]
+        raise ModelError(f"{doc.where('dynamics.f')}: missing field for state(s) {', '.join(missing)}")
+    f = sp.Matrix([doc.parse(f"dynamics.f.{s}", f_table[s]) for s in state_names])
+    g_table = _table(dynamics, "g", doc.source)
     for key in g_table:
         if key not in input_names:
-            raise ModelError(f"{where('dynamics.g.' + key)}: '{key}' is not a declared input")
-    g = sp.zeros(len(states), len(inputs))
+            raise ModelError(f"{doc.where('dynamics.g.' + key)}: '{key}' is not a declared input")
+    g = sp.zeros(len(state_names), len(input_names))
     for j, u in enumerate(input_names):
         column = g_table.get(u, {})
         if not isinstance(column, dict):
-            raise ModelError(f"{where('dynamics.g.' + u)}: must be a table of state = expression")
+            raise ModelError(f"{doc.where('dynamics.g.' + u)}: must be a table of state = expression")
         for s, expr_text in column.items():
             if s not in state_names:
-                raise ModelError(f"{where(f'dynamics.g.{u}.{s}')}: '{s}' is not a declared state")
-            g[state_names.index(s), j] = parse(f"dynamics.g.{u}.{s}", expr_text)
+                raise ModelError(f"{doc.where(f'dynamics.g.{u}.{s}')}: '{s}' is not a declared state")
+            g[state_names.index(s), j] = doc.parse(f"dynamics.g.{u}.{s}", expr_text)
+    return f, g
 
+
+def _outputs(doc: _Doc) -> list[Output]:
     outputs = []
-    for i, entry in enumerate(_items(data, "outputs", where)):
-        at = f"{where('outputs')} #{i + 1}"
+    for i, entry in enumerate(_items(doc.data, "outputs", doc.where)):
+        at = f"{doc.where('outputs')} #{i + 1}"
         out_name = _text(entry, "name", at)
         angle = entry.get("angle", False)
         if not isinstance(angle, bool):
             raise ModelError(f"{at}: field 'angle' must be true or false")
-        outputs.append(Output(out_name, parse("outputs", _text(entry, "expr", at, out_name)), angle))
+        outputs.append(Output(out_name, doc.parse("outputs", _text(entry, "expr", at, out_name)), angle))
+    return outputs
 
-    measurement = None
-    meas = _table(data, "measurement", source, required=False)
-    if meas and "observe" not in meas and "recover" not in meas:
+
+def _measurement(doc: _Doc, outputs: list[Output], parameters: list[Parameter]) -> Measurement | None:
+    """[measurement]: what a camera observes, its noise, how a node recovers the flat outputs."""
+    where = doc.where
+    meas = _table(doc.data, "measurement", doc.source, required=False)
+    if not meas:
+        return None
+    if "observe" not in meas and "recover" not in meas:
         # Only [measurement.noise]: the cameras measure the flat outputs themselves.
         observe = {o.name: o.expr for o in outputs}
         recover = {o.name: sp.Symbol(o.name) for o in outputs}
@@ -455,24 +464,40 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
         if sorted(noise) != sorted(observe) or not _positive(noise.values()):
             raise ModelError(f"{where('measurement.noise')}: without [measurement.observe], needs one positive "
                              f"std dev per flat output ({', '.join(observe)})")
-        measurement = Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
-    elif meas:
-        observe = {k: parse(f"measurement.observe.{k}", v)
-                   for k, v in _table(meas, "observe", where("measurement")).items()}
-        seen = {k: sp.Symbol(k) for k in observe}
-        recover_table = _table(meas, "recover", where("measurement"))
-        if sorted(recover_table) != sorted(o.name for o in outputs):
-            raise ModelError(f"{where('measurement.recover')}: needs exactly one entry per flat output")
-        recover = {k: parse(f"measurement.recover.{k}", v, {**seen, **{p.name: sp.Symbol(p.name) for p in parameters}})
-                   for k, v in recover_table.items()}
-        noise = _table(meas, "noise", where("measurement"))
-        if sorted(noise) != sorted(observe) or not _positive(noise.values()):
-            raise ModelError(f"{where('measurement.noise')}: needs one positive std dev per observed channel")
-        measurement = Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
+        return Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
+    observe = {k: doc.parse(f"measurement.observe.{k}", v) for k, v in _table(meas, "observe", where("measurement")).items()}
+    seen = {k: sp.Symbol(k) for k in observe}
+    recover_table = _table(meas, "recover", where("measurement"))
+    if sorted(recover_table) != sorted(o.name for o in outputs):
+        raise ModelError(f"{where('measurement.recover')}: needs exactly one entry per flat output")
+    recover = {k: doc.parse(f"measurement.recover.{k}", v, {**seen, **{p.name: sp.Symbol(p.name) for p in parameters}})
+               for k, v in recover_table.items()}
+    noise = _table(meas, "noise", where("measurement"))
+    if sorted(noise) != sorted(observe) or not _positive(noise.values()):
+        raise ModelError(f"{where('measurement.noise')}: needs one positive std dev per observed channel")
+    return Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
 
+
+def loads_toml(text: str, source: str = "<string>") -> Model:
+    """A model from TOML text: every problem a ModelError naming the file, line and field."""
+    doc = _Doc(text, source)
+    _check_keys(doc.data, doc.where)
+    head = _table(doc.data, "model", source)
+    name = _text(head, "name", doc.where("model"))
+    if not _NAME.match(name):
+        raise ModelError(f"{doc.where('model.name')}: '{name}' must be a C identifier (letters, digits, _)")
+    ts = head.get("ts", 0.01)
+    if not _finite(ts) or not 1e-9 <= ts <= 1e3:
+        raise ModelError(f"{doc.where('model.ts')}: must be a sampling period in seconds in [1e-9, 1e3], got {ts!r}")
+    states, inputs = _variables(doc, "states"), _variables(doc, "inputs")
+    parameters = _parameters(doc)
+    dynamics = _table(doc.data, "dynamics", source)
+    _declare(doc, states, inputs, parameters, dynamics)
+    f, g = _dynamics(doc, dynamics, [s.name for s in states], [u.name for u in inputs])
+    outputs = _outputs(doc)
     return Model(name=name, states=states, inputs=inputs, parameters=parameters, f=f, g=g, outputs=outputs,
-                 ts=float(ts), description=str(head.get("description", "")), measurement=measurement,
-                 source=source, _lines=lines)
+                 ts=float(ts), description=str(head.get("description", "")),
+                 measurement=_measurement(doc, outputs, parameters), source=source, _lines=doc.lines)
 
 
 # --- built-ins -------------------------------------------------------------------------------
