@@ -37,6 +37,7 @@ _API = {
     "simulate": ("dfeif_codegen.api", "simulate"),
     "scenario": ("dfeif_codegen.experiment.starter", "scenario"),
     "network": ("dfeif_codegen.net.run", "network"),
+    "reproduce": ("dfeif_codegen.reproduction.run", "reproduce"),
     # errors the user can fix (the CLI: one line, exit 2; MismatchError exit 1)
     "CodegenError": ("dfeif_codegen.errors", "CodegenError"),
     "ModelError": ("dfeif_codegen.errors", "ModelError"),
@@ -72,6 +73,7 @@ if TYPE_CHECKING:  # never run: the names above for type checkers, without loadi
     from dfeif_codegen.experiment.starter import scenario
     from dfeif_codegen.net.run import network
     from dfeif_codegen.paths import OutputPathError
+    from dfeif_codegen.reproduction.run import reproduce
     from dfeif_codegen.symbolic.flatness import derive
     from dfeif_codegen.symbolic.inspect_model import inspect
     from dfeif_codegen.symbolic.model import from_sympy

@@ -24,6 +24,7 @@ COMMANDS = {
     "bench": "measure build time, code size, stack and instruction counts",
     "network": "run nodes and master as separate processes over UDP on 127.0.0.1 through a seeded "
                "delay/drop relay and compare with the reference",
+    "reproduce": "run every table and figure of docs/experiment.md (resumable) and render the document",
 }
 
 
@@ -133,6 +134,21 @@ def _bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="skip the scaling sweeps and the Monte Carlo figures")
 
 
+def _reproduce_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--runs", type=int, default=100, help="seeds per table (default 100)")
+    p.add_argument("--out", default="reproduce", metavar="DIR",
+                   help="tasks' results, experiment.json, experiment.md and figures (default ./reproduce)")
+    p.add_argument("--doc", metavar="FILE", help="also write the document here, its figures beside it "
+                   "(docs/experiment.md)")
+    p.add_argument("--quick", action="store_true",
+                   help="a subset: the motor's tables and figures, the filter comparison on two rows")
+    p.add_argument("--quiet", action="store_true", help="no progress")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N", help="local processes (default: all cores)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on an existing Dask distributed cluster (extra 'cluster')")
+
+
 def parser() -> argparse.ArgumentParser:
     top = _Parser(prog="codegen", description=(
         "Turn a symbolic differentially flat robot model into verified embedded C for distributed "
@@ -157,6 +173,7 @@ def parser() -> argparse.ArgumentParser:
 
     _network_arguments(add("network"))
     _bench_arguments(add("bench"))
+    _reproduce_arguments(sub.add_parser("reproduce", help=COMMANDS["reproduce"], description=COMMANDS["reproduce"]))
     return top
 
 
@@ -233,6 +250,16 @@ def simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def reproduce(args: argparse.Namespace) -> int:
+    """`codegen reproduce`: what it ran and wrote; exit 1 when a run failed or diverged."""
+    from dfeif_codegen.reproduction.run import reproduce as run
+
+    result = run(args.runs, args.out, workers=args.workers, scheduler=args.scheduler, quick=args.quick, doc=args.doc,
+                 quiet=args.quiet)
+    print(result.report())
+    return 1 if result.failures else 0
+
+
 def bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -287,7 +314,7 @@ def network(args: argparse.Namespace) -> int:
 
 
 HANDLERS = {"build": build, "inspect": inspect, "verify": verify, "simulate": simulate, "bench": bench,
-            "network": network, "scenario": scenario}
+            "network": network, "scenario": scenario, "reproduce": reproduce}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,7 +18,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "dfeif_codegen"
 STAGES = [
     {"__init__", "errors", "constants", "paths", "budget"},
     {"symbolic"}, {"models"}, {"codegen"}, {"reference"}, {"experiment"}, {"check"}, {"net"},
-    {"api", "cli", "__main__"},
+    {"api", "reproduction", "cli", "__main__"},
 ]
 RANK = {name: i for i, names in enumerate(STAGES) for name in names}
 BASE = STAGES[0]

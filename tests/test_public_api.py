@@ -139,7 +139,7 @@ CLI_ONLY = {
     "inspect": {"json": "the CLI prints inspect's dict as JSON"},
 }
 FUNCTIONS = {"build": dc.build, "verify": dc.verify, "simulate": dc.simulate, "scenario": dc.scenario,
-             "inspect": dc.inspect, "network": dc.network, "bench": dc.bench}
+             "inspect": dc.inspect, "network": dc.network, "bench": dc.bench, "reproduce": dc.reproduce}
 
 
 def test_every_command_option_is_a_keyword_of_its_function():

@@ -397,14 +397,19 @@ def filter_bank(library: Library):
     return CFilterBank
 
 
-def run_program(model: ModelDir, rec, work: Path, sanitize: bool = False, timeout: float = 600.0,
-                wrapper: Sequence[str] = (), inputs: str = "recorded") -> tuple[dict, dict]:
-    """The driver as a stand-alone host program (scenario.bin in, results.bin out), optionally
-    with AddressSanitizer and UBSan, or under a `wrapper` such as valgrind."""
+def program(model: ModelDir, work: Path, sanitize: bool = False) -> Path:
+    """Compile the driver as a stand-alone host program (scenario.bin in, results.bin out),
+    optionally with AddressSanitizer and UBSan."""
     work = Path(work)
     driver = render_driver(model, work)
-    exe = compile_program([*model.sources(), driver], work / f"{model.name}_harness", [model.path],
-                          ["-DHARNESS_MAIN"], sanitize=sanitize)
+    return compile_program([*model.sources(), driver], work / f"{model.name}_harness", [model.path],
+                           ["-DHARNESS_MAIN"], sanitize=sanitize)
+
+
+def run_compiled_program(exe: Path, model: ModelDir, rec, work: Path, timeout: float = 600.0,
+                         wrapper: Sequence[str] = (), inputs: str = "recorded") -> tuple[dict, dict]:
+    """Replay the recording through a program from `program`, or under a `wrapper` such as valgrind."""
+    work = Path(work)
     write_scenario(rec, model, work / "scenario.bin", inputs)
     (work / "results.bin").unlink(missing_ok=True)
     env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:exitcode=86",
@@ -418,3 +423,9 @@ def run_program(model: ModelDir, rec, work: Path, sanitize: bool = False, timeou
         raise MismatchError(failure(status))
     out["late_applied"] = out["late_applied"].astype(bool)
     return status, out
+
+
+def run_program(model: ModelDir, rec, work: Path, sanitize: bool = False, timeout: float = 600.0,
+                wrapper: Sequence[str] = (), inputs: str = "recorded") -> tuple[dict, dict]:
+    """`program` then `run_compiled_program`."""
+    return run_compiled_program(program(model, work, sanitize), model, rec, work, timeout, wrapper, inputs)

@@ -212,12 +212,18 @@ def public_functions(model_name: str, stack: dict[str, StackUse]) -> dict[str, S
             and "_kern_" not in f and "harness" not in f}
 
 
-def run_scenario(model, rec, work: Path, opt: str = "-O2", timeout: float = 600.0,
-                 inputs: str = "recorded") -> TargetRun:
-    """Build the model folder (float or double) and the driver for the Cortex-M4F, replay the
-    recording under QEMU, read the results back through semihosting files."""
-    import time
+@dataclass
+class App:
+    """The model's library and its scenario driver, compiled and linked for the Cortex-M4F."""
 
+    model: object
+    elf: Path
+    lib_objs: list
+    work: Path
+
+
+def build_app(model, work: Path, opt: str = "-O2") -> App:
+    """Build the model folder (float or double) and the driver for the Cortex-M4F."""
     from dfeif_codegen.check import harness
 
     work = Path(work)
@@ -226,19 +232,34 @@ def run_scenario(model, rec, work: Path, opt: str = "-O2", timeout: float = 600.
     driver = harness.render_driver(model, work / "driver")
     drv_objs = compile_objects([driver], work / "driver", [model.path], opt=opt,
                                extra=["-DHARNESS_MAIN", "-DHARNESS_STACK_PAINT"])
-    elf = link([*lib_objs, *drv_objs], work / "app.elf")
+    return App(model, link([*lib_objs, *drv_objs], work / "app.elf"), lib_objs, work)
+
+
+def run_app(app: App, rec, timeout: float = 600.0, inputs: str = "recorded") -> TargetRun:
+    """Replay the recording under QEMU, read the results back through semihosting files."""
+    import time
+
+    from dfeif_codegen.check import harness
+
+    model, work = app.model, app.work
     harness.write_scenario(rec, model, work / "scenario.bin", inputs)
     results = work / "results.bin"
     results.unlink(missing_ok=True)
     start = time.perf_counter()
-    proc = run(elf, work, timeout=timeout)
+    proc = run(app.elf, work, timeout=timeout)
     seconds = time.perf_counter() - start
     if not results.is_file():
         raise SetupError(f"the target program wrote no results (QEMU exit {proc.returncode}): "
                          f"{(proc.stdout + proc.stderr).strip()[-2000:]}")
     status, outputs = harness.read_results(rec, model, results)
-    stack = stack_usage(o.with_suffix(".ci") for o in lib_objs)
-    return TargetRun(status, outputs, sizes(lib_objs), public_functions(model.name, stack), seconds)
+    stack = stack_usage(o.with_suffix(".ci") for o in app.lib_objs)
+    return TargetRun(status, outputs, sizes(app.lib_objs), public_functions(model.name, stack), seconds)
+
+
+def run_scenario(model, rec, work: Path, opt: str = "-O2", timeout: float = 600.0,
+                 inputs: str = "recorded") -> TargetRun:
+    """`build_app` then `run_app`."""
+    return run_app(build_app(model, work, opt), rec, timeout, inputs)
 
 
 def report(result: TargetRun) -> str:

@@ -241,7 +241,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     import tempfile
     from pathlib import Path
 
-    from dfeif_codegen.check import harness, target as targets
+    from dfeif_codegen.check import harness, stages, target as targets
     from dfeif_codegen.experiment import scenario as scenarios
     from dfeif_codegen.experiment import closed_loop as experiment
 
@@ -287,17 +287,15 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         about = (f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
                  f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
         say(about)
-        result = Verification(settings, about, [])
-        if target == "cortex-m4f":
-            run = targets.run_scenario(built, rec, work / "target", inputs=inputs)
-            if run.status["status"] != 0:
-                raise MismatchError(harness.failure(run.status))
-            got, result.target_report = run.outputs, targets.report(run)
-        elif sanitize:
-            got = harness.run_program(built, rec, work / "host", sanitize=True, inputs=inputs)[1]
-        else:
-            got = harness.Library(built, work / "host").run(rec, inputs)
-        result.errors = compare_run(got, rec, precision)
-        if precision == "float" and not result.ok:
-            result.yardstick = single_precision_yardstick(result.errors, float32_reference_errors(rec))
+        compiled = stages.compile(built, target, sanitize, work)    # compile -> run -> compare, once each
+        ran = stages.run(compiled, rec, inputs)
+        return compare_outputs(settings, about, ran, rec, precision)
+
+
+def compare_outputs(settings: str, about: str, ran, rec, precision: str) -> Verification:
+    """The third step: the C's outputs against the reference's, signal by signal; after a float
+    mismatch, how far a float32 run of the reference itself lands (the yardstick)."""
+    result = Verification(settings, about, compare_run(ran.outputs, rec, precision), ran.target_report)
+    if precision == "float" and not result.ok:
+        result.yardstick = single_precision_yardstick(result.errors, float32_reference_errors(rec))
     return result

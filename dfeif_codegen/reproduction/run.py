@@ -1,0 +1,119 @@
+"""`codegen reproduce`: one command for every table and figure of docs/experiment.md.
+
+It runs the `simulate` calls the document is made of (tasks.py: both built-in models, every
+late-measurement method and fusion rule, the EKF/UKF comparison, the q sweep) on local processes
+or a Dask cluster, each stored in OUT/tasks keyed by its settings (a rerun skips finished tasks),
+derives the document's numbers into OUT/experiment.json and renders OUT/experiment.md through
+templates/docs/experiment.md.j2 (document.py), with the figures in OUT/figures.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.paths import writable_file
+from dfeif_codegen.reproduction import document
+from dfeif_codegen.reproduction.tasks import FULL, QUICK, check_out, run_task
+
+
+@dataclass
+class Reproduction:
+    """What `codegen reproduce` made: the document's data, its text, where they were written."""
+
+    data: dict
+    text: str
+    out: str
+    elapsed_s: float
+    written: list[str] = field(default_factory=list)
+
+    @property
+    def failures(self) -> int:
+        return sum(t["failures"] for t in self.data["tasks"].values())
+
+    def to_json(self) -> str:
+        return json.dumps(self.data)
+
+    def report(self) -> str:
+        tasks = self.data["tasks"]
+        lines = [f"codegen reproduce: {len(tasks)} task(s), {self.data['runs']} runs each, "
+                 f"{self.elapsed_s:.0f} s{' (--quick)' if self.data['quick'] else ''}"]
+        for name, t in tasks.items():
+            failed = f", {t['failures']} failed" if t["failures"] else ""
+            lines.append(f"  {name}: {t['model']}, {t['distinct_runs']} runs in {t['elapsed_s']:.0f} s{failed}")
+        lines += [f"wrote {path}" for path in self.written]
+        return "\n".join(lines)
+
+
+def _comparison_figures(data: dict, out: Path) -> None:
+    """The filter comparison's bar charts (master RMSE per filter and row), one per model."""
+    from dfeif_codegen.experiment import closed_loop, figures
+
+    for name, t in data["tasks"].items():
+        blocks = t["blocks"].get("sinusoid", {})
+        if not t["filters"] or not blocks:
+            continue
+        series = {}
+        for k in t["filters"]:
+            rows = blocks.get(f"{k}-replay + difference") or []
+            if rows and all(rows):
+                series[k] = ([[c[0] for c in r["master"]] for r in rows], [[c[1] for c in r["master"]] for r in rows])
+        path = out / "figures" / f"compare_{t['model']}.png"
+        figures.comparison_figure(path, f"{t['model']}: master RMSE per filter (95% intervals), same recordings",
+                                  closed_loop._flat(t["model"]), t["rows"], series)
+        t["figures"].append(str(path.relative_to(out)))
+
+
+def _publish(text: str, data: dict, out: Path, doc: Path) -> list[str]:
+    """docs/experiment.md, the data it was rendered from (docs/experiment.json: a test renders
+    it again and compares) and the figures it shows (copied beside it, same relative paths)."""
+    doc.parent.mkdir(parents=True, exist_ok=True)
+    data_file = doc.with_suffix(".json")
+    data_file.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    written = [str(doc), str(data_file)]
+    for line in text.splitlines():
+        start = line.find("](figures/")
+        if line.startswith("![") and start > 0:
+            rel = line[start + 2:line.index(")", start)]
+            target = doc.parent / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(out / rel, target)
+            written.append(str(target))
+    doc.write_text(text, encoding="utf-8")
+    return written
+
+
+def reproduce(runs: int = 100, out: str = "reproduce", *, workers: int | None = None, scheduler: str | None = None,
+              quick: bool = False, doc: str | None = None, quiet: bool = False) -> Reproduction:
+    """Run (or reuse) every task, derive the numbers, render the document into OUT and, with
+    `doc`, also to that path with its figures beside it. Bad input raises before any run."""
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 2:
+        raise ScenarioError(f"--runs {runs}: at least 2 (the tables give 95% intervals over the runs)")
+    folder = Path(out)
+    check_out(folder)
+    if doc:
+        writable_file(doc, "--doc")
+    from dfeif_codegen import api
+
+    start = time.time()
+    results = {}
+    for task in QUICK if quick else FULL:
+        if not quiet:
+            print(f"codegen reproduce: {task.name} ({task.model}, {runs} runs)", file=sys.stderr)
+        results[task.name] = run_task(task, runs, folder, api.simulate, workers, scheduler)
+    data = {"runs": runs, "quick": quick, "tasks": {k: document.derive(v) for k, v in results.items()},
+            "chapter": document.chapter_tables()}
+    data["facts"] = document.facts(data)
+    _comparison_figures(data, folder)
+    text = document.render(data)
+    (folder / "experiment.json").write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    (folder / "experiment.md").write_text(text, encoding="utf-8")
+    written = [str(folder / "experiment.json"), str(folder / "experiment.md")]
+    if doc:
+        written += _publish(text, data, folder, Path(doc))
+    return Reproduction(data, text, str(folder), time.time() - start, written)
