@@ -92,7 +92,9 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     # so its Theta(n^3) straight-line code is not printed twice. The held node_predict stays
     # straight-line (its loops would need the mean map split out: not done; two_link_arm's is
     # 1,512 operations)
-    loopable = [(info, loops.info_loop)] + ([] if opts.predictor == "held" else [(node_predict, loops.node_predict_loop)])
+    loopable = [(info, loops.info_loop)]
+    if opts.predictor != "held":
+        loopable.append((node_predict, loops.node_predict_loop))
     looped = {f.name(): loop(s, f.name()) for f, loop in loopable if f.n_instructions() > LOOP_OPS}
     return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"))]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
