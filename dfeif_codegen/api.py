@@ -28,14 +28,16 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
              filters: str | list[str] | None = None, plot: str | None = None, json_path: str | None = None,
              quiet: bool = False, engine: str = "c", workers: int | None = None, scheduler: str | None = None,
              results: str | None = None, csv: str | None = None, resume: str | None = None,
+             max_seconds: float | None = None, max_memory: float | None = None,
              predictor: str | None = None) -> SimulationResult:
     """`codegen simulate` as a function: the chapter's experiment, returned as a SimulationResult
     (`.tables`, `.report()`, `.to_json()`, `.failures`). Keywords are the command's options:
     `runs` seeds from `seed`, `oosm`/`fusion`/`reference` one name or a list, `filters` any of
     "df", "ekf", "ukf" (a list or one comma-separated string), `engine` "c" or "reference";
     `plot` (a folder), `json_path`, `results`, `csv` are files written on the way ("-" as
-    `json_path` writes nothing: the CLI prints `.to_json()`); `predictor` "held" or "brunovsky"
-    (None: held, brunovsky with retrodict). Bad input raises a CodegenError before any run."""
+    `json_path` writes nothing: the CLI prints `.to_json()`). `max_seconds` (CPU) and `max_memory`
+    (GB) bound the derivation; `predictor` "held" or "brunovsky" (None: held, brunovsky with
+    retrodict). Bad input raises a CodegenError before any run."""
     def listed(value):
         return [value] if isinstance(value, str) else value
 
@@ -43,4 +45,4 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
         model, engine=engine_named(engine), scenario=scenario, runs=runs, seed=seed, nodes=nodes,
         max_lag=max_lag, oosm=listed(oosm), fusion=listed(fusion), reference=listed(reference), filters=filters,
         plot=plot, json_path=json_path, quiet=quiet, workers=workers, scheduler=scheduler, results=results,
-        csv=csv, resume=resume, predictor=predictor)
+        csv=csv, resume=resume, max_seconds=max_seconds, max_memory=max_memory, predictor=predictor)

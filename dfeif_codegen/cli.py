@@ -71,10 +71,19 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
                    help="control returns ERR_SINGULAR when |det G| < R * |det G(nominal)| (default 1e-6)")
     p.add_argument("--force", action="store_true",
                    help="replace files in OUT/<model> that an earlier build did not write")
+    _budget_options(p)
+
+
+def _budget_options(p: argparse.ArgumentParser) -> None:
+    """--max-seconds and --max-memory: every command that derives a model takes them."""
     p.add_argument("--max-seconds", type=float, default=60.0, metavar="S",
-                   help="time budget of the symbolic derivation (default 60)")
+                   help="CPU-time budget of the symbolic derivation in seconds (default 60)")
     p.add_argument("--max-memory", type=float, default=2.0, metavar="GB",
                    help="memory budget of the symbolic derivation in GB (default 2)")
+
+
+def _budget(args: argparse.Namespace) -> dict:
+    return dict(max_seconds=args.max_seconds, max_memory=args.max_memory)
 
 
 def _verify_arguments(p: argparse.ArgumentParser) -> None:
@@ -88,6 +97,7 @@ def _verify_arguments(p: argparse.ArgumentParser) -> None:
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")
     _filter_options(p)
+    _budget_options(p)
 
 
 def _simulate_arguments(p: argparse.ArgumentParser) -> None:
@@ -110,6 +120,7 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--csv", metavar="FILE", help="per-run scalar results as CSV")
     p.add_argument("--resume", metavar="FILE",
                    help="continue the sweep recorded in FILE (a --results file): finished runs are not rerun")
+    _budget_options(p)
 
 
 def _network_arguments(p: argparse.ArgumentParser) -> None:
@@ -126,6 +137,7 @@ def _network_arguments(p: argparse.ArgumentParser) -> None:
                    help="measure wire sizes, master throughput, latency and CPU; write the network section "
                         "of FILE (default BENCHMARKS.md) instead of one compared run")
     _filter_options(p)
+    _budget_options(p)
 
 
 def _bench_arguments(p: argparse.ArgumentParser) -> None:
@@ -166,10 +178,18 @@ def parser() -> argparse.ArgumentParser:
     _simulate_arguments(add("simulate"))
     p = add("scenario")
     p.add_argument("--out", metavar="FILE", help="write the scenario .toml here (default: print it)")
+    p.add_argument("--shape", choices=["sinusoid", "seesaw", "circle", "figure8"], default="sinusoid",
+                   help="how the flat outputs move together (default sinusoid: in phase)")
+    p.add_argument("--amplitude", metavar="A[,A...]", help="per flat output (default: a tenth of its domain)")
+    p.add_argument("--offset", metavar="C[,C...]", help="per flat output (default: its nominal value)")
+    p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
+    p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
+    _budget_options(p)
 
     p = add("inspect")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+    _budget_options(p)
 
     _network_arguments(add("network"))
     _bench_arguments(add("bench"))
@@ -196,7 +216,7 @@ def build(args: argparse.Namespace) -> int:
         print(f"codegen build --check: {args.out} is up to date for {args.model}")
         return 0
     module = build.build(args.model, args.out, **_build_options(args), force=args.force,
-                         max_seconds=args.max_seconds, max_memory=args.max_memory)
+                         **_budget(args))
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion}, predictor {o.predictor})")
@@ -215,7 +235,7 @@ def build(args: argparse.Namespace) -> int:
 def inspect(args: argparse.Namespace) -> int:
     from dfeif_codegen.symbolic import inspect_model
 
-    info = inspect_model.inspect(args.model, ts=args.ts)
+    info = inspect_model.inspect(args.model, ts=args.ts, **_budget(args))
     print(inspect_model.render_json(info) if args.json else inspect_model.render_text(info))
     return 0
 
@@ -227,7 +247,7 @@ def verify(args: argparse.Namespace) -> int:
     result = verify.verify(args.model, target=args.target, precision=args.precision, sanitize=args.sanitize,
                            scenario=args.scenario, inputs=args.inputs, max_lag=args.max_lag, nodes=args.nodes,
                            oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                           predictor=args.predictor, progress=lambda line: print(line, flush=True))
+                           predictor=args.predictor, progress=lambda line: print(line, flush=True), **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")
@@ -242,7 +262,7 @@ def simulate(args: argparse.Namespace) -> int:
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
-        results=args.results, csv=args.csv, resume=args.resume, predictor=args.predictor)
+        results=args.results, csv=args.csv, resume=args.resume, predictor=args.predictor, **_budget(args))
     print(result.to_json() if args.json == "-" else result.report())
     if result.failures:  # a run that failed or diverged is a result to act on, not a footnote
         print(f"codegen simulate: {result.failure_line()}", file=sys.stderr)
@@ -283,7 +303,8 @@ def bench(args: argparse.Namespace) -> int:
 def scenario(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import starter
 
-    text = starter.scenario(args.model, out=args.out)
+    text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
+                            offset=args.offset, phase=args.phase, period=args.period, **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 
@@ -306,7 +327,7 @@ def network(args: argparse.Namespace) -> int:
     result = run.network(args.model, scenario=args.scenario, row=args.row, seed=args.seed,
                          precision=args.precision, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
                          nodes=args.nodes, max_lag=args.max_lag, duration=args.duration, key=args.key,
-                         flip_rate=args.flip_rate, keep=args.keep, predictor=args.predictor)
+                         flip_rate=args.flip_rate, keep=args.keep, predictor=args.predictor, **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")

@@ -108,7 +108,7 @@ CLI = {
     "--precision quad": (["build", "--precision", "quad"], {}, ["--precision", "quad"]),
     "--singular-rtol 2": (["build", "--singular-rtol", "2"], {}, ["--singular-rtol", "[0, 1)"]),
     "--max-seconds 0": (["build", "--max-seconds", "0"], {}, ["--max-seconds", "positive"]),
-    "time budget": (["build", "--max-seconds", "0.001"], {}, ["stopped after 0.001 s while", "--max-seconds"]),
+    "time budget": (["build", "--max-seconds", "0.001"], {}, ["stopped after 0.001 CPU-s while", "--max-seconds"]),
     # a generous clock, so that on a loaded machine the memory budget, not the time budget, stops it
     "memory budget": (["build", "{d}/in/m.toml", "--max-memory", "0.001", "--max-seconds", "600"],
                       {"m.toml": motor('theta = "omega"', NESTED14)},

@@ -48,6 +48,9 @@ VARIANTS = {
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
     "free-double": (str(Path(__file__).parent / "data" / "free_cart.toml"), {}),
     "free-float": (str(Path(__file__).parent / "data" / "free_cart.toml"), {"precision": "float"}),
+    # a dynamic extension: the controller's integrators (extension_step)
+    "pvtol-float": ("pvtol", {"precision": "float"}),
+    "unicycle-double": ("unicycle", {}),
 }
 FLOAT_VARIANTS = [k for k, (_, o) in VARIANTS.items() if o.get("precision") == "float"]
 

@@ -28,6 +28,7 @@ VARIANTS = [
     ("user:flex_joint_link_a", {"oosm": "retrodict", "fusion": "ci"}),
     ("user:mixed_two_input_m", {"precision": "float"}),
     ("user:long_chain_sevens", {"precision": "float"}),   # kernels printed as loops
+    ("pvtol", {"precision": "float"}),                     # a dynamic extension: extension_step
 ]
 STYLE = Path(str(resources.files("dfeif_codegen.templates") / ".clang-format"))
 

@@ -59,7 +59,7 @@ def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]
     """C for the true plant's period, the camera and Phi (CasADi's code generator) and the size of
     the work array they need."""
     model = flat.model
-    plant = Plant(model, ts, substeps)
+    plant = Plant(model, ts, substeps, flat.extension)
     n, m = model.n, model.m
     xs, us = ca.SX.sym("x", n), ca.SX.sym("u", m)
     step = ca.Function(f"{prefix}_plant_step", [xs, us], [plant._step.function(xs, us)])

@@ -231,13 +231,16 @@ def errors_as_dicts(errors: list[SignalError]) -> list[dict]:
 
 def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str | None = None,
            sanitize: bool = False, scenario: str = "paper", inputs: str = "recorded", max_lag: int = 32,
-           nodes: int = 2, oosm: str = "replay", fusion: str = "difference", predictor: str | None = None,
-           progress=None) -> Verification:
+           nodes: int = 2, oosm: str = "replay", fusion: str = "difference", progress=None,
+           max_seconds: float | None = None, max_memory: float | None = None,
+           predictor: str | None = None) -> Verification:
     """Build into a temporary folder, record a scenario (default the paper one, its first delay
     row with late frames, sinusoid, 20 s) with the reference, run the C on it (host: ctypes, or a
     program under ASan+UBSan with `sanitize`; cortex-m4f: QEMU) and compare. `progress(line)` is
-    told the settings and the scenario as soon as they are known. A mismatch is in the result
-    (`ok`, `check(result.errors)` raises it); bad input and missing tools raise before any work."""
+    told the settings and the scenario as soon as they are known. The derivations (the
+    reference's and the build's) run under `max_seconds` CPU seconds and `max_memory` GB. A
+    mismatch is in the result (`ok`, `check(result.errors)` raises it); bad input and missing
+    tools raise before any work."""
     import tempfile
     from pathlib import Path
 
@@ -255,7 +258,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     harness.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
-    sc.check_model(experiment._flat(model))   # the derivation the recording reuses (cached)
+    sc.check_model(experiment.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
     scenarios.check_window(sc, max_lag, nodes)
     precision = precision or ("float" if target == "cortex-m4f" else "double")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
@@ -125,7 +126,26 @@ def context(flat, opts: Options) -> dict:
         "check_every": kernels.CHECK_EVERY if opts.oosm == "replay" else 1,
         "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
+        "extension": extension_context(flat, opts.ts),
     }
+
+
+def extension_context(flat, ts: float) -> dict | None:
+    """The controller's integrator chains of a dynamically extended model, for
+    <model>_extension_step: per input its chain's indices into xi and the exact step's
+    coefficients Ts^k / k!; None for a model that needed no extension."""
+    ext = flat.extension
+    if ext is None or not ext.steps:
+        return None
+    names, chains, offset = ext.states, [], 0
+    for j, (u, states) in enumerate(ext.chains.items()):
+        r = len(states)
+        chains.append({"input": j, "name": _comment(u), "offset": offset, "degree": r,
+                       "states": [_comment(s) for s in states],
+                       "coef": [ts ** k / math.factorial(k) for k in range(r + 1)]})
+        offset += r
+    return {"nxi": len(names), "names": [_comment(s) for s in names], "chains": chains,
+            "inputs": [_comment(u) for u in ext.inputs]}
 
 
 def generate(m: model.Model, opts: Options, progress=None) -> dict[str, str]:
@@ -148,8 +168,8 @@ def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
 
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
-          ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float = budget.MAX_SECONDS,
-          max_memory: float = budget.MAX_MEMORY, predictor: str | None = None) -> list[str]:
+          ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float | None = None,
+          max_memory: float | None = None, predictor: str | None = None) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
     compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
@@ -169,7 +189,7 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
 def build(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, force: bool = False,
-          max_seconds: float = budget.MAX_SECONDS, max_memory: float = budget.MAX_MEMORY,
+          max_seconds: float | None = None, max_memory: float | None = None,
           compile_check: bool = True, predictor: str | None = None) -> GeneratedModule:
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 

@@ -47,17 +47,25 @@ class Diverged(FloatingPointError):
 
 
 class DivergenceWatch:
-    """Raises Diverged when the true state leaves its declared domain or the master's NEES has
-    stayed above NEES_DIVERGED * n for NEES_STEPS steps in a row."""
+    """Raises Diverged when the true state leaves its declared domain, a flat output strays from
+    its reference by more than its tracking bound (the run stopped tracking), or the master's NEES
+    has stayed above NEES_DIVERGED * n for NEES_STEPS steps in a row."""
 
-    def __init__(self, model, nees: bool = True):
+    def __init__(self, model, nees: bool = True, bound=None):
         self.nees = nees
         self.names = [v.name for v in model.states]
+        self.outputs = [o.name for o in model.outputs]
         self.lo = np.array([-np.inf if v.min is None else v.min for v in model.states])
         self.hi = np.array([np.inf if v.max is None else v.max for v in model.states])
+        self.bound = np.full(len(self.outputs), np.inf) if bound is None else np.asarray(bound, dtype=float)
         self.high = 0
 
-    def step(self, t: float, x, err, P) -> None:
+    def step(self, t: float, x, err, P, track=None) -> None:
+        if track is not None and np.any(np.abs(track) > self.bound):
+            j = int(np.argmax(np.abs(track) > self.bound))
+            raise Diverged(f"stopped tracking at t = {t:.2f} s: output {self.outputs[j]} is {track[j]:.4g} from its "
+                           f"reference, beyond the tracking bound {self.bound[j]:.4g} (default twice the "
+                           "reference's amplitude; [reference] tracking_bound)")
         if not np.all(np.isfinite(x)):
             raise Diverged(f"diverged at t = {t:.2f} s: the state is not finite")
         outside = np.nonzero((x < self.lo) | (x > self.hi))[0]
@@ -85,8 +93,7 @@ def check_reference(flat, ref_rows, t) -> None:
     bad = flat.undefined_at(state_of_flags(flat, np.asarray(ref_rows)))
     if bad is not None:
         k, what = bad
-        raise UndefinedReference(f"the reference at t = {t[k]:.3f} s asks for flat outputs where Phi^-1 is "
-                                 f"undefined: {what}")
+        raise UndefinedReference(f"the reference at t = {t[k]:.3f} s asks for flat outputs where {what}")
 
 
 def check_reference_of(cfg: "Config") -> None:
@@ -120,6 +127,9 @@ class Config:
     period: float = 5.0
     offset: tuple = (0.0,)
     harmonics: int = 4
+    tracking_bound: tuple = ()        # per output: a run straying further has stopped tracking (default 2 A)
+    phase: tuple = (0.0,)             # per output [rad]: (pi/2, 0) with equal amplitudes is a circle
+    cycles: tuple = (1,)              # per output, cycles per period: (1, 2) is a figure eight
     noise_scale: tuple = (1.0, 1.0)   # per node, times the model's camera noise
     noise_std: tuple = (None, None)   # per node: std per channel, or None for the model's
     sensor: tuple = (Link(), Link())  # camera -> node link per node
@@ -305,9 +315,21 @@ def _flat(spec: str):
     return FLATS[spec]
 
 
+def derive(spec: str, max_seconds: float | None = None, max_memory: float | None = None):
+    """The derivation `_flat` returns, made now under the budget (CPU seconds, GB; None: the
+    process's default, see budget.configure): a command calls this before its runs start."""
+    from dfeif_codegen import budget
+    budget.configure(max_seconds, max_memory)
+    if spec not in FLATS:
+        text = MODEL_TEXT.get(spec)
+        mdl = model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec)
+        FLATS[spec] = budget.bounded(flatness.derive, (mdl,), None, None, f"deriving {mdl.source}")
+    return FLATS[spec]
+
+
 @lru_cache(maxsize=None)
 def _plant(spec: str, ts: float, substeps: int) -> Plant:
-    return Plant(_flat(spec).model, ts, substeps)
+    return Plant(_flat(spec).model, ts, substeps, _flat(spec).extension)
 
 
 @lru_cache(maxsize=None)
@@ -328,11 +350,13 @@ def initial_covariance(flat, p0_std) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
-def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K) -> np.ndarray:
+def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K, phase=(0.0,),
+                     cycles=(1,)) -> np.ndarray:
     """The reference flags of every step, checked to map into the domain (the same for every seed
     and method of a row: computed and checked once per process)."""
     flat = _flat(spec)
-    cfg = Config(model=spec, reference=kind, amplitude=amplitude, period=period, offset=offset, harmonics=harmonics)
+    cfg = Config(model=spec, reference=kind, amplitude=amplitude, period=period, offset=offset, harmonics=harmonics,
+                 phase=phase, cycles=cycles)
     refs = references(cfg, flat.m)
     t = np.arange(K) * ts
     table = np.array([flags(refs, flat.degrees, tk) for tk in t])
@@ -342,8 +366,10 @@ def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K) ->
 
 
 def references(cfg: Config, m: int) -> list[Reference]:
-    amp, off = _per_chain(cfg.amplitude, m), _per_chain(cfg.offset, m)
-    return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics) for j in range(m)]
+    amp, off, phase = _per_chain(cfg.amplitude, m), _per_chain(cfg.offset, m), _per_chain(cfg.phase, m)
+    cycles = _per_chain(cfg.cycles, m)
+    return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics, phase[j], int(cycles[j]))
+            for j in range(m)]
 
 
 def state_of_flags(flat, ref_flags) -> np.ndarray:
@@ -396,7 +422,8 @@ def prepare(cfg: Config) -> Setup:
     cams = [_camera(cfg.model, float(s), None if std is None else tuple(std))
             for s, std in zip(cfg.noise_scale, cfg.noise_std)]
     t = np.arange(K) * ts
-    ref = _reference_table(cfg.model, cfg.reference, cfg.amplitude, cfg.period, cfg.offset, cfg.harmonics, ts, K)
+    ref = _reference_table(cfg.model, cfg.reference, cfg.amplitude, cfg.period, cfg.offset, cfg.harmonics, ts, K,
+                           tuple(cfg.phase), tuple(cfg.cycles))
 
     net_rng, noise_rng, init_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(3))
     net = Network(list(cfg.sensor), list(cfg.uplink), K, net_rng)
@@ -432,7 +459,7 @@ def run(cfg: Config) -> Result:
     out = _Outputs(M, K, n, m)
     late_at = np.searchsorted(s.late[:, 0], np.arange(K + 1))
     x = s.x0
-    watch = DivergenceWatch(flat.model, cfg.watch_nees)
+    watch = DivergenceWatch(flat.model, cfg.watch_nees, tracking_bound(cfg, m))
     for k in range(K):
         x_true[k], zeta[k] = x, flat.phi_num(x)
         for i in range(M):
@@ -441,7 +468,8 @@ def run(cfg: Config) -> Result:
         late = [(int(i), int(lag), frames[i, k - lag]) for _, i, lag in s.late[late_at[k]:late_at[k + 1]]]
         out.put(k, bank.step(k, z, (s.upd[:, k] >= 0).astype(np.int8), late, s.net.source[:, k], s.ref[k]))
         x = plant.step(x, out.u[k])
-        watch.step(s.t[k], x, _errors(flat, out.x[k], zeta[k]), out.P[k])
+        watch.step(s.t[k], x, _errors(flat, out.x[k], zeta[k]), out.P[k],
+                   tracking_errors(flat, zeta[k], s.ref[k]))
     return finish(s, x_true, zeta, frames, out.node_x, out.node_P, out.x, out.P, out.u, out.v,
                   np.array(out.applied, dtype=bool), [dict(nd.counters) for nd in bank.nodes])
 
@@ -455,10 +483,12 @@ def check_divergence(s: "Setup", x_true, zeta, x, P, steps: int | None = None) -
     K = min(s.K, s.K if steps is None else steps + 1) - 1
     if K <= 0:
         return
-    watch = DivergenceWatch(s.flat.model, s.cfg.watch_nees)
+    watch = DivergenceWatch(s.flat.model, s.cfg.watch_nees, tracking_bound(s.cfg, s.flat.m))
     xs = np.asarray(x_true[1:K + 1], dtype=float)
+    track = tracking_errors(s.flat, np.asarray(zeta[:K], dtype=float), s.ref[:K])
     with np.errstate(invalid="ignore"):
-        bad = ~np.all(np.isfinite(xs), axis=1) | np.any((xs < watch.lo) | (xs > watch.hi), axis=1)
+        bad = ~np.all(np.isfinite(xs), axis=1) | np.any((xs < watch.lo) | (xs > watch.hi), axis=1) \
+            | np.any(np.abs(track) > watch.bound, axis=1)
     first = int(np.argmax(bad)) if bad.any() else K
     if watch.nees:
         high = ~(_batch_nees(_errors(s.flat, np.array(x[:K], dtype=float), zeta[:K]), P[:K])
@@ -471,7 +501,7 @@ def check_divergence(s: "Setup", x_true, zeta, x, P, steps: int | None = None) -
     if first == K:
         return
     for k in range(max(0, first - NEES_STEPS + 1), first + 1):   # raises at `first`
-        watch.step(s.t[k], x_true[k + 1], _errors(s.flat, x[k], zeta[k]), P[k])
+        watch.step(s.t[k], x_true[k + 1], _errors(s.flat, x[k], zeta[k]), P[k], track[k])
 
 
 def _batch_nees(err, P) -> np.ndarray:
@@ -515,6 +545,26 @@ def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, 
 
 
 # --- metrics ----------------------------------------------------------------------------------------
+
+def tracking_errors(flat, zeta, ref) -> np.ndarray:
+    """y - y_d per flat output (angles wrapped): zeta (..., n) true canonical states, ref
+    (..., n + m) reference flags of the same steps."""
+    e = zeta[..., flat.heads] - ref[..., [c.offset + j for j, c in enumerate(flat.chains)]]
+    for j, c in enumerate(flat.chains):
+        if c.angle:
+            e[..., j] = wrap(e[..., j], True)
+    return e
+
+
+def tracking_bound(cfg: "Config", m: int) -> np.ndarray:
+    """Per flat output: the scenario's tracking_bound, else twice the reference's amplitude (a
+    run whose output strays by more than the reference's whole swing has stopped tracking); no
+    bound for a constant reference."""
+    if cfg.tracking_bound:
+        return _per_chain(cfg.tracking_bound, m)
+    amp = np.abs(_per_chain(cfg.amplitude, m))
+    return np.where(amp > 0, 2 * amp, np.inf)
+
 
 def _errors(flat, est, zeta) -> np.ndarray:
     err = est - zeta

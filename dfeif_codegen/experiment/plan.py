@@ -33,7 +33,8 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
     return ex.Config(
         model=model, ts=sc.ts, duration=sc.duration, substeps=sc.substeps, q=tuple(sc.q), poles=tuple(sc.poles),
         p0_std=tuple(sc.p0_std), initial_error=sc.initial_error, reference=ref, amplitude=tuple(sc.amplitude),
-        period=sc.period, offset=tuple(sc.offset), harmonics=sc.harmonics,
+        period=sc.period, offset=tuple(sc.offset), harmonics=sc.harmonics, phase=tuple(sc.phase),
+        cycles=tuple(int(c) for c in sc.cycles), tracking_bound=tuple(sc.tracking_bound),
         noise_scale=tuple(_pick(sc.noise_scale, i) for i in range(nodes)),
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,

@@ -7,12 +7,19 @@ period is a single CasADi function call (all substeps unrolled, called through i
 because the plant runs 2000 steps per run and hundreds of runs per table. Every expression goes
 through `symbolic.numeric`, the bridge the generated C is printed from.
 
+For a dynamically extended model (symbolic/extension.py) the added integrators are the
+controller's: it integrates them exactly over the period under its held input and applies the
+first of each chain to the plant, held like any input. `step` does the same: the physical states
+see those controller states frozen at the period's start; the chains advance in closed form.
+
 A camera observes `model.measurement.observe(x)` plus white Gaussian noise per channel and the
 node turns that into the flat outputs with `recover`. A model without `[measurement]` gets a
 camera that observes the flat outputs `h(x)` directly, with the given noise.
 """
 
 from __future__ import annotations
+
+import math
 
 import casadi as ca
 import numpy as np
@@ -30,19 +37,30 @@ def _fixed(model: Model, exprs) -> list[sp.Expr]:
 class Plant:
     """True plant: `step(x, u)` integrates one sampling period with `u` held."""
 
-    def __init__(self, model: Model, ts: float | None = None, substeps: int = 10):
+    def __init__(self, model: Model, ts: float | None = None, substeps: int = 10, extension=None):
         self.model, self.ts, self.substeps = model, float(ts or model.ts), int(substeps)
         n, m = model.n, model.m
         f = numeric.sx_function("f", [list(model.x), list(model.u)], _fixed(model, model.f + model.g * model.u))
         xs, us = ca.SX.sym("x", n), ca.SX.sym("u", m)
         h = self.ts / self.substeps
+        names = [s.name for s in model.states]
+        chains = [[names.index(s) for s in c] for c in (extension.chains.values() if extension else [])]
+        held = sorted(i for c in chains for i in c)   # controller states: frozen for the plant's RK4
+        free = ca.SX(n, 1)
+        for i in range(n):
+            free[i] = 0.0 if i in held else 1.0
         x = xs
         for _ in range(self.substeps):
-            k1 = f(x, us)
-            k2 = f(x + h / 2 * k1, us)
-            k3 = f(x + h / 2 * k2, us)
-            k4 = f(x + h * k3, us)
+            k1 = f(x, us) * free
+            k2 = f(x + h / 2 * k1, us) * free
+            k3 = f(x + h / 2 * k2, us) * free
+            k4 = f(x + h * k3, us) * free
             x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        for j, chain in enumerate(chains):   # xi_i(Ts) = sum_k xi_k Ts^(k-i)/(k-i)! + u_j Ts^(r-i)/(r-i)!
+            r = len(chain)
+            for a, i in enumerate(chain):
+                x[i] = sum(xs[chain[b]] * self.ts ** (b - a) / math.factorial(b - a) for b in range(a, r)) \
+                    + us[j] * self.ts ** (r - a) / math.factorial(r - a)
         self._f = numeric.Numeric(f)
         self._step = numeric.Numeric(ca.Function("step", [xs, us], [x]))
 

@@ -20,14 +20,14 @@ from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.experiment.trajectory import KINDS
 
-BUILTIN = ("paper",)
+BUILTIN = ("paper", "unicycle", "pvtol")
 
 _ALLOWED = {
     "scenario": {"name", "description", "duration", "ts", "runs", "substeps", "metrics_from", "references",
                  "oosm", "fusion", "baselines"},
     "filter": {"q", "p0_std", "initial_error"},
     "control": {"poles"},
-    "reference": {"amplitude", "period", "offset", "harmonics"},
+    "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound"},
     "nodes": {"noise_scale", "noise_std"},
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
@@ -72,6 +72,9 @@ class Scenario:
     period: float = 5.0
     offset: list[float] = field(default_factory=lambda: [0.0])
     harmonics: int = 4
+    phase: list[float] = field(default_factory=lambda: [0.0])
+    cycles: list[float] = field(default_factory=lambda: [1.0])
+    tracking_bound: list[float] = field(default_factory=list)   # default: twice the amplitude
     noise_scale: list[float] = field(default_factory=lambda: [1.0, 1.0])
     noise_std: list[list[float] | None] = field(default_factory=lambda: [None, None])
     uplink: Link = field(default_factory=Link)
@@ -101,7 +104,9 @@ class Scenario:
             fail("scenario.duration", f"{self.duration:g} s at Ts = {ts:g} s is {self.duration / ts:.3g} steps; "
                                       f"at most {MAX_STEPS:g} per run")
         for key, values in (("filter.q", self.q), ("control.poles", self.poles),
-                            ("reference.amplitude", self.amplitude), ("reference.offset", self.offset)):
+                            ("reference.amplitude", self.amplitude), ("reference.offset", self.offset),
+                            ("reference.phase", self.phase), ("reference.cycles", self.cycles),
+                            *((("reference.tracking_bound", self.tracking_bound),) if self.tracking_bound else ())):
             if len(values) not in (1, m):
                 fail(key, f"needs 1 or {m} values (one per flat output) for model {flat.model.name}, "
                           f"got {len(values)}")
@@ -253,6 +258,12 @@ def _read_settings(r: _Reader, data: dict) -> None:
     sc.offset = r.numbers(ref, "reference", "offset", sc.offset, positive=False)
     sc.period = r.number(ref, "reference", "period", sc.period, positive=True, allow_zero=False)
     sc.harmonics = r.number(ref, "reference", "harmonics", sc.harmonics, positive=True, allow_zero=False, integer=True)
+    sc.phase = r.numbers(ref, "reference", "phase", sc.phase, positive=False)
+    sc.cycles = r.numbers(ref, "reference", "cycles", sc.cycles)
+    if "tracking_bound" in ref:
+        sc.tracking_bound = r.numbers(ref, "reference", "tracking_bound", [])
+    if any(c != int(c) or c < 1 for c in sc.cycles):
+        r.fail("reference.cycles", f"needs whole numbers of cycles per period (>= 1), got {sc.cycles}")
 
 
 def _read_network(r: _Reader, data: dict) -> None:

@@ -74,13 +74,16 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
              seed: int = 0, nodes: int | None = None, max_lag: int = 32, oosm=None, fusion=None, reference=None,
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              workers: int | None = None, scheduler: str | None = None, results: str | None = None,
-             csv: str | None = None, resume: str | None = None, predictor: str | None = None) -> SimulationResult:
+             csv: str | None = None, resume: str | None = None, max_seconds: float | None = None,
+             max_memory: float | None = None, predictor: str | None = None) -> SimulationResult:
     """The chapter's experiment on `engine` (experiment/sweep.py): returns the result and writes
     what was asked for (JSON to `json_path` unless "-", CSV, per-run records, figures into `plot`).
     Bad input raises a CodegenError before any run; failed or diverged runs are in `.failures`.
+    The derivation runs under `max_seconds` CPU seconds and `max_memory` GB (None: build's).
     `predictor`: the filters' prediction, "held" (u held) or "brunovsky" (the chapter's); None:
     held, and brunovsky for retrodiction (the only one it can use)."""
     check_outputs(json_path, plot)
+    ex.derive(model, max_seconds, max_memory)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, predictor)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
     if csv:

@@ -35,10 +35,10 @@ import numpy as np
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.experiment import shapes
 from dfeif_codegen.experiment.trajectory import flags
 
 MARKER = "# Starting scenario written by `codegen scenario`"
-PERIOD, AMPLITUDE = 5.0, 0.5
 
 
 def _unit_q(flat, ts) -> np.ndarray:
@@ -58,13 +58,13 @@ def implied_q(flat, ts, zeta, v) -> np.ndarray:
     return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
 
 
-def _reference_q(flat, spec, ts, substeps, amplitude) -> np.ndarray:
+def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
     """Residual along the reference: the plant started on each reference state, driven one step
     by the feedforward input of that state."""
     plant = ex._plant(spec, ts, substeps)
-    cfg = ex.Config(model=spec, amplitude=tuple(amplitude), period=PERIOD)
+    cfg = ex.Config(model=spec, **shape.config())
     refs = ex.references(cfg, flat.m)
-    t = np.arange(int(round(PERIOD / ts)) + 1) * ts
+    t = np.arange(int(round(shape.period / ts)) + 1) * ts
     zeta, v = [], []
     p = flat.param_vector
     for tk in t:
@@ -82,15 +82,18 @@ def _reference_q(flat, spec, ts, substeps, amplitude) -> np.ndarray:
 
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
-              duration: float = 5.0, seed: int = 1000, rounds: int = 3) -> tuple[np.ndarray, list[str]]:
+              duration: float = 5.0, seed: int = 1000, rounds: int = 3,
+              shape: shapes.Shape | None = None) -> tuple[np.ndarray, list[str]]:
     """q per chain and a log of the rounds (see the module docstring)."""
-    q = _reference_q(flat, spec, ts, substeps, [AMPLITUDE])
-    floor = 1e-6 * np.array([(AMPLITUDE * (2 * math.pi / PERIOD) ** c.degree) ** 2 * PERIOD for c in flat.chains])
+    shape = shape or shapes.from_domains(flat)
+    q = _reference_q(flat, spec, ts, substeps, shape)
+    floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
+                             for a, c in zip(shape.amplitude, flat.chains)])
     q = np.maximum(q, floor)
     log = [f"along the reference: q = {_fmt(q)}"]
     for _ in range(rounds):
         cfg = ex.Config(model=spec, ts=ts, duration=duration, substeps=substeps, q=tuple(q), poles=tuple(poles),
-                        p0_std=tuple(p0_std), amplitude=(AMPLITUDE,), period=PERIOD,
+                        p0_std=tuple(p0_std), **shape.config(),
                         noise_std=tuple(None if s is None else tuple(s) for s in noise_std),
                         noise_scale=(1.0, 1.25), seed=seed, watch_nees=False)  # too small a q is what
         # this loop is run to measure: its NEES is meant to be high, only a plant that leaves its
@@ -108,13 +111,14 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     return q, log
 
 
-def fastest_oscillation(flat, spec: str, ts: float, points: int = 12) -> float:
+def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: shapes.Shape | None = None) -> float:
     """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]."""
+    shape = shape or shapes.from_domains(flat)
     plant = ex._plant(spec, ts, 1)
-    cfg = ex.Config(model=spec, amplitude=(AMPLITUDE,), period=PERIOD)
+    cfg = ex.Config(model=spec, **shape.config())
     refs = ex.references(cfg, flat.m)
     p, n, worst = flat.param_vector, flat.n, 0.0
-    for tk in np.linspace(0, PERIOD, points, endpoint=False):
+    for tk in np.linspace(0, shape.period, points, endpoint=False):
         fl = flags(refs, flat.degrees, tk)
         z = ex.state_of_flags(flat, fl)
         top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
@@ -131,20 +135,26 @@ def _fmt(values) -> str:
     return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
 
 
-def starting_scenario(spec: str) -> tuple[str, list[str]]:
+def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str, list[str]]:
     """The TOML text of a starting scenario for model `spec`, and the calibration log."""
     flat = ex._flat(spec)
+    shape = shape or shapes.from_domains(flat)
     model = flat.model
     ts = float(model.ts)
-    omega = 2 * math.pi / PERIOD
     poles = [round(0.1 / ts, 6)]
-    p0_std = [float(f"{0.05 * AMPLITUDE * (2 * omega) ** k:.3g}") for k in range(max(flat.degrees))]
+    scale = max(abs(a) for a in shape.amplitude)
+    p0_std = [float(f"{0.05 * scale * (2 * shape.omega) ** k:.3g}") for k in range(max(flat.degrees))]
     noise_std: list[list[float] | None] = [None, None]
     if model.measurement is None:
-        std = [float(f"{0.004 * AMPLITUDE:.3g}")] * flat.m
+        std = [float(f"{0.004 * abs(a):.3g}") for a in shape.amplitude]
         noise_std = [std, [1.25 * s for s in std]]
-    q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std)
-    omega_max = fastest_oscillation(flat, spec, ts)
+    q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape)
+    if all(entry.startswith("closed loop diverged") for entry in log[1:]):
+        raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged "
+                            f"(q up to {_fmt(q)} on a {shape.kind} of amplitude {_fmt(shape.amplitude)} around "
+                            f"{_fmt(shape.offset)}): the loop does not close on that reference; try "
+                            "--amplitude, --offset, --period or --shape")
+    omega_max = fastest_oscillation(flat, spec, ts, shape=shape)
     warn = []
     if omega_max * ts > 0.3:
         warn = [f"# WARNING: the plant oscillates at up to {omega_max:.3g} rad/s, {omega_max * ts:.2f} rad per "
@@ -164,11 +174,11 @@ def starting_scenario(spec: str) -> tuple[str, list[str]]:
         "[scenario]",
         f'name = "{model.name}_start"',
         f'description = "starting scenario for {model.name}, generated by codegen scenario"',
-        "duration = 20.0",
+        f"duration = {max(20.0, shape.period):g}",
         "runs = 4",
         "substeps = 10",
         "metrics_from = 1.0",
-        'references = ["sinusoid", "seesaw"]',
+        f'references = ["{shape.config()["reference"]}"]',
         'oosm = ["replay"]',
         'fusion = ["difference", "paper"]',
         'baselines = ["discard", "as-current"]',
@@ -181,10 +191,12 @@ def starting_scenario(spec: str) -> tuple[str, list[str]]:
         "[control]",
         f"poles = {poles[0]:g}              # every pole at -0.1/Ts",
         "",
-        "[reference]",
-        f"amplitude = {AMPLITUDE:g}",
-        f"period = {PERIOD:g}",
-        "offset = 0.0",
+        f"[reference]           # {shape.kind}, from the flat outputs' declared domains",
+        f"amplitude = {_toml_list(shape.amplitude)}",
+        f"period = {shape.period:g}",
+        f"offset = {_toml_list(shape.offset)}",
+        f"phase = {_toml_list(shape.phase)}",
+        f"cycles = {_toml_list(shape.cycles)}",
         "harmonics = 4",
         "",
     ]
@@ -201,9 +213,12 @@ def _toml_list(values) -> str:
     return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
 
 
-def scenario(model: str, out: str | None = None) -> str:
+def scenario(model: str, out: str | None = None, max_seconds: float | None = None,
+             max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
+             phase=None, period: float | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
-    model; written to `out` when given (only over a file this command wrote before)."""
+    model; written to `out` when given (only over a file this command wrote before). The
+    derivation runs under `max_seconds` CPU seconds and `max_memory` GB."""
     path = Path(out) if out else None
     if path is not None and path.exists():
         try:
@@ -214,7 +229,14 @@ def scenario(model: str, out: str | None = None) -> str:
             raise ScenarioError(f"{path}: exists and was not written by `codegen scenario`; not overwriting it")
     if path is not None and not path.parent.is_dir():
         raise ScenarioError(f"{path}: folder {path.parent} does not exist")
-    text, _ = starting_scenario(model)
+    flat = ex.derive(model, max_seconds, max_memory)
+    ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
+    try:
+        text, _ = starting_scenario(model, ref)
+    except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
+                            f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "
+                            "--offset, --period or --shape") from None
     scenario_mod.loads(text, str(path or "<generated>")).check_model(ex._flat(model))
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")

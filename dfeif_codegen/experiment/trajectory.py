@@ -1,6 +1,8 @@
 """Reference trajectories with analytic derivatives, as the flatness controller's flags.
 
-`sinusoid`: y_d = c + A sin(w t), w = 2 pi / T.
+`sinusoid`: y_d = c + A sin(k w t + phi), w = 2 pi / T, with a phase phi and a whole number of
+cycles k per period for each output: x with phi = pi/2 and y with 0 trace a circle, k = 1 and 2 a
+figure eight (the `seesaw` takes the same time shift phi / (k w) and k).
 
 `seesaw`: a triangle wave (the chapter's "see-saw", Fig. 9b) smoothed by keeping the first K odd
 harmonics of its Fourier series,
@@ -24,11 +26,12 @@ class Reference:
     """One flat output's reference: `flags(t, r)` = [y_d, y_d', ..., y_d^(r)] at time t."""
 
     def __init__(self, kind: str, amplitude: float = 1.0, period: float = 5.0, offset: float = 0.0,
-                 harmonics: int = 4):
+                 harmonics: int = 4, phase: float = 0.0, cycles: int = 1):
         if kind not in KINDS:
             raise ValueError(f"unknown reference '{kind}' (one of {', '.join(KINDS)})")
         self.kind, self.offset = kind, float(offset)
-        self.w = 2 * np.pi / float(period)
+        self.w = 2 * np.pi * int(cycles) / float(period)
+        self.shift = float(phase) / self.w
         if kind == "sinusoid":
             self.k, self.c = np.array([1.0]), np.array([float(amplitude)])
         else:
@@ -38,7 +41,7 @@ class Reference:
     def flags(self, t: float, r: int) -> np.ndarray:
         j = np.arange(r + 1)[:, None]
         kw = self.k[None, :] * self.w
-        out = (self.c[None, :] * kw ** j * np.sin(kw * t + j * np.pi / 2)).sum(axis=1)
+        out = (self.c[None, :] * kw ** j * np.sin(kw * (t + self.shift) + j * np.pi / 2)).sum(axis=1)
         out[0] += self.offset
         return out
 

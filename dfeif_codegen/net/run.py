@@ -356,7 +356,8 @@ class Network:
 def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int = 2, seed: int = 0,
             precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int = 2,
             max_lag: int = 32, duration: float | None = 5.0, key: str | None = None, flip_rate: float = 0.0,
-            keep: str | Path | None = None, predictor: str | None = None) -> Network:
+            keep: str | Path | None = None, max_seconds: float | None = None,
+            max_memory: float | None = None, predictor: str | None = None) -> Network:
     """One run of the estimator as separate processes, compared with the reference replaying the
     logged arrivals. Bad options raise (one line) before anything is built; `keep` (an empty or
     new folder) keeps the programs and logs."""
@@ -372,6 +373,7 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
                 predictor=predictor)
     if keep and Path(keep).exists() and any(Path(keep).iterdir()):
         raise ScenarioError(f"--keep {keep}: not empty (the run writes its programs and logs there)")
+    ex.derive(o.model, max_seconds, max_memory)   # under the budget; make_config reuses it
     make_config(o)   # bad scenario or row: one line, before any build
     with tempfile.TemporaryDirectory(prefix="codegen-network-") as tmp:
         work = Path(keep) if keep else Path(tmp)

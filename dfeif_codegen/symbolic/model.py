@@ -39,7 +39,7 @@ SCHEMA = {
     "": {"model", "states", "inputs", "parameters", "dynamics", "outputs", "measurement"},
     "model": {"name", "description", "ts"},
     "states": {"name", "unit", "description", "min", "max", "nominal"},
-    "inputs": {"name", "unit", "description", "min", "max"},
+    "inputs": {"name", "unit", "description", "min", "max", "nominal"},
     "parameters": {"name", "value", "unit", "description", "source"},
     "dynamics": {"f", "g", "definitions"},
     "outputs": {"name", "expr", "angle"},

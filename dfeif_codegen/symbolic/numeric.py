@@ -24,6 +24,31 @@ _UNARY = {
 }
 
 
+class _CasADi:
+    """The operations to_casadi builds with: CasADi SX (what the C is printed from)."""
+
+    unary = _UNARY
+    atan2, power, sqrt, hypot, fmin, fmax = ca.atan2, ca.power, ca.sqrt, ca.hypot, ca.fmin, ca.fmax
+
+    @staticmethod
+    def const(value: float):
+        return ca.SX(value)
+
+
+class Float32:
+    """The same operations on numpy float32 arrays: the expression as a float32 target computes
+    it (every operation rounded to single precision), to check a form's accuracy there."""
+
+    unary = {sp.sin: np.sin, sp.cos: np.cos, sp.tan: np.tan, sp.asin: np.arcsin, sp.acos: np.arccos,
+             sp.atan: np.arctan, sp.sinh: np.sinh, sp.cosh: np.cosh, sp.tanh: np.tanh, sp.exp: np.exp,
+             sp.log: np.log, sp.Abs: np.abs, sp.sign: np.sign}
+    atan2, power, sqrt, hypot, fmin, fmax = np.arctan2, np.power, np.sqrt, np.hypot, np.fmin, np.fmax
+
+    @staticmethod
+    def const(value: float):
+        return np.float32(value)
+
+
 def _int_power(base, k: int):
     """x**k by squaring: CasADi would print pow(), which is slow and double-only on newlib."""
     result, square = None, base
@@ -36,10 +61,21 @@ def _int_power(base, k: int):
     return result
 
 
-def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX], where: str = "expression") -> ca.SX:
+def _hypot_args(e: sp.Pow):
+    """(a, b) when e is sqrt(a**2 + b**2) (or its reciprocal): printed as hypot, which neither overflows nor
+    underflows in float32 where the squares would."""
+    base = e.base
+    if abs(e.exp) == sp.Rational(1, 2) and base.is_Add and len(base.args) == 2 \
+            and all(t.is_Pow and t.exp == 2 for t in base.args):
+        return base.args[0].base, base.args[1].base
+    return None
+
+
+def to_casadi(expr: sp.Expr, table: dict, where: str = "expression", ops=_CasADi):
     """Convert a sympy expression to a CasADi SX scalar by walking its tree (never by printing
-    and evaluating); shared subtrees stay shared. `where` names the expression in errors."""
-    memo: dict[sp.Basic, ca.SX] = {}
+    and evaluating); shared subtrees stay shared. `where` names the expression in errors. With
+    `ops=Float32` and float32 arrays in `table`, the same walk computes it in single precision."""
+    memo: dict = {}
 
     def walk(e: sp.Basic) -> ca.SX:
         if e in memo:
@@ -52,7 +88,7 @@ def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX], where: str = "expres
             value = float(e)
             if not math.isfinite(value):
                 raise ModelError(f"{where}: non-finite constant {e}")
-            out = ca.SX(value)
+            out = ops.const(value)
         elif e.is_Add:
             terms = [walk(a) for a in e.args]
             out = terms[0]
@@ -68,21 +104,24 @@ def to_casadi(expr: sp.Expr, table: dict[sp.Symbol, ca.SX], where: str = "expres
             b = walk(base)
             if exp.is_Integer and abs(int(exp)) <= 16:
                 k = int(exp)
-                out = ca.SX(1.0) if k == 0 else _int_power(b, abs(k))
+                out = ops.const(1.0) if k == 0 else _int_power(b, abs(k))
                 if k < 0:
                     out = 1 / out
+            elif _hypot_args(e):
+                out = ops.hypot(*(walk(a) for a in _hypot_args(e)))
+                out = out if exp > 0 else 1 / out
             elif exp == sp.Rational(1, 2):
-                out = ca.sqrt(b)
+                out = ops.sqrt(b)
             elif exp == sp.Rational(-1, 2):
-                out = 1 / ca.sqrt(b)
+                out = 1 / ops.sqrt(b)
             else:
-                out = ca.power(b, walk(exp))
-        elif e.func in _UNARY:
-            out = _UNARY[e.func](walk(e.args[0]))
+                out = ops.power(b, walk(exp))
+        elif e.func in ops.unary:
+            out = ops.unary[e.func](walk(e.args[0]))
         elif e.func == sp.atan2:
-            out = ca.atan2(walk(e.args[0]), walk(e.args[1]))
+            out = ops.atan2(walk(e.args[0]), walk(e.args[1]))
         elif e.func in (sp.Min, sp.Max):
-            op = ca.fmin if e.func == sp.Min else ca.fmax
+            op = ops.fmin if e.func == sp.Min else ops.fmax
             args = [walk(a) for a in e.args]
             out = args[0]
             for a in args[1:]:

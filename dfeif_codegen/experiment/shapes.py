@@ -1,0 +1,128 @@
+"""The reference a starting scenario tracks, from the flat outputs' declared domains.
+
+A fixed amplitude of 0.5 around 0 sends a magnetic levitation's gap negative and a tank's level
+dry; here each flat output that is a state with a declared [min, max] swings by a tenth of that
+width around its nominal value (kept inside the domain), other outputs by 0.5 around their value
+at the nominal state. `shape` picks how the outputs move together: `sinusoid` (in phase),
+`seesaw`, `circle` (the second output a quarter period behind the first: a mobile robot keeps its
+speed away from zero) and `figure8` (the second output at twice the frequency). Every number can
+be given instead (`codegen scenario --amplitude ... --offset ... --phase ... --period ...`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.symbolic.lie import nominal_state
+
+SHAPES = ("sinusoid", "seesaw", "circle", "figure8")
+PERIOD, AMPLITUDE = 5.0, 0.5   # for outputs without a declared domain (the paper's scale)
+SWING = 0.1                    # amplitude as a fraction of a declared domain's width: 80 % of it left as margin
+
+
+@dataclass(frozen=True)
+class Shape:
+    """Per flat output: amplitude, offset, phase [rad], cycles per period; the period [s]."""
+
+    kind: str
+    amplitude: tuple
+    offset: tuple
+    phase: tuple
+    cycles: tuple
+    period: float
+
+    def config(self) -> dict:
+        """The closed_loop.Config fields of this reference."""
+        return dict(reference="seesaw" if self.kind == "seesaw" else "sinusoid", amplitude=self.amplitude,
+                    offset=self.offset, phase=self.phase, cycles=self.cycles, period=self.period)
+
+    @property
+    def omega(self) -> float:
+        """The fastest angular frequency of the outputs [rad/s]."""
+        return 2 * math.pi * max(self.cycles) / self.period
+
+
+def _numbers(text: str | None, m: int, flag: str) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in str(text).split(",")]
+    except ValueError:
+        raise ScenarioError(f"{flag} {text}: needs a number or {m} comma-separated numbers") from None
+    if len(values) not in (1, m) or not all(np.isfinite(values)):
+        raise ScenarioError(f"{flag} {text}: needs 1 or {m} finite numbers (one per flat output)")
+    return values * m if len(values) == 1 else values
+
+
+def from_domains(flat, shape: str = "sinusoid", amplitude=None, offset=None, phase=None,
+                 period=None) -> Shape:
+    """The reference of a starting scenario (see the module docstring); given values win."""
+    if shape not in SHAPES:
+        raise ScenarioError(f"--shape {shape}: one of {', '.join(SHAPES)}")
+    mdl, m = flat.model, flat.m
+    if shape in ("circle", "figure8") and m < 2:
+        raise ScenarioError(f"--shape {shape}: needs two flat outputs, model {mdl.name} has {m}")
+    head = flat.phi_num(nominal_state(mdl))[flat.heads]
+    amp, off = [], []
+    for j, out in enumerate(mdl.outputs):
+        state = next((s for s in mdl.states if sp.sympify(out.expr) == sp.Symbol(s.name)), None)
+        if state is not None and state.min is not None and state.max is not None:
+            a = SWING * (state.max - state.min)
+            amp.append(a)
+            off.append(float(np.clip(head[j], state.min + a, state.max - a)))
+        else:
+            amp.append(AMPLITUDE)
+            off.append(float(head[j]) if np.isfinite(head[j]) else 0.0)
+    if shape in ("circle", "figure8"):   # the two outputs of the plane swing alike
+        amp[0] = amp[1] = min(amp[0], amp[1])
+    phases = [0.0] * m
+    cycles = [1] * m
+    if shape == "circle":
+        phases[0] = math.pi / 2
+    if shape == "figure8":
+        cycles[1] = 2
+        amp[1] = amp[1] / 2
+    amp = _numbers(amplitude, m, "--amplitude") or amp
+    off = _numbers(offset, m, "--offset") or off
+    phases = _numbers(phase, m, "--phase") or phases
+    if period is not None and not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
+        raise ScenarioError(f"--period {period}: needs a positive number of seconds")
+    return Shape(shape, tuple(amp), tuple(off), tuple(phases), tuple(cycles), float(period or PERIOD))
+
+
+PERIODS = tuple(5.0 * 2.0 ** k for k in range(8))   # 5 s to 640 s, tried in order: slower references last
+SCALES = (1.0, 0.5, 0.25, 0.1)                      # and smaller swings
+CHECK_POINTS = 1000                                 # reference states checked per period
+
+
+def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None, phase=None,
+            period=None) -> Shape:
+    """from_domains, and where its reference leaves the transform's domain (a speed or thrust
+    outside its limits, the decoupling matrix's singular set), the first slower (PERIODS) or
+    smaller (SCALES) one that stays inside; values given are kept as given. When none fits, a
+    ScenarioError naming what the first one hit and when."""
+    from dfeif_codegen.experiment import closed_loop as ex
+    from dfeif_codegen.experiment.trajectory import flags
+
+    base = from_domains(flat, kind, amplitude, offset, phase, period)
+    periods = (base.period,) if period is not None else PERIODS
+    scales = (1.0,) if amplitude is not None else SCALES
+    first = None
+    for scale in scales:
+        for p in periods:
+            shape = Shape(base.kind, tuple(a * scale for a in base.amplitude), base.offset, base.phase,
+                          base.cycles, p)
+            refs = ex.references(ex.Config(model=spec, **shape.config()), flat.m)
+            t = np.linspace(0.0, p, CHECK_POINTS, endpoint=False)   # one period: the reference repeats
+            try:
+                ex.check_reference(flat, [flags(refs, flat.degrees, tk) for tk in t], t)
+                return shape
+            except ArithmeticError as exc:
+                first = first or str(exc)
+    raise ScenarioError(f"{flat.model.source}: no {kind} reference around {list(base.offset)} stays where the "
+                        f"transform is defined ({first}); give --amplitude, --offset, --period or --shape")

@@ -1,0 +1,90 @@
+"""`codegen scenario` for any model: references from the flat outputs' declared domains (shape,
+amplitude, offset, phase), a calibration that fails is exit 2 with the reason, and the scenarios
+it writes for a maglev-like, a tank-like and a rotor-like model pass `verify` and close the loop
+in `simulate`."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dfeif_codegen import api, cli
+from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import shapes
+from dfeif_codegen.experiment.trajectory import Reference
+
+DATA = Path(__file__).parent / "data"
+
+
+def test_reference_phase_and_cycles_trace_a_circle_and_a_figure_eight():
+    A, T, t = 1.5, 8.0, 0.7
+    w = 2 * math.pi / T
+    x = Reference("sinusoid", A, T, 0.0, phase=math.pi / 2).flags(t, 2)
+    y = Reference("sinusoid", A, T, 0.0).flags(t, 2)
+    np.testing.assert_allclose(x, [A * math.cos(w * t), -A * w * math.sin(w * t), -A * w**2 * math.cos(w * t)],
+                               rtol=1e-13)
+    np.testing.assert_allclose(y, [A * math.sin(w * t), A * w * math.cos(w * t), -A * w**2 * math.sin(w * t)],
+                               rtol=1e-13)
+    z = Reference("sinusoid", A, T, 0.3, cycles=2).flags(t, 1)
+    np.testing.assert_allclose(z, [0.3 + A * math.sin(2 * w * t), 2 * A * w * math.cos(2 * w * t)], rtol=1e-13)
+
+
+def test_reference_from_domains():
+    """The gap (declared [0.004, 0.02], nominal 0.01) swings by a tenth of its width around its
+    nominal; the unicycle's circle has equal amplitudes a quarter period apart; given values win."""
+    maglev = ex._flat(str(DATA / "maglev_like.toml"))
+    s = shapes.from_domains(maglev)
+    assert s.amplitude == pytest.approx((0.1 * 0.016,)) and s.offset == pytest.approx((0.01,))
+    uni = ex._flat("unicycle")
+    c = shapes.from_domains(uni, "circle")
+    assert c.amplitude == pytest.approx((0.8, 0.8)) and c.phase == pytest.approx((math.pi / 2, 0.0))
+    f = shapes.from_domains(uni, "figure8", amplitude="1.0,0.5", period=20.0)
+    assert f.amplitude == (1.0, 0.5) and f.cycles == (1, 2) and f.period == 20.0
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["pvtol", "--shape", "figure8", "--amplitude", "1.5,0.75"], "every calibration round"),
+    ([str(DATA / "tanks_like.toml"), "--period", "5", "--amplitude", "0.2"], "stays where the transform is defined"),
+    (["dc_motor_link", "--shape", "circle"], "needs two flat outputs"),
+])
+def test_scenario_that_cannot_be_made_is_exit_2_with_the_reason(args, needle, tmp_path, capsys):
+    assert cli.main(["scenario", *args, "--out", str(tmp_path / "s.toml")]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "s.toml").exists()
+
+
+@pytest.mark.parametrize("name", ["maglev_like", "tanks_like", "rotor_like"])
+def test_starting_scenario_verifies_and_closes_the_loop(name, tmp_path, capsys):
+    spec, sc = str(DATA / f"{name}.toml"), str(tmp_path / "start.toml")
+    assert cli.main(["scenario", spec, "--out", sc]) == 0
+    assert cli.main(["verify", spec, "--scenario", sc]) == 0
+    assert capsys.readouterr().out.rstrip().endswith("PASS")
+    path = tmp_path / "out.json"
+    api.simulate(spec, scenario=sc, runs=1, oosm=["replay"], fusion=["difference"], quiet=True, json_path=str(path))
+    capsys.readouterr()
+    result = json.loads(path.read_text())
+    assert not [f for f in result["failures"] if " replay " in f]   # the baselines may fail, replay not
+    table = next(t for t in result["tables"] if t["method"] == "replay")
+    assert all(row["runs"] == 1 for row in table["rows"])   # every delay row ran to the end
+
+
+PAPER_TIGHT = (Path(__file__).parents[1] / "dfeif_codegen" / "experiment" / "scenarios" / "paper.toml").read_text() \
+    .replace("harmonics = 4", "harmonics = 4\ntracking_bound = 1e-4")
+
+
+@pytest.mark.parametrize("engine", ["reference", "c"])
+def test_a_run_that_stops_tracking_is_a_failure(engine, tmp_path, capsys):
+    """The motor tracks its 1 rad sinusoid to about 3 mrad (docs/experiment.md): a bound of 0.1 mrad
+    must stop every run, in both engines, with the output named; the default bound (2 rad, twice
+    the amplitude) stops none."""
+    sc = tmp_path / "tight.toml"
+    sc.write_text(PAPER_TIGHT)
+    result = api.simulate("dc_motor_link", scenario=str(sc), runs=1, oosm=["replay"], fusion=["difference"],
+                          reference=["sinusoid"], quiet=True, engine=engine)
+    assert result.failures and all("stopped tracking at t = " in str(f) and "output theta" in str(f)
+                                   for f in result.failures)
+    result = api.simulate("dc_motor_link", scenario="paper", runs=1, oosm=["replay"], fusion=["difference"],
+                          reference=["sinusoid"], quiet=True, engine=engine)
+    assert not result.failures
