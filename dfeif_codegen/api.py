@@ -29,7 +29,7 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
              quiet: bool = False, engine: str = "c", workers: int | None = None, scheduler: str | None = None,
              results: str | None = None, csv: str | None = None, resume: str | None = None,
              max_seconds: float | None = None, max_memory: float | None = None,
-             param_error: str | float | None = None) -> SimulationResult:
+             param_error: str | float | None = None, predictor: str | None = None) -> SimulationResult:
     """`codegen simulate` as a function: the chapter's experiment, returned as a SimulationResult
     (`.tables`, `.report()`, `.to_json()`, `.failures`). Keywords are the command's options:
     `runs` seeds from `seed`, `oosm`/`fusion`/`reference` one name or a list, `filters` any of
@@ -38,7 +38,8 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
     `json_path` writes nothing: the CLI prints `.to_json()`). `max_seconds` (CPU) and `max_memory`
     (GB) bound the derivation. `param_error`: the plant's parameters against the model's,
     replacing the scenario's [model_error] (0.2: each drawn per run within +-20%; "R=0.2": R 20%
-    above; 0: the exact model). Bad input raises a CodegenError before any run."""
+    above; 0: the exact model). `predictor` "held" or "brunovsky" (None: the default, brunovsky
+    with retrodict). Bad input raises a CodegenError before any run."""
     def listed(value):
         return [value] if isinstance(value, str) else value
 
@@ -46,4 +47,5 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
         model, engine=engine_named(engine), scenario=scenario, runs=runs, seed=seed, nodes=nodes,
         max_lag=max_lag, oosm=listed(oosm), fusion=listed(fusion), reference=listed(reference), filters=filters,
         plot=plot, json_path=json_path, quiet=quiet, workers=workers, scheduler=scheduler, results=results,
-        csv=csv, resume=resume, max_seconds=max_seconds, max_memory=max_memory, param_error=param_error)
+        csv=csv, resume=resume, max_seconds=max_seconds, max_memory=max_memory, param_error=param_error,
+        predictor=predictor)

@@ -54,6 +54,9 @@ def _filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
                    help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
     p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
                    help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
+    p.add_argument("--predictor", choices=["held", "brunovsky"], default=None,
+                   help="the filters' prediction: the canonical dynamics with the applied u held (default; "
+                        "brunovsky with --oosm retrodict) or the chapter's Brunovsky chain driven by v = F + G u")
 
 
 def _build_arguments(p: argparse.ArgumentParser) -> None:
@@ -205,7 +208,8 @@ def parser() -> argparse.ArgumentParser:
 
 def _build_options(args: argparse.Namespace) -> dict:
     return dict(precision=args.precision, max_lag=args.max_lag, nodes=args.nodes, oosm=args.oosm or "replay",
-                fusion=args.fusion or "difference", ts=args.ts, singular_rtol=args.singular_rtol)
+                fusion=args.fusion or "difference", ts=args.ts, singular_rtol=args.singular_rtol,
+                predictor=args.predictor)
 
 
 def build(args: argparse.Namespace) -> int:
@@ -224,7 +228,7 @@ def build(args: argparse.Namespace) -> int:
                          **_budget(args))
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
-          f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion})")
+          f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion}, predictor {o.predictor})")
     width = max(len(f) for f in module.files)
     for fname in module.files:
         print(f"  {fname:<{width}}  {(module.path / fname).stat().st_size:>7} bytes")
@@ -252,7 +256,7 @@ def verify(args: argparse.Namespace) -> int:
     result = verify.verify(args.model, target=args.target, precision=args.precision, sanitize=args.sanitize,
                            scenario=args.scenario, inputs=args.inputs, max_lag=args.max_lag, nodes=args.nodes,
                            oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                           progress=lambda line: print(line, flush=True), **_budget(args))
+                           predictor=args.predictor, progress=lambda line: print(line, flush=True), **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")
@@ -267,7 +271,8 @@ def simulate(args: argparse.Namespace) -> int:
         args.model, scenario=args.scenario, runs=args.runs, seed=args.seed, nodes=args.nodes, max_lag=args.max_lag,
         oosm=args.oosm, fusion=args.fusion, reference=args.reference, filters=args.filters, plot=args.plot,
         json_path=args.json, quiet=args.quiet, engine=args.engine, workers=args.workers, scheduler=args.scheduler,
-        results=args.results, csv=args.csv, resume=args.resume, param_error=args.param_error, **_budget(args))
+        results=args.results, csv=args.csv, resume=args.resume, param_error=args.param_error,
+        predictor=args.predictor, **_budget(args))
     print(result.to_json() if args.json == "-" else result.report())
     if result.failures:  # a run that failed or diverged is a result to act on, not a footnote
         print(f"codegen simulate: {result.failure_line()}", file=sys.stderr)
@@ -332,7 +337,7 @@ def network(args: argparse.Namespace) -> int:
     result = run.network(args.model, scenario=args.scenario, row=args.row, seed=args.seed,
                          precision=args.precision, oosm=args.oosm or "replay", fusion=args.fusion or "difference",
                          nodes=args.nodes, max_lag=args.max_lag, duration=args.duration, key=args.key,
-                         flip_rate=args.flip_rate, keep=args.keep, **_budget(args))
+                         flip_rate=args.flip_rate, keep=args.keep, predictor=args.predictor, **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")

@@ -78,15 +78,22 @@ class Case:
     duration: float | None = None   # None: the scenario's 20 s
     uplink: tuple | None = None     # (p, d, p_drop) of the node -> master links
     sensor_drop: float | None = None
+    predictor: str | None = None    # None: brunovsky with retrodict (the only one it takes), else held
+
+    @property
+    def prediction(self) -> str:
+        from dfeif_codegen.reference import predictor
+
+        return predictor.for_method(self.predictor, self.oosm)
 
     def build(self, precision: str) -> tuple:
         """What the generated C depends on (the key of a build)."""
-        return (self.model, precision, self.oosm, self.fusion, self.max_lag)
+        return (self.model, precision, self.oosm, self.fusion, self.max_lag, self.prediction)
 
     def __str__(self) -> str:
         net = "" if self.uplink is None else f"-uplink{self.uplink}-drop{self.sensor_drop}"
         lag = "" if self.max_lag == 32 else f"-maxlag{self.max_lag}"
-        return f"{self.model}-{self.oosm}-{self.fusion}-{self.reference}-row{self.row}{lag}{net}"
+        return f"{self.model}-{self.oosm}-{self.fusion}-{self.reference}-row{self.row}{lag}{net}-{self.prediction}"
 
 
 def _record(case: Case):
@@ -97,15 +104,15 @@ def _record(case: Case):
     uplink = None if case.uplink is None else Link(*case.uplink)
     return verify.closed_loop(case.model, case.oosm, case.fusion, case.reference, case.row,
                               max_lag=case.max_lag, duration=case.duration, uplink=uplink,
-                              sensor_drop=case.sensor_drop)
+                              sensor_drop=case.sensor_drop, predictor=case.prediction)
 
 
 def _build(key: tuple, root: str) -> str:
     from dfeif_codegen.check import harness
 
-    model, precision, oosm, fusion, max_lag = key
+    model, precision, oosm, fusion, max_lag, predictor = key
     out = Path(root) / "-".join(map(str, key))
-    md = harness.build_model(model, out / "gen", precision, oosm, fusion, max_lag=max_lag)
+    md = harness.build_model(model, out / "gen", precision, oosm, fusion, max_lag=max_lag, predictor=predictor)
     harness.Library(md, out / "lib")
     return str(md.path)
 

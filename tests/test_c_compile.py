@@ -41,6 +41,9 @@ VARIANTS = {
     "dc-float-retro-ci3": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci", "nodes": 3}),
     "dc-float-paper": ("dc_motor_link", {"precision": "float", "fusion": "paper", "max_lag": 5}),
     "dc-float-retro-ci": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
+    # the chapter's Brunovsky predictor with replay (the default is the held-input predictor)
+    "dc-brunovsky": ("dc_motor_link", {"predictor": "brunovsky"}),
+    "arm-float-brunovsky": ("two_link_arm", {"precision": "float", "predictor": "brunovsky"}),
     "arm-double": ("two_link_arm", {}),
     "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
@@ -403,10 +406,13 @@ def wrap(e):
 def test_node_matches_numpy(built, tmp_path):
     folder = built("dc-double")
     lib = Lib(shared_library(folder, tmp_path), "dc_motor_link")
+    from dfeif_codegen.reference import predictor as predictors
+
     flat = _flat("dc_motor_link")
-    A, B, C = flat.discrete(flat.model.ts)
+    C = flat.discrete(flat.model.ts)[2]
     q = np.array([3.0])
-    Q = flat.process_noise(flat.model.ts, q)
+    pred = predictors.make("held", flat, flat.model.ts, q)     # the default build's predictor
+    A, Q = pred.Phi, pred.Q
     R = np.array([[2e-4]])
     x, P = np.array([0.3, -0.1, 0.2]), np.diag([1e-2, 1e-1, 1.0])
     node = lib.new("node")
@@ -429,9 +435,9 @@ def test_node_matches_numpy(built, tmp_path):
         # machine; atol covers entries that cancel to ~0
         np.testing.assert_allclose(got_x, x, rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(got_P.reshape(3, 3), P, rtol=1e-12, atol=1e-16)
-        v = np.array([np.sin(0.3 * k)])
-        x, P = A @ x + B @ v, A @ P @ A.T + Q
-        assert lib("node_predict", node, v) == 0
+        u = np.array([np.sin(0.3 * k)])
+        x, P = pred.mean(x, u), A @ P @ A.T + Q
+        assert lib("node_predict", node, u) == 0
     Y, y = np.zeros(9), np.zeros(3)
     assert lib("node_information", node, Y, y) == 0
     # two backward-stable inversions of a 3x3 differ by at most ~2 n cond(P) eps relative,
@@ -457,9 +463,10 @@ def _run_late(lib: Lib, late_lag: int, drops=(30, 33, 35)) -> tuple[np.ndarray, 
 
 
 def test_late_measurement_replay_and_retrodict_agree(built, tmp_path):
-    """One late measurement with drops in between: retrodiction is exact, so it equals replay,
-    and replay equals processing the measurement on time."""
-    replay = Lib(shared_library(built("dc-double"), tmp_path), "dc_motor_link")
+    """One late measurement with drops in between: retrodiction is exact, so it equals replay (both
+    with the Brunovsky predictor, the only one retrodiction takes), and replay equals processing
+    the measurement on time (the held predictor's replay too)."""
+    replay = Lib(shared_library(built("dc-brunovsky"), tmp_path), "dc_motor_link")
     retro_dir = tmp_path / "retro"
     retro_dir.mkdir()
     retro = Lib(shared_library(built("dc-retro-ci"), retro_dir), "dc_motor_link")
@@ -473,14 +480,18 @@ def test_late_measurement_replay_and_retrodict_agree(built, tmp_path):
         # 1e-9 is n cond eps times ~100 steps of accumulation with margin, on any IEEE machine
         np.testing.assert_allclose(xo, xr, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(Po, Pr, rtol=1e-9, atol=1e-15)
-    xr, Pr = _run_late(replay, 6)
-    # replay re-runs exactly the on-time operations in the same order: equal up to a few ulps
-    np.testing.assert_allclose(xr, on_time[0], rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(Pr, on_time[1], rtol=1e-12, atol=1e-18)
+    held_dir = tmp_path / "held"
+    held_dir.mkdir()
+    held = Lib(shared_library(built("dc-double"), held_dir), "dc_motor_link")
+    for lib, first in ((replay, on_time), (held, _run_late(held, 0, drops=(30, 35)))):
+        xr, Pr = _run_late(lib, 6)
+        # replay re-runs exactly the on-time operations in the same order: equal up to a few ulps
+        np.testing.assert_allclose(xr, first[0], rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(Pr, first[1], rtol=1e-12, atol=1e-18)
 
 
 def test_master_difference_and_control_match_numpy(built, tmp_path):
-    lib = Lib(shared_library(built("dc-double"), tmp_path), "dc_motor_link")
+    lib = Lib(shared_library(built("dc-brunovsky"), tmp_path), "dc_motor_link")   # A, B in closed form
     flat = _flat("dc_motor_link")
     A, B, _ = flat.discrete(flat.model.ts)
     q = np.array([2.0])
@@ -802,7 +813,7 @@ def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
         for loop_ops in (0, 10 ** 6):
             monkeypatch.setattr(kernels, "LOOP_OPS", {"node_predict": loop_ops, "info": loop_ops})
             folder = tmp_path / f"{precision}{loop_ops}"
-            mod = build.build(str(spec), folder, precision=precision)
+            mod = build.build(str(spec), folder, precision=precision, predictor="brunovsky")   # loops: Brunovsky's
             lib = shared_library(mod.path, folder)
             args = [a.astype(dtype) for a in (post, np.array([0.3]), np.array([2.0]), np.zeros(n),
                                               np.zeros(n * (n + 1) // 2), x, P.ravel(), c, np.zeros(n * n),
@@ -835,7 +846,7 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     n = 7
     spec = tmp_path / "chain7.toml"
     spec.write_text(bench_peers.chain_model(n))
-    md = harness.build_model(str(spec), tmp_path / "b")
+    md = harness.build_model(str(spec), tmp_path / "b", predictor="brunovsky")   # its node_predict is looped
     lib = Lib(shared_library(md.path, tmp_path), "chain7")
     rng = np.random.default_rng(7)
     G = rng.standard_normal((n, n))
@@ -844,7 +855,7 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     x, v, q = rng.standard_normal(n), np.array([0.3]), np.array([2.0])
     x1, P1 = np.zeros(n), np.zeros(n * n)
     assert lib("kern_predict", x, P.ravel().copy(), v, q, x1, P1) == 0
-    b = Chains(flatness.derive(model.load(str(spec))), Options(ts=0.01))
+    b = Chains(flatness.derive(model.load(str(spec))), Options(ts=0.01, predictor="brunovsky"))
     x1_ref, P1_ref = (np.array(a) for a in node.predict(b, "p")(x, P, v, q))
     assert set(kernels.build(b.flat, b.opts, "chain7").loops) == {"chain7_kern_info"}
     np.testing.assert_allclose(x1, x1_ref.ravel(), rtol=1e-13)

@@ -65,7 +65,13 @@ def test_c_engine_reports_a_diverging_plant_like_the_reference(host_cc):
         ex.run(cfg)
     with pytest.raises(FloatingPointError) as c:
         closed_loop_c.run(cfg)
-    assert str(c.value) == str(py.value)
+    # the same step and cause; the NEES it reached is a number ~1e100 that the unstable loop
+    # amplified from rounding (the held mean map's F evaluated by C and by CasADi's interpreter
+    # round alike only to a few ulps), so it is compared to its order of magnitude
+    (c_head, *c_now), (py_head, *py_now) = (str(e.value).split(" (now ") for e in (c, py))
+    assert c_head == py_head and len(c_now) == len(py_now)
+    for cn, pn in zip(c_now, py_now):
+        assert abs(np.log10(float(cn.rstrip(")"))) - np.log10(float(pn.rstrip(")")))) < 2
 
 
 TINY = """

@@ -55,9 +55,12 @@ LOSSY = [
     Case("dc_motor_link", "replay", "difference", "sinusoid", 4, max_lag=16, uplink=(0.5, 6, 0.1), sensor_drop=0.1),
     Case("two_link_arm", "retrodict", "paper", "seesaw", 1, uplink=(0.5, 6, 0.1), sensor_drop=0.1),
 ]
-FLOAT = [GRID[2], *DIAGONAL[:11], LOSSY[1]]
+# the chapter's Brunovsky predictor kept as an option (retrodiction above uses it already)
+BRUNOVSKY = [Case("dc_motor_link", "replay", "difference", "sinusoid", 2, predictor="brunovsky"),
+             Case("two_link_arm", "replay", "ci", "seesaw", 3, predictor="brunovsky")]
+FLOAT = [GRID[2], *DIAGONAL[:11], LOSSY[1], *BRUNOVSKY]
 
-DOUBLE_RUNS = [(c, "double") for c in GRID + DIAGONAL + LOSSY]
+DOUBLE_RUNS = [(c, "double") for c in GRID + DIAGONAL + LOSSY + BRUNOVSKY]
 FLOAT_RUNS = [(c, "float") for c in FLOAT]
 
 

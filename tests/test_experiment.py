@@ -126,8 +126,12 @@ def test_reference_derivatives_match_finite_differences(kind):
 def test_closed_loop_tracks_without_delays():
     """Poles at -10 rad/s, sinusoid of 1 rad and 5 s period: the tracking lag of the third-order
     error ODE plus the control noise give about 5 mrad; 15 mrad (under 1 degree) is the bound.
-    The estimate must beat one camera frame (4 mrad std for 1 mm at 25 cm): bound 3 mrad."""
-    res = ex.run(short(duration=6.0, metrics_from=1.0))
+    The estimate must beat one camera frame (4 mrad std for 1 mm at 25 cm): bound 3 mrad.
+    The chapter's loop: the Brunovsky predictor. With the held predictor the estimate is 8 times
+    better but the plant tracks to 85 mrad (measured, this seed): the controller assumes v held
+    over the period, and fed the true θ'' of a plant whose current settles within the period it
+    moves u like a slow integrator (docs/experiment.md, "The held-input predictor")."""
+    res = ex.run(short(duration=6.0, metrics_from=1.0, predictor="brunovsky"))
     assert res.metrics["rmse_tracking"][0] < 0.015
     assert res.metrics["rmse_master"][0] < 0.003
     assert res.metrics["rmse_master"][0] < res.metrics["rmse_nodes"][:, 0].min()
@@ -154,7 +158,10 @@ def test_record_and_replay_bit_for_bit(cfg, tmp_path):
 
 
 def test_baselines_are_worse_than_replay():
-    rows = {m: ex.run(short(duration=8.0, sensor=(Link(0.8, 12), Link(0.8, 15)), method=m)).metrics
+    """q = 1: the held predictor needs far less process noise than the Brunovsky one's 20, at which
+    it trusts the cameras so much that fewer frames (discard) give the smaller error (measured:
+    replay 2.2e-4, discard 1.5e-4 at q = 20; 2.2e-5 and 4.8e-5 at q = 1)."""
+    rows = {m: ex.run(short(duration=8.0, q=(1.0,), sensor=(Link(0.8, 12), Link(0.8, 15)), method=m)).metrics
             for m in ("replay", "discard", "as-current")}
     x1 = {m: r["rmse_master"][0] for m, r in rows.items()}
     assert x1["replay"] < 0.95 * x1["discard"] and x1["discard"] < x1["as-current"]

@@ -71,8 +71,8 @@ def test_readme_example_runs_as_written_and_matches_the_reference(in_tmp):
             assert node.update_delayed(ns["frames"][1], lag=1)
         master.fuse([node.packet(), None])
         u, v = ctrl(master.x, ns["flags"])
-        node.predict(v)
-        master.predict(v)
+        node.predict(u)
+        master.predict(u)
 
     assert rel(ns["gains"], gains) < RTOL
     assert rel(ns["u"], u) < RTOL and rel(ns["v"], v) < RTOL
@@ -193,17 +193,19 @@ def test_build_check_and_inspect_are_api_functions():
         inspect_model.inspect("dc_motor_link", ts=-1.0)
 
 
-def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc):
+@pytest.mark.parametrize("oosm, predictor", [("retrodict", "brunovsky"), ("replay", "held")])
+def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc, oosm, predictor):
     """Any flat model: a user's two-input model (relative degrees 2 and 3), three nodes, covariance
-    intersection and retrodiction, driven through the API for six steps with a drop, late frames
-    and a missing packet, against the reference (RTOL: the same argument as for the README; the
-    CI weights come from at most 10 Newton steps on a 3 x 3 system that is well conditioned here)."""
+    intersection and retrodiction (Brunovsky predictor, predicting with v) or replay (held
+    predictor, with u), driven through the API for six steps with a drop, late frames and a
+    missing packet, against the reference (RTOL: the same argument as for the README; the CI
+    weights come from at most 10 Newton steps on a 3 x 3 system that is well conditioned here)."""
     from test_user_models import MIXED
 
     path = tmp_path / "mixed.toml"
     path.write_text(MIXED)
     mdl = dc.load_model(str(path))
-    lib = dc.load(dc.build(mdl, tmp_path / "out", nodes=3, oosm="retrodict", fusion="ci", max_lag=4),
+    lib = dc.load(dc.build(mdl, tmp_path / "out", nodes=3, oosm=oosm, fusion="ci", max_lag=4, predictor=predictor),
                   cache=tmp_path / "cache")
     flat = flatness.derive(mdl)
     n, m, ts = flat.n, flat.m, mdl.ts
@@ -212,8 +214,9 @@ def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc
     x0, P0, q = np.zeros(n), np.diag(rng.uniform(0.5, 2.0, n)), np.array([2.0, 5.0])
     Rs = [np.diag(rng.uniform(1e-4, 4e-4, m)) for _ in range(3)]
     c_nodes = [lib.Node(x0, P0, R, q) for R in Rs]
-    r_nodes = [NodeFilter(flat, ts, q, R, x0, P0, max_lag=4, oosm="retrodict") for R in Rs]
-    c_master, r_master = lib.Master(x0, P0, q), Master(flat, ts, q, x0, P0, n_nodes=3, rule="ci", max_lag=4)
+    r_nodes = [NodeFilter(flat, ts, q, R, x0, P0, max_lag=4, oosm=oosm, predictor=predictor) for R in Rs]
+    c_master = lib.Master(x0, P0, q)
+    r_master = Master(flat, ts, q, x0, P0, n_nodes=3, rule="ci", max_lag=4, predictor=predictor)
     gains = lib.gains([3.0, 4.0])
     ctrl = FlatController(flat, gains=gains)
     frames = rng.normal(0.0, 0.05, (6, 3, m))
@@ -233,11 +236,12 @@ def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc
         u_ref, v_ref = ctrl(r_master.x, flags)
         assert rel(c_master.estimate()[0], r_master.x) < RTOL and rel(c_master.estimate()[1], r_master.P) < RTOL
         assert rel(u, u_ref) < RTOL and rel(v, v_ref) < RTOL
+        w = v_ref if predictor == "brunovsky" else u_ref
         for c, r in zip(c_nodes, r_nodes):
-            c.predict(v_ref)
-            r.predict(v_ref)
-        c_master.predict(v_ref)
-        r_master.predict(v_ref)
+            c.predict(w)
+            r.predict(w)
+        c_master.predict(w)
+        r_master.predict(w)
     for c, r in zip(c_nodes, r_nodes):
         x, P = c.estimate()
         assert rel(x, r.x) < RTOL and rel(P, r.P) < RTOL

@@ -11,10 +11,20 @@ from scipy.stats import chi2
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.constants import CI_REGULARISER
 from dfeif_codegen.reference.fusion import Master, covariance_intersection_weights
+from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.node import NodeFilter
 
 TS, Q_DENSITY = 0.01, 50.0
 MODELS = ("dc_motor_link", "two_link_arm")
+PREDICTORS = ("held", "brunovsky")
+INPUT_STD = {"held": 1.0, "brunovsky": 5.0}   # random u [V] or v [rad/s^3] driving the truth
+
+
+@lru_cache(maxsize=None)
+def prediction(name, kind):
+    """The predictor object the filters use (its mean map and constant Phi, Q): the oracles
+    below run the textbook recursions on it."""
+    return predictors.make(kind, flat_system(name), TS, Q_DENSITY)
 
 
 @lru_cache(maxsize=None)
@@ -42,11 +52,13 @@ def start(flat):
     return x0, np.diag(np.tile([0.1, 1.0, 10.0], flat.m)[:flat.n])
 
 
-def simulate(flat, steps, rng, Rs, common=None):
-    """Truth with process noise, random inputs v, and for each R in Rs a measurement sequence
-    wrapped like a camera's atan2; `common` adds a noise component shared by every node."""
-    A, B, C = flat.discrete(TS)
-    Q = flat.process_noise(TS, Q_DENSITY)
+def simulate(flat, steps, rng, Rs, common=None, kind="brunovsky"):
+    """Truth with process noise, random inputs (u for the held predictor, v for the Brunovsky
+    one) through the predictor's mean map, and for each R in Rs a measurement sequence wrapped
+    like a camera's atan2; `common` adds a noise component shared by every node."""
+    pred = prediction(flat.model.name, kind)
+    C = flat.discrete(TS)[2]
+    Q = pred.Q
     lam, vec = np.linalg.eigh(Q)
     q_half = vec * np.sqrt(np.clip(lam, 0, None))
     x0, P0 = start(flat)
@@ -59,16 +71,16 @@ def simulate(flat, steps, rng, Rs, common=None):
             z = C @ x + shared + np.linalg.cholesky(R) @ rng.standard_normal(flat.m)
             zs[i].append(np.where(angle, angle_wrap(z), z))
         xs.append(x)
-        vs.append(5 * rng.standard_normal(flat.m))
-        x = A @ x + B @ vs[-1] + q_half @ rng.standard_normal(flat.n)
+        vs.append(INPUT_STD[kind] * rng.standard_normal(flat.m))
+        x = pred.mean(x, vs[-1]) + q_half @ rng.standard_normal(flat.n)
     return np.array(xs), np.array(vs), [np.array(z) for z in zs]
 
 
-def batch_kf(flat, R, zs, has, vs, x0, P0):
+def batch_kf(flat, R, zs, has, vs, x0, P0, kind="brunovsky"):
     """Plain Kalman filter over time-ordered measurements (`has[t]`: step t has one).
     Returns per step the posterior and what the update used (for the naive retrodiction)."""
-    A, B, C = flat.discrete(TS)
-    Q = flat.process_noise(TS, Q_DENSITY)
+    pred = prediction(flat.model.name, kind)
+    A, Q, C = pred.Phi, pred.Q, flat.discrete(TS)[2]
     angle = np.array([c.angle for c in flat.chains])
     x, P, out = x0, P0, []
     for t in range(len(has)):
@@ -79,7 +91,7 @@ def batch_kf(flat, R, zs, has, vs, x0, P0):
         x, P = x + K @ e, (np.eye(flat.n) - K @ C) @ P
         out.append(dict(x=x, P=P, K=K, S=S, e=e, measured=bool(has[t])))
         if t < len(has) - 1:
-            x, P = A @ x + B @ vs[t], A @ P @ A.T + Q
+            x, P = pred.mean(x, vs[t]), A @ P @ A.T + Q
     return out
 
 
@@ -111,26 +123,29 @@ def run_with_delays(nodes, zs, vs, plan, rng, check=None):
 
 
 # 1. replay is exactly a time-ordered Kalman filter ------------------------------------------------
+@pytest.mark.parametrize("kind", PREDICTORS)
 @pytest.mark.parametrize("name", MODELS)
-def test_replay_equals_batch_kalman_filter(name):
+def test_replay_equals_batch_kalman_filter(name, kind):
+    """Replay with the inputs each step kept equals the filter re-run with every measurement on
+    time, for the held predictor's nonlinear mean map as for the Brunovsky one."""
     flat, rng, steps, max_lag = flat_system(name), np.random.default_rng(1), 120, 24
     R = random_spd(rng, flat.m, 1e-4)
-    _, vs, (zs,) = simulate(flat, steps, rng, [R])
+    _, vs, (zs,) = simulate(flat, steps, rng, [R], kind=kind)
     plan = delay_plan(steps, rng, max_lag, 0.15, 0.7)
     x0, P0 = start(flat)
-    node = NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm="replay")
+    node = NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm="replay", predictor=kind)
     worst = []
 
     def check(k, known):
         has = np.zeros(k + 1, bool)
         has[known] = True
-        ref = batch_kf(flat, R, zs, has, vs, x0, P0)[k]
+        ref = batch_kf(flat, R, zs, has, vs, x0, P0, kind)[k]
         worst.append(max(rel(node.x, ref["x"]), rel(node.P, ref["P"])))
 
     arrivals = run_with_delays([node], zs, vs, plan, rng, check)
     assert max(len(a) for a in arrivals.values()) >= 3        # several late ones in one step
     assert node.counters["late_applied"] == sum(len(a) for k, a in arrivals.items() if k < steps)
-    print(f"\n{name}: replay vs batch Kalman filter, worst relative error {max(worst):.1e}")
+    print(f"\n{name}, {kind}: replay vs batch Kalman filter, worst relative error {max(worst):.1e}")
     # replay and the batch filter perform the same Kalman steps in a different order; on these
     # well-conditioned 3x3 (cond(P) < 1e4) each step moves the rounding by ~n cond eps ~1e-11
     # relative and the filter contracts it: 1e-10 holds on any IEEE machine
@@ -207,7 +222,8 @@ def test_retrodict_equals_replay_for_one_late_measurement(name, max_lag):
         k = steps - 1
         has = rng.random(steps) > 0.3          # intermediate drops
         has[k - lag] = False                   # this one arrives late
-        nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=o) for o in ("replay", "retrodict")]
+        nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=o,
+                            predictor="brunovsky") for o in ("replay", "retrodict")]
         for t in range(steps):
             for node in nodes:
                 node.update(zs[t], has[t])
@@ -238,7 +254,8 @@ def test_retrodict_with_several_late_measurements_is_approximate(name):
     _, vs, (zs,) = simulate(flat, steps, rng, [R])
     plan = delay_plan(steps, rng, max_lag, 0.1, 0.2)
     x0, P0 = start(flat)
-    nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=o) for o in ("replay", "retrodict")]
+    nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=o,
+                            predictor="brunovsky") for o in ("replay", "retrodict")]
     errs = []
 
     def check(k, known):
@@ -252,8 +269,8 @@ def test_retrodict_with_several_late_measurements_is_approximate(name):
 
 
 # 3. rejections -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("oosm", ["replay", "retrodict"])
-def test_rejected_late_measurements_change_nothing(oosm):
+@pytest.mark.parametrize("oosm,kind", [("replay", "held"), ("replay", "brunovsky"), ("retrodict", "brunovsky")])
+def test_rejected_late_measurements_change_nothing(oosm, kind):
     flat, rng = flat_system("dc_motor_link"), np.random.default_rng(3)
     R = 1e-4
     _, vs, (zs,) = simulate(flat, 30, rng, [np.eye(1) * R])
@@ -261,7 +278,8 @@ def test_rejected_late_measurements_change_nothing(oosm):
     for max_lag, k_test, bad_lags in [(8, 12, [0, -1, 9, 13]), (32, 5, [0, 6, 33])]:
         has = np.ones(30, bool)
         has[[k_test - 2, k_test - 3]] = False
-        node, twin = (NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=oosm) for _ in range(2))
+        node, twin = (NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, max_lag=max_lag, oosm=oosm, predictor=kind)
+                      for _ in range(2))
         for t in range(30):
             for nd in (node, twin):
                 nd.update(zs[t], has[t])
@@ -282,18 +300,21 @@ def test_rejected_late_measurements_change_nothing(oosm):
 
 
 # 4. the information-difference rule is the centralized Kalman filter ----------------------------
+@pytest.mark.parametrize("kind", PREDICTORS)
 @pytest.mark.parametrize("name", MODELS)
 @pytest.mark.parametrize("n_nodes", [2, 3])
-def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes):
+def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes, kind):
+    """Exact also with the held predictor's nonlinear mean: a node's information gain does not
+    depend on its prior mean, and the master predicts its own estimate with the same map and u."""
     flat, rng, steps = flat_system(name), np.random.default_rng(10 + n_nodes), 80
     Rs = [random_spd(rng, flat.m, s) for s in (1e-4, 4e-4, 2.5e-5)[:n_nodes]]
-    _, vs, zs = simulate(flat, steps, rng, Rs)
+    _, vs, zs = simulate(flat, steps, rng, Rs, kind=kind)
     has = rng.random((n_nodes, steps)) > 0.25
     x0, P0 = start(flat)
-    nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0) for R in Rs]
-    master = Master(flat, TS, Q_DENSITY, x0, P0, n_nodes, rule="difference")
-    A, B, C = flat.discrete(TS)
-    Q = flat.process_noise(TS, Q_DENSITY)
+    nodes = [NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, predictor=kind) for R in Rs]
+    master = Master(flat, TS, Q_DENSITY, x0, P0, n_nodes, rule="difference", predictor=kind)
+    pred = prediction(name, kind)
+    A, Q, C = pred.Phi, pred.Q, flat.discrete(TS)[2]
     angle = np.array([c.angle for c in flat.chains])
     x, P, worst = x0, P0, 0.0
     for k in range(steps):
@@ -314,8 +335,8 @@ def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes):
         for node in nodes:
             node.predict(vs[k])
         master.predict(vs[k])
-        x, P = A @ x + B @ vs[k], A @ P @ A.T + Q
-    print(f"\n{name}, {n_nodes} nodes: difference rule vs centralized, worst relative error {worst:.1e}")
+        x, P = pred.mean(x, vs[k]), A @ P @ A.T + Q
+    print(f"\n{name}, {kind}, {n_nodes} nodes: difference rule vs centralized, worst relative error {worst:.1e}")
     # difference fusion vs the centralized filter: information-form inversions of 3x3 with
     # cond < 1e4 (~n cond eps = 7e-12 each, contracted by the filter): 1e-9 on any IEEE machine
     assert worst <= 1e-9
@@ -325,9 +346,9 @@ def test_master_predicts_stale_packets_and_ignores_old_ones():
     flat, rng = flat_system("dc_motor_link"), np.random.default_rng(5)
     _, vs, (zs,) = simulate(flat, 12, rng, [np.eye(1) * 1e-4])
     x0, P0 = start(flat)
-    node = NodeFilter(flat, TS, Q_DENSITY, 1e-4, x0, P0)
-    fresh = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="paper", max_lag=4)
-    stale = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="paper", max_lag=4)
+    node = NodeFilter(flat, TS, Q_DENSITY, 1e-4, x0, P0, predictor="brunovsky")
+    fresh = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="paper", max_lag=4, predictor="brunovsky")
+    stale = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="paper", max_lag=4, predictor="brunovsky")
     packets = []
     for k in range(12):
         node.update(zs[k], True)
@@ -346,28 +367,31 @@ def test_master_predicts_stale_packets_and_ignores_old_ones():
         stale.predict(vs[k])
 
 
-@pytest.mark.parametrize("name", ["dc_motor_link", "two_link_arm"])
-def test_a_packet_as_old_as_the_window_is_brought_forward_in_one_step(name):
-    """The master brings a stale packet N steps forward in one step (A(N Ts), Q_d(N Ts) in closed
-    form and the inputs' effect): the same estimate and prediction as N one-step predictions with
-    the stored inputs, for every age up to the window."""
+@pytest.mark.parametrize("kind", PREDICTORS)
+@pytest.mark.parametrize("name", MODELS)
+def test_a_packet_as_old_as_the_window_is_brought_forward_in_one_step(name, kind):
+    """The master brings a stale packet's covariances N steps forward in one step (Φ over N
+    periods and the noise of N periods in closed form: A(N Ts), Q_d(N Ts) for Brunovsky, the
+    exponential and Van Loan integral over N Ts for the held predictor) and its means with the
+    stored inputs: the same as N one-step predictions, for every age up to the window."""
     flat, rng = flat_system(name), np.random.default_rng(11)
-    A, B, _ = flat.discrete(TS)
-    Q = flat.process_noise(TS, Q_DENSITY)
+    pred = prediction(name, kind)
+    A, Q = pred.Phi, pred.Q
     window = 32
-    _, vs, _ = simulate(flat, window + 1, rng, [np.eye(flat.m) * 1e-4])
+    _, vs, _ = simulate(flat, window + 1, rng, [np.eye(flat.m) * 1e-4], kind=kind)
     x0, P0 = start(flat)
-    node = NodeFilter(flat, TS, Q_DENSITY, 1e-4, x0, P0)
+    node = NodeFilter(flat, TS, Q_DENSITY, 1e-4, x0, P0, predictor=kind)
     packet = node.packet()
-    master = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="difference", max_lag=window)
+    master = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="difference", max_lag=window, predictor=kind)
     for age in range(1, window + 1):
         master.predict(vs[age - 1])
         got = master._bring(packet)
         want = [packet.x, packet.P, packet.x_pred, packet.P_pred]
         for i in range(age):
-            want = [A @ want[0] + B @ vs[i], A @ want[1] @ A.T + Q, A @ want[2] + B @ vs[i], A @ want[3] @ A.T + Q]
-        # N products of A (entries <= N Ts = 0.32 at most, growth of P by < 10x over the window) against
-        # one: the two differ by a few ulps per step, well inside 1e-10 on any IEEE machine
+            want = [pred.mean(want[0], vs[i]), A @ want[1] @ A.T + Q, pred.mean(want[2], vs[i]),
+                    A @ want[3] @ A.T + Q]
+        # N products of A against one closed form (Φ entries O(1) over the window, P growing by
+        # < 100x): they differ by a few ulps per step, well inside 1e-10 on any IEEE machine
         for g, w in zip(got, want):
             assert rel(g, w) < 1e-10, (age, g, w)
 
@@ -430,9 +454,11 @@ def test_ci_is_consistent_and_paper_is_not_with_correlated_nodes():
     x0, P0 = start(flat)
     nees = {"paper": [], "ci": []}
     for _ in range(trials):
+        # the Brunovsky model: exactly linear, so each node is exactly consistent and the test
+        # is of the fusion rule alone
         xs, vs, zs = simulate(flat, steps, rng, own, common=shared)
-        nodes = [NodeFilter(flat, TS, Q_DENSITY, shared + R, x0, P0) for R in own]
-        masters = {r: Master(flat, TS, Q_DENSITY, x0, P0, 2, rule=r) for r in nees}
+        nodes = [NodeFilter(flat, TS, Q_DENSITY, shared + R, x0, P0, predictor="brunovsky") for R in own]
+        masters = {r: Master(flat, TS, Q_DENSITY, x0, P0, 2, rule=r, predictor="brunovsky") for r in nees}
         for k in range(steps):
             for node, z in zip(nodes, zs):
                 node.update(z[k], True)

@@ -119,7 +119,8 @@ from dfeif_codegen.check import verify  # noqa: E402
 from dfeif_codegen.check import harness
 
 TARGET_RUNS = [(Case("dc_motor_link", "replay", "difference", "sinusoid", 1), "float"),
-               (Case("two_link_arm", "retrodict", "paper", "seesaw", 1), "float")]
+               (Case("two_link_arm", "retrodict", "paper", "seesaw", 1), "float"),      # Brunovsky
+               (Case("two_link_arm", "replay", "difference", "seesaw", 2), "float")]    # held
 DOUBLE_LIBM = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sqrt", "exp", "log", "pow", "ceil",
                "floor", "fabs", "fmod", "sinh", "cosh", "tanh"}
 

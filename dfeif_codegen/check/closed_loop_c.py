@@ -52,7 +52,7 @@ def build_key(cfg: ex.Config) -> tuple:
     flat = ex._flat(cfg.model)
     ts = float(cfg.ts or flat.model.ts)
     oosm = cfg.method if cfg.method in ex.OOSM else "replay"
-    return (cfg.model, ts, int(cfg.substeps), len(cfg.sensor), int(cfg.max_lag), oosm, cfg.fusion)
+    return (cfg.model, ts, int(cfg.substeps), len(cfg.sensor), int(cfg.max_lag), oosm, cfg.fusion, cfg.predictor)
 
 
 def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]:
@@ -99,11 +99,11 @@ def compile_loop(key: tuple) -> Compiled:
     from dfeif_codegen import __version__
     from dfeif_codegen.codegen import render
 
-    spec, ts, substeps, nodes, max_lag, oosm, fusion = key
+    spec, ts, substeps, nodes, max_lag, oosm, fusion, predictor = key
     flat = ex._flat(spec)
     with tempfile.TemporaryDirectory(prefix="codegen-loop-") as tmp:
         work = Path(tmp)
-        md = harness.build_model(spec, work / "model", "double", oosm, fusion, nodes, max_lag, ts)
+        md = harness.build_model(spec, work / "model", "double", oosm, fusion, nodes, max_lag, ts, predictor)
         harness.render_driver(md, work)
         plant, plant_w = plant_source(flat, ts, substeps, md.name)
         (work / f"{md.name}_plant.c").write_text(plant)

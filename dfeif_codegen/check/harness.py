@@ -138,11 +138,15 @@ class ModelDir:
 
 
 def build_model(model: str, out: Path, precision: str = "double", oosm: str = "replay",
-                fusion: str = "difference", nodes: int = 2, max_lag: int = 32, ts: float | None = None) -> ModelDir:
-    """Build a model into `out` through the public build API and open what it wrote."""
+                fusion: str = "difference", nodes: int = 2, max_lag: int = 32, ts: float | None = None,
+                predictor: str | None = None) -> ModelDir:
+    """Build a model into `out` through the public build API and open what it wrote (`predictor`
+    None: Brunovsky with retrodiction, else the default)."""
     from dfeif_codegen.codegen.build import build
+    from dfeif_codegen.reference import predictor as predictors
 
-    module = build(model, out, precision=precision, oosm=oosm, fusion=fusion, nodes=nodes, max_lag=max_lag, ts=ts)
+    module = build(model, out, precision=precision, oosm=oosm, fusion=fusion, nodes=nodes, max_lag=max_lag, ts=ts,
+                   predictor=predictors.for_method(predictor, oosm))
     return ModelDir.open(module.path)
 
 
@@ -171,7 +175,8 @@ INPUTS = ("recorded", "own")
 
 def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
     """The driver's inputs, C-contiguous, reals in the build's precision, integers int32;
-    `v_in` is the reference's broadcast input, for runs that predict with the recorded inputs."""
+    `v_in` is the reference's broadcast input (u for the held predictor, v for the Brunovsky one),
+    for runs that predict with the recorded inputs."""
     K = rec.ref.shape[0]
     source = np.full((K, rec.nodes), -1, dtype=np.int32)
     source[np.asarray(rec.pkt_step, int), np.asarray(rec.pkt_node, int)] = rec.pkt_src
@@ -184,7 +189,7 @@ def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
         "z": real(rec.z), "gamma": int32(rec.gamma), "ref": real(rec.ref),
         "late_step": int32(rec.late_step), "late_node": int32(rec.late_node),
         "late_lag": int32(rec.late_lag), "late_z": real(np.reshape(rec.late_z, (-1, rec.m))),
-        "source": source, "v_in": real(rec.v),
+        "source": source, "v_in": real(rec.u if getattr(rec, "predictor", "brunovsky") == "held" else rec.v),
     }
 
 
@@ -374,7 +379,9 @@ def filter_bank(library: Library):
             return self.harness.counters(self.i)
 
     class CFilterBank:
-        def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion):
+        def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
+                     node_dtype=None, predictor=None):
+            del node_dtype, predictor   # the library's build fixed both (it predicts with <P>_PREDICTS_WITH_U's input)
             opts = library.model.options
             for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R))):
                 if key in opts and opts[key] != want:

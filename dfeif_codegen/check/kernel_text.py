@@ -1,7 +1,8 @@
 """Where the filter kernels' code goes: .text of each kernel of the synthetic flat chains
-(`bench_peers.chain_model`, n = 2..12) as `codegen bench` sizes them (Cortex-M4F, float, -Os, the
-default replay build: predict, node_predict, update, info), with the fitted growth of each and of
-their sum, and optionally the node step's host instructions (callgrind, double).
+(`bench_peers.chain_model`, n = 2..10) as `codegen bench` sizes them (Cortex-M4F, float, -Os, a
+replay build with the Brunovsky predictor, whose node_predict is looped: predict, node_predict,
+update, info), with the fitted growth of each and of their sum, and optionally the node step's
+host instructions (callgrind, double).
 
     python -m dfeif_codegen.check.kernel_text [--steps] [WORK]
 """
@@ -30,7 +31,7 @@ def chain_kernels(n: int, work: Path) -> tuple[dict[str, int], int]:
     spec = work / f"chain{n}.toml"
     spec.parent.mkdir(parents=True, exist_ok=True)
     spec.write_text(bench_peers.chain_model(n))
-    mf = harness.build_model(str(spec), work / f"chain{n}-float", "float")
+    mf = harness.build_model(str(spec), work / f"chain{n}-float", "float", predictor="brunovsky")
     src = [s for s in mf.sources() if s.name == f"chain{n}_kernels_filter.c"]
     obj = target.compile_objects(src, work / f"obj-chain{n}", [mf.path], opt="-Os")[0]
     prefix = f"chain{n}_kern_"
@@ -52,7 +53,7 @@ def table(work: Path, ns=bench_peers.CHAINS, steps: bool = False) -> str:
         cells = [str(per[k]) for k in kernels] + [str(text)]
         if steps:
             from dfeif_codegen.check.bench import callgrind
-            md = harness.build_model(str(work / f"chain{n}.toml"), work / f"chain{n}-double")
+            md = harness.build_model(str(work / f"chain{n}.toml"), work / f"chain{n}-double", predictor="brunovsky")
             c = callgrind(md, work / f"cg-chain{n}")
             step.append(c["node_update"] + c["node_predict"])
             cells.append(f"{step[-1]:,.0f}")

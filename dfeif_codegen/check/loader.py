@@ -199,11 +199,12 @@ class _Filter:
     _kind: str   # the C prefix after the model's: "node" or "master"
     _state: ctypes.Array     # the C struct, owned here
 
-    def predict(self, v) -> None:
-        """Predict to the next step with the broadcast canonical input v."""
+    def predict(self, u) -> None:
+        """Predict to the next step with the broadcast input: the applied u (a build with the
+        default `held` predictor) or v = F + G u (`predictor="brunovsky"`), as `control` returns them."""
         lib = self._library
-        what = f"{type(self).__name__}.predict: v"
-        lib.call(f"{self._kind}_predict", self._state, lib.ptr(lib.array(v, (lib.ny,), what)))
+        what = f"{type(self).__name__}.predict: input"
+        lib.call(f"{self._kind}_predict", self._state, lib.ptr(lib.array(u, (lib.ny,), what)))
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """(x, P) of the current step, in canonical coordinates."""

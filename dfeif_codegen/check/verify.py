@@ -169,17 +169,19 @@ def record(*args, **kw):
 
 def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", reference: str = "sinusoid",
                 row: int = 2, nodes: int = 2, max_lag: int = 32, seed: int = 0, duration: float | None = None,
-                uplink=None, sensor_drop: float | None = None, scenario_spec: str = "paper"):
+                uplink=None, sensor_drop: float | None = None, scenario_spec: str = "paper",
+                predictor: str | None = None):
     """One closed-loop run of a scenario (default the built-in paper one) with the Python reference
     (an experiment.Result). `row` indexes the scenario's delay grid; `uplink` (a network Link) makes
-    node -> master packets late or lost; `sensor_drop` adds camera frame drops."""
+    node -> master packets late or lost; `sensor_drop` adds camera frame drops; `predictor` None:
+    held, brunovsky with retrodict."""
     import dataclasses
 
     from dfeif_codegen.experiment import plan, scenario
     from dfeif_codegen.experiment import closed_loop as experiment
 
     sc = scenario.load(scenario_spec)
-    cfg = plan.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed)
+    cfg = plan.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed, predictor)
     changes: dict[str, Any] = {}
     if duration is not None:
         changes["duration"] = duration
@@ -235,7 +237,8 @@ def errors_as_dicts(errors: list[SignalError]) -> list[dict]:
 def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str | None = None,
            sanitize: bool = False, scenario: str = "paper", inputs: str = "recorded", max_lag: int = 32,
            nodes: int = 2, oosm: str = "replay", fusion: str = "difference", progress=None,
-           max_seconds: float | None = None, max_memory: float | None = None) -> Verification:
+           max_seconds: float | None = None, max_memory: float | None = None,
+           predictor: str | None = None) -> Verification:
     """Build into a temporary folder, record a scenario (default the paper one, its first delay
     row with late frames, sinusoid, 20 s) with the reference, run the C on it (host: ctypes, or a
     program under ASan+UBSan with `sanitize`; cortex-m4f: QEMU) and compare. `progress(line)` is
@@ -250,7 +253,12 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     from dfeif_codegen.experiment import scenario as scenarios
     from dfeif_codegen.experiment import closed_loop as experiment
 
+    from dfeif_codegen.codegen.options import Options
+    from dfeif_codegen.symbolic.sampling import for_method
+
     say = progress or (lambda line: None)
+    predictor = for_method(predictor, oosm)
+    Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor)   # bad combinations: exit 2 now
     if target not in ("host", "cortex-m4f"):
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     harness.recorded_inputs(inputs)
@@ -270,12 +278,15 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     with tempfile.TemporaryDirectory(prefix="codegen-verify-") as tmp:
         work = Path(tmp)
         # the C is built at the sampling period the scenario records at (its ts, else the model's)
-        built = harness.build_model(model, work / "gen", precision, oosm, fusion, nodes, max_lag, ts=sc.ts or None)
-        settings = (f"{built.name}, {precision}, oosm {oosm}, fusion {fusion}, {nodes} nodes, max lag {max_lag}, "
+        built = harness.build_model(model, work / "gen", precision, oosm, fusion, nodes, max_lag, ts=sc.ts or None,
+                                    predictor=predictor)
+        settings = (f"{built.name}, {precision}, oosm {oosm}, fusion {fusion}, predictor {predictor}, {nodes} nodes, "
+                    f"max lag {max_lag}, "
                     f"target {target}, {inputs} inputs{' with ASan+UBSan' if sanitize else ''}")
         say(f"codegen verify: {settings}")
         try:
-            rec = record(model, oosm, fusion, "sinusoid", row, nodes, max_lag, scenario_spec=scenario)
+            rec = record(model, oosm, fusion, "sinusoid", row, nodes, max_lag, scenario_spec=scenario,
+                         predictor=predictor)
         except (ArithmeticError, np.linalg.LinAlgError) as exc:
             raise ScenarioError(f"{sc.source}: run sinusoid row {row + 1} seed 0: the Python reference itself "
                                 f"failed ({type(exc).__name__}: {exc}), so there is nothing to compare the C "

@@ -160,21 +160,21 @@ def generate(m: model.Model, opts: Options, progress=None) -> dict[str, str]:
 
 
 def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
-                       singular_rtol) -> tuple[model.Model, Options]:
+                       singular_rtol, predictor) -> tuple[model.Model, Options]:
     m = spec if isinstance(spec, model.Model) else model.load(str(spec))
     return m, Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
-                      precision=precision, singular_rtol=singular_rtol)
+                      precision=precision, singular_rtol=singular_rtol, predictor=predictor)
 
 
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float | None = None,
-          max_memory: float | None = None) -> list[str]:
+          max_memory: float | None = None, predictor: str | None = None) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
     compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
     raised before the derivation. Nothing is written."""
-    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol)
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor)
     target = Path(out) / m.name
     if not target.is_dir():
         raise BuildError(f"{target}: missing (run `codegen build {spec if isinstance(spec, (str, Path)) else m.name}"
@@ -190,19 +190,20 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, force: bool = False,
           max_seconds: float | None = None, max_memory: float | None = None,
-          compile_check: bool = True) -> GeneratedModule:
+          compile_check: bool = True, predictor: str | None = None) -> GeneratedModule:
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options and the output folder are checked before the derivation starts; the derivation runs
     under a time and memory budget (`max_seconds` in seconds, `max_memory` in GB, as the
     command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
     there is one) before it replaces the folder, atomically. `force` allows replacing files the
-    toolkit did not write there."""
+    toolkit did not write there. `predictor`: "held" (u held) or "brunovsky"; None: held, and
+    brunovsky with retrodict (the only one it can use)."""
     if isinstance(out, str) and not out.strip():
         raise BuildError(f"--out {out!r}: an empty path (give a folder; . for the current one)")
     from dfeif_codegen.paths import writable_dir
     writable_dir(out, "--out")
-    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol)
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor)
     check_target(Path(out), m.name, force)
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
     compiles = (lambda folder: compile_check_folder(folder, m.name)) if compile_check else None

@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from dfeif_codegen.errors import CodegenError
+from dfeif_codegen.symbolic.sampling import PREDICTORS, for_method
 
 MAX_LAG_LIMIT = 4096
 NODES_LIMIT = 16
@@ -29,6 +30,7 @@ class Options:
     fusion: str = "difference"
     precision: str = "double"
     singular_rtol: float = 1e-6  # control returns ERR_SINGULAR below this fraction of |det G| nominal
+    predictor: str | None = None  # u held (None: held, brunovsky with retrodict) or the chapter's Brunovsky chain
 
     def __post_init__(self) -> None:
         ts = self.ts
@@ -39,11 +41,17 @@ class Options:
             raise BuildError(f"--singular-rtol must be a number in [0, 1), got {rtol!r}")
         object.__setattr__(self, "singular_rtol", float(rtol))
         object.__setattr__(self, "ts", float(ts))
+        object.__setattr__(self, "predictor", for_method(self.predictor, self.oosm))
         for name, limit in (("max_lag", MAX_LAG_LIMIT), ("nodes", NODES_LIMIT)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= limit:
                 flag = "--" + name.replace("_", "-")
                 raise BuildError(f"{flag} must be an integer between 1 and {limit}, got {value!r}")
-        for name, allowed in (("oosm", OOSM_METHODS), ("fusion", FUSION_RULES), ("precision", PRECISIONS)):
+        for name, allowed in (("oosm", OOSM_METHODS), ("fusion", FUSION_RULES), ("precision", PRECISIONS),
+                              ("predictor", PREDICTORS)):
             if getattr(self, name) not in allowed:
                 raise BuildError(f"--{name} must be one of {', '.join(allowed)}, got {getattr(self, name)!r}")
+        if self.oosm == "retrodict" and self.predictor != "brunovsky":
+            raise BuildError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the "
+                             f"transition over the lag, ill-conditioned for the {self.predictor} predictor's); "
+                             "use --oosm replay")

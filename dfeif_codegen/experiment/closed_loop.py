@@ -4,7 +4,7 @@ Order of one step k (docs/algorithms.md): cameras measure the true plant -> each
 with its on-time frame (or a drop) -> each node applies the late frames arriving at k, in arrival
 order -> node packets travel to the master (maybe late or lost) -> master `fuse` -> control on the
 fused estimate -> the plant integrates over [k Ts, (k+1) Ts] with u held -> master and nodes
-`predict(v)`.
+`predict` with the broadcast input (u for the default held predictor, v for the Brunovsky one).
 
 Everything the filters see goes into a `Recording`, and `replay_recording` re-runs the filters
 and the controller from it alone (open loop, no plant): the scenario format the C harness
@@ -29,6 +29,7 @@ from dfeif_codegen.reference.linalg import wrap
 from dfeif_codegen.experiment.model_error import NONE as EXACT_MODEL, ParamError
 from dfeif_codegen.experiment.network import Link, Network
 from dfeif_codegen.reference.node import NodeFilter
+from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.experiment.plant import Camera, Plant
 from dfeif_codegen.experiment.trajectory import Reference, flags
 
@@ -137,6 +138,12 @@ class Config:
     max_lag: int = 32
     method: str = "replay"            # one of METHODS
     fusion: str = "difference"
+    predictor: str | None = None      # the filters' prediction (reference/predictor.py); None: held,
+                                      # brunovsky with retrodict (the only one it takes)
+
+    def __post_init__(self) -> None:
+        oosm = self.method if self.method in OOSM else "replay"
+        object.__setattr__(self, "predictor", predictors.for_method(self.predictor, oosm))
     seed: int = 0
     metrics_from: float = 1.0         # [s] metrics skip the initial transient
     watch_nees: bool = True           # a run whose master NEES stays huge has diverged (off: calibration)
@@ -166,6 +173,7 @@ class Recording:
     method: str           # replay | retrodict | discard | as-current
     oosm: str             # what the node filters were built with
     fusion: str
+    predictor: str        # held | brunovsky: the filters predict with u or with v
     ts: float
     q: np.ndarray
     R: np.ndarray
@@ -200,8 +208,9 @@ class Recording:
     @classmethod
     def load(cls, path) -> "Recording":
         with np.load(path) as data:
-            values = {f.name: data[f.name] for f in fields(cls)}
-        for name in ("model", "method", "oosm", "fusion"):
+            values = {f.name: data[f.name] for f in fields(cls) if f.name in data}
+        values.setdefault("predictor", np.asarray("brunovsky"))   # recorded before the held predictor
+        for name in ("model", "method", "oosm", "fusion", "predictor"):
             values[name] = str(values[name])
         for name in ("n", "m", "nodes", "max_lag", "seed"):
             values[name] = int(values[name])
@@ -229,10 +238,12 @@ class FilterBank:
     """Nodes, master and controller, stepped exactly as the protocol says."""
 
     def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                 node_dtype=np.float64):
+                 node_dtype=np.float64, predictor: str = predictors.DEFAULT):
         self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
-                                 dtype=node_dtype) for i in range(len(R))]
-        self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag)
+                                 dtype=node_dtype, predictor=predictor) for i in range(len(R))]
+        self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
+                             predictor=predictor)
+        self.takes_v = predictor == "brunovsky"
         self.control = FlatController(flat, gains=gains)
         self.max_lag = max_lag
         self.sent: list[dict[int, object]] = [{} for _ in self.nodes]
@@ -250,9 +261,10 @@ class FilterBank:
         u, v = self.control(self.master.x, ref)
         out = (applied, [nd.x.copy() for nd in self.nodes], [nd.P.copy() for nd in self.nodes],
                self.master.x.copy(), self.master.P.copy(), u, v)
+        w = v if self.takes_v else u      # what the master broadcasts for the nodes' prediction
         for node in self.nodes:
-            node.predict(v)
-        self.master.predict(v)
+            node.predict(w)
+        self.master.predict(w)
         return out
 
 
@@ -278,7 +290,7 @@ def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndar
     the node filters in single precision: a second single-precision implementation to judge the C's."""
     flat = _flat(rec.model)
     bank = FilterBank(flat, rec.ts, rec.q, rec.R, rec.node_x0, rec.node_P0, rec.master_x0, rec.master_P0,
-                      rec.gains, rec.max_lag, rec.oosm, rec.fusion, node_dtype)
+                      rec.gains, rec.max_lag, rec.oosm, rec.fusion, node_dtype, rec.predictor)
     K = rec.ref.shape[0]
     out = _Outputs(rec.nodes, K, rec.n, rec.m)
     late_at = np.searchsorted(rec.late_step, np.arange(K + 1))
@@ -405,7 +417,7 @@ class Setup:
 
     def bank(self) -> "FilterBank":
         return FilterBank(self.flat, self.ts, self.q, self.R, self.node_x0, self.node_P0, self.x_hat0, self.P0,
-                          self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion)
+                          self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion, predictor=self.cfg.predictor)
 
 
 def prepare(cfg: Config) -> Setup:
@@ -433,6 +445,7 @@ def prepare(cfg: Config) -> Setup:
     q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
     R = np.array([c.R for c in cams])
     oosm = cfg.method if cfg.method in OOSM else "replay"
+    predictors.check(cfg.predictor, oosm)
     # which frame each update takes, and the late frames applied: fixed by the network alone
     upd = np.where(net.lag == 0, 0, -1)
     if cfg.method == "as-current":   # a step without its frame takes the freshest late one arriving
@@ -532,7 +545,8 @@ def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, 
     pk, pn = np.nonzero(s.net.source.T >= 0)
     rec = Recording(
         model=cfg.model, n=n, m=m, nodes=M, max_lag=cfg.max_lag, method=cfg.method, oosm=s.oosm,
-        fusion=cfg.fusion, ts=s.ts, q=s.q, R=s.R, node_x0=s.node_x0, node_P0=s.node_P0, master_x0=s.x_hat0,
+        fusion=cfg.fusion, predictor=cfg.predictor, ts=s.ts, q=s.q, R=s.R, node_x0=s.node_x0,
+        node_P0=s.node_P0, master_x0=s.x_hat0,
         master_P0=s.P0, gains=s.gains, params=flat.param_vector, seed=cfg.seed, z=z, gamma=gamma, ref=s.ref,
         late_step=late_step.copy(), late_node=late_node.copy(), late_lag=late_lag.copy(),
         late_z=frames[late_node, late_step - late_lag].reshape(-1, m),

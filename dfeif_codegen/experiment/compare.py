@@ -8,8 +8,8 @@ Jacobian), the same late-frame method (replay) and the same fusion rule (informa
 in physical coordinates). Their errors are reported in the canonical coordinates of the tables
 (estimates mapped by `Phi`, covariances by its Jacobian), so every column compares like with like.
 
-Cost, measured alike for all three: each filter (the derivative-free one too, as an EKF on its own
-constant canonical model, `CanonicalModel`) runs on the same driver (ReplayNode, PhysicalMaster)
+Cost, measured alike for all three: each filter (the derivative-free one too, as a Kalman filter
+on its own canonical model with constant covariance matrices, `CanonicalModel`) runs on the same driver (ReplayNode, PhysicalMaster)
 with its predict and its update each one CasADi function called through Numeric's buffer;
 `us_per_step` is the process CPU time of that loop per step (two nodes with their replays and the
 master), `operations` the arithmetic of one predict and one update (CasADi's instruction count).
@@ -31,6 +31,7 @@ import casadi as ca
 import numpy as np
 
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.physical import PhysicalMaster, PhysicalModel, ReplayNode
 from dfeif_codegen.reference.ukf import UKF
@@ -43,18 +44,24 @@ KINDS = (*CANONICAL, *FILTERS)
 
 
 class CanonicalModel:
-    """The derivative-free filter's own model (the canonical chains: constant A, B, C) in the shape
-    of a PhysicalModel, so that an EKF on it *is* the derivative-free filter (constant Jacobians)
-    and runs on the same driver (ReplayNode, PhysicalMaster) and the same call path as the EKF and
-    UKF: their costs per step are then measured alike. Phi is the identity here."""
+    """The derivative-free filter's own model (the canonical state, the predictor's mean map and
+    its constant Φ, Q, C) in the shape of a PhysicalModel, so that `DerivativeFree` on it *is* the
+    derivative-free filter and runs on the same driver (ReplayNode, PhysicalMaster) and the same
+    call path as the EKF and UKF: their costs per step are then measured alike. Phi (the
+    flatness map) is the identity here."""
 
-    def __init__(self, flat, ts: float, q):
-        A, B, C = flat.discrete(ts)
+    def __init__(self, flat, ts: float, q, predictor: str = predictors.DEFAULT):
+        pred = predictors.make(predictor, flat, ts, q)
+        C = flat.discrete(ts)[2]
         self.n, self.m, self.ts = flat.n, flat.m, float(ts)
         self.angle_out = np.array([c.angle for c in flat.chains])
-        self.Qd = flat.process_noise(self.ts, q)
-        x, v = ca.SX.sym("x", self.n), ca.SX.sym("v", self.m)
-        self.step_sx = ca.Function("step", [x, v], [ca.DM(A) @ x + ca.DM(B) @ v])
+        self.Qd, self.transition = pred.Q, pred.Phi
+        x, w = ca.SX.sym("x", self.n), ca.SX.sym("w", self.m)
+        if predictor == "held":
+            mean = predictors.held_mean_sx(flat, pred.H, x, w, ca.DM(flat.param_vector))
+        else:
+            mean = ca.DM(pred.Phi) @ x + ca.DM(pred.B) @ w
+        self.step_sx = ca.Function("step", [x, w], [mean])
         self.h_sx = ca.Function("h", [x], [ca.DM(C) @ x])
         self.Qx_sx = ca.Function("Qx", [x], [ca.DM(self.Qd)])
         self.wrap_sx = PhysicalModel.wrap_sx.__get__(self)
@@ -65,15 +72,26 @@ class CanonicalModel:
     phi_inv = phi
 
 
+class DerivativeFree(EKF):
+    """The EKF's update (C is constant, so it is the Kalman update) with the derivative-free
+    prediction: the predictor's mean map and the constant transition, no Jacobian."""
+
+    def predict_sx(self, x, P, u):
+        Phi = ca.DM(self.model.transition)
+        return self.model.step_sx(x, u), Phi @ P @ Phi.T + ca.DM(self.model.Qd)
+
+
 @lru_cache(maxsize=None)
-def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled: bool = False):
+def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled: bool = False,
+              predictor: str = predictors.DEFAULT):
     """The filter `kind` ("df", "ekf", "ukf") of one model, built once per process (building its
     CasADi functions costs far more than a run); `compiled`: its predict and update as compiled C
     (physical.compiled_function: the same results, and CPU time per step then measures compiled
-    arithmetic rather than CasADi's interpreter)."""
+    arithmetic rather than CasADi's interpreter); `predictor`: the derivative-free filter's."""
     flat = ex._flat(spec)
-    if kind in CANONICAL:
-        return EKF(CanonicalModel(flat, ts, np.array(q)), compiled)
+    if kind in CANONICAL:   # "brunovsky" is the chapter's filter whatever the recording's predictor
+        return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky"),
+                              compiled)
     return FILTERS[kind](PhysicalModel(flat, ts, np.array(q), substeps), compiled)
 
 
@@ -82,9 +100,11 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and the CPU seconds of the
     filter loop alone (process time; the maps to canonical coordinates after it are not counted).
     "df" runs the derivative-free filter itself through the same driver (CanonicalModel)."""
-    filt = filter_of(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps, kind, compiled)
+    filt = filter_of(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps, kind, compiled,
+                     rec.predictor)
     pm = filt.model
-    inputs = rec.v if kind in CANONICAL else rec.u
+    brunovsky = kind == "brunovsky" or (kind == "df" and rec.predictor == "brunovsky")
+    inputs = rec.v if brunovsky else rec.u
     x0, J0 = pm.phi_inv(rec.master_x0)
     P0 = J0 @ rec.master_P0 @ J0.T
     nodes = [ReplayNode(filt, rec.R[i], x0, P0, rec.max_lag) for i in range(rec.nodes)]
@@ -148,9 +168,11 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
     return m
 
 
-def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTERS)) -> dict:
+def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTERS),
+               predictor: str = predictors.DEFAULT) -> dict:
     """Elementary operations of one predict and one update of each filter (CasADi's instruction
     count of the SX functions after common-subexpression elimination): a machine-independent
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
-    return {kind: filter_of(spec, float(ts), q, substeps, kind).operations() for kind in kinds}
+    return {kind: filter_of(spec, float(ts), q, substeps, kind, predictor=predictor).operations()
+            for kind in kinds}

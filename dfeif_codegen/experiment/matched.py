@@ -28,8 +28,9 @@ def run(cfg: ex.Config, steps: int | None = None) -> dict:
     rng = np.random.default_rng(np.random.SeedSequence(cfg.seed).spawn(4)[3])
     oosm = cfg.method if cfg.method in ex.OOSM else "replay"
     q = ex._per_chain(cfg.q, m)
-    nodes = [NodeFilter(flat, ts, q, R[i], np.zeros(n), P0, max_lag=cfg.max_lag, oosm=oosm) for i in range(M)]
-    master = Master(flat, ts, q, np.zeros(n), P0, M, rule=cfg.fusion, max_lag=cfg.max_lag)
+    nodes = [NodeFilter(flat, ts, q, R[i], np.zeros(n), P0, max_lag=cfg.max_lag, oosm=oosm,
+                        predictor="brunovsky") for i in range(M)]
+    master = Master(flat, ts, q, np.zeros(n), P0, M, rule=cfg.fusion, max_lag=cfg.max_lag, predictor="brunovsky")
     LQ, L0 = np.linalg.cholesky(Q), np.linalg.cholesky(P0)
     LR = [np.linalg.cholesky(Ri) for Ri in R]
     heads = flat.heads

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.symbolic.flatness import FlatSystem
 
 FILTERS = ("df", "ekf", "ukf", "brunovsky")
@@ -27,7 +28,8 @@ def configurations(oosm: list[str], fusion: list[str], baselines: list[str]) -> 
 
 
 def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method: str, fusion: str,
-                seed: int) -> ex.Config:
+                seed: int, predictor: str | None = None) -> ex.Config:
+    """One run's configuration; `predictor` None: held, brunovsky with retrodict (ex.Config)."""
     return ex.Config(
         model=model, ts=sc.ts, duration=sc.duration, substeps=sc.substeps, q=tuple(sc.q), poles=tuple(sc.poles),
         p0_std=tuple(sc.p0_std), initial_error=sc.initial_error, reference=ref, amplitude=tuple(sc.amplitude),
@@ -36,7 +38,8 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         noise_scale=tuple(_pick(sc.noise_scale, i) for i in range(nodes)),
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
-        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error)
+        method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
+        predictor=predictor)
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:
@@ -63,6 +66,7 @@ class Plan:
     rows: list
     wanted: dict             # (cfg, kind) -> [(reference, method label, fusion, row, seed)]
     figure_keys: set
+    predictor: str | None = None    # the filters' (reference/predictor.py); None: per method
 
     @property
     def seeds(self) -> range:
@@ -129,15 +133,15 @@ def _list_runs(p: Plan) -> None:
         for ri, row in enumerate(p.rows):
             for s in p.seeds:
                 for method, rule in p.configs:
-                    cfg = make_config(p.sc, p.model, p.nodes, p.max_lag, ref, row, method, rule, s)
+                    cfg = make_config(p.sc, p.model, p.nodes, p.max_lag, ref, row, method, rule, s, p.predictor)
                     p.wanted.setdefault((_canonical(cfg), "df"), []).append((ref, method, rule, ri, s))
                 for label, rule in p.labels[len(p.configs):]:
-                    cfg = make_config(p.sc, p.model, p.nodes, p.max_lag, ref, row, "replay", rule, s)
+                    cfg = make_config(p.sc, p.model, p.nodes, p.max_lag, ref, row, "replay", rule, s, p.predictor)
                     p.wanted.setdefault((cfg, label), []).append((ref, label, rule, ri, s))
 
 
 def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, fusion, reference,
-         filters, plot_dir, param_error=None) -> Plan:
+         filters, plot_dir, param_error=None, predictor: str | None = None) -> Plan:
     """Load and check everything, then list each distinct run once. `param_error`
     (experiment/model_error.from_option's text) replaces the scenario's [model_error]."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
@@ -156,8 +160,14 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
     nodes, runs = _counts(sc, nodes, max_lag, runs)
     refs = list(reference or sc.references)
     configs = list(dict.fromkeys(configurations(list(oosm or sc.oosm), list(fusion or sc.fusion), sc.baselines)))
+    for method, _ in configs:
+        oosm_of = method if method in ex.OOSM else "replay"
+        try:
+            predictors.check(predictors.for_method(predictor, oosm_of), oosm_of)
+        except ValueError as exc:
+            raise ScenarioError(str(exc) if oosm else f"{sc.where('oosm')}: {exc}") from None
     rows = [scenario_mod.Row([_pick(r.d, i) for i in range(nodes)], r.p, r.p_drop) for r in sc.grid]
-    p = Plan(sc, flat, model, nodes, max_lag, runs, seed, refs, configs, kinds, rows, {}, set())
+    p = Plan(sc, flat, model, nodes, max_lag, runs, seed, refs, configs, kinds, rows, {}, set(), predictor)
     _list_runs(p)
     for cfg in {c.reference: c for c, _ in p.wanted}.values():
         try:  # a reference outside the model's domain is bad input, known before any run

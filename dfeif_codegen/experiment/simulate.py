@@ -25,6 +25,7 @@ from dfeif_codegen.experiment.execute import Outcome, execute
 from dfeif_codegen.experiment.plan import FILTERS, Plan, _pick, check_outputs, configurations, make_config, plan
 from dfeif_codegen.experiment.report import SimulationResult, Table, row_label
 from dfeif_codegen.experiment.stats import chi2_quantile, mean_ci, nees_band, summarize, t_quantile
+from dfeif_codegen.reference import predictor as predictors
 
 # names other modules and scripts reach through this module
 __all__ = ["simulate", "SimulationResult", "Table", "Plan", "plan", "execute", "make_config", "configurations",
@@ -39,12 +40,13 @@ def _settings(p: Plan, o: Outcome) -> dict:
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
            "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": o.engine, "ran_on": o.where,
            "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3),
-           "model_error": model_error.summary(sc.model_error, p.flat.model, p.seeds)}
+           "model_error": model_error.summary(sc.model_error, p.flat.model, p.seeds),
+           "predictor": p.predictor or f"{predictors.DEFAULT} (brunovsky with retrodict)"}
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
         out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
-                                               out["filters"])
+                                               out["filters"], predictors.for_method(p.predictor, "replay"))
     return out
 
 
@@ -75,15 +77,18 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              workers: int | None = None, scheduler: str | None = None, results: str | None = None,
              csv: str | None = None, resume: str | None = None, max_seconds: float | None = None,
-             max_memory: float | None = None, param_error=None) -> SimulationResult:
+             max_memory: float | None = None, param_error=None, predictor: str | None = None) -> SimulationResult:
     """The chapter's experiment on `engine` (experiment/sweep.py): returns the result and writes
     what was asked for (JSON to `json_path` unless "-", CSV, per-run records, figures into `plot`).
     Bad input raises a CodegenError before any run; failed or diverged runs are in `.failures`.
     The derivation runs under `max_seconds` CPU seconds and `max_memory` GB (None: build's).
-    `param_error` replaces the scenario's [model_error] (experiment/model_error.from_option)."""
+    `param_error` replaces the scenario's [model_error] (experiment/model_error.from_option).
+    `predictor`: the filters' prediction, "held" (u held) or "brunovsky" (the chapter's); None:
+    the default, and brunovsky for retrodiction (the only one it can use)."""
     check_outputs(json_path, plot, csv, results)
     ex.derive(model, max_seconds, max_memory)
-    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, param_error)
+    p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, param_error,
+             predictor)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
     if csv:
         sweep.write_csv(csv, o.per_run, p.flat.n, nodes=p.nodes)

@@ -58,6 +58,7 @@ class Options:
     duration: float | None = 5.0
     key: str | None = None            # 32 hex digits: keyed tags on every frame
     flip_rate: float = 0.0            # bit error rate on node -> master packets
+    predictor: str | None = None      # None: held, brunovsky with retrodict (ex.Config)
     faults: tuple = ()
     step_timeout: float = 1.0         # relay: how long a master tick waits for missing packets
     command_timeout: float = 2.0      # plant: how long it waits for the master's command
@@ -90,7 +91,8 @@ def make_config(o: Options) -> ex.Config:
     sc.check_model(ex._flat(o.model))
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
-    cfg = plan.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed)
+    cfg = plan.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed,
+                           o.predictor)
     if o.duration is not None:
         cfg = dataclasses.replace(cfg, duration=o.duration, metrics_from=min(cfg.metrics_from, o.duration / 2))
     return cfg
@@ -297,7 +299,8 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
     work.mkdir(parents=True, exist_ok=True)
     cfg = make_config(o)
     s = session.setup(cfg)
-    md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts)
+    md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts,
+                             cfg.predictor)
     progs = programs.build_programs(md, work / "programs")
     lay = wire.Layout.of_folder(md.path)
     ports = free_ports(3 + s.nodes)
@@ -400,7 +403,7 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
             precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int = 2,
             max_lag: int = 32, duration: float | None = 5.0, key: str | None = None, flip_rate: float = 0.0,
             keep: str | Path | None = None, max_seconds: float | None = None,
-            max_memory: float | None = None) -> Network:
+            max_memory: float | None = None, predictor: str | None = None) -> Network:
     """One run of the estimator as separate processes, compared with the reference replaying the
     logged arrivals. Bad options raise (one line) before anything is built; `keep` (an empty or
     new folder) keeps the programs and logs."""
@@ -421,7 +424,8 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
         from dfeif_codegen.paths import writable_dir
         writable_dir(keep, "--keep")
     o = Options(model=model, scenario=scenario, row=row, seed=seed, precision=precision, oosm=oosm,
-                fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate)
+                fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate,
+                predictor=predictor)
     if keep and Path(keep).exists() and any(Path(keep).iterdir()):
         raise ScenarioError(f"--keep {keep}: not empty (the run writes its programs and logs there)")
     ex.derive(o.model, max_seconds, max_memory)   # under the budget; make_config reuses it

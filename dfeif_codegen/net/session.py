@@ -132,7 +132,8 @@ def recording(s: Setup, relay_log: list[dict], frames: np.ndarray, K: int) -> ex
     empty = np.zeros(0)
     return ex.Recording(
         model=s.cfg.model, n=n, m=m, nodes=M, max_lag=s.cfg.max_lag, method=s.cfg.method, oosm=s.cfg.method,
-        fusion=s.cfg.fusion, ts=s.ts, q=s.q, R=s.R, node_x0=node_x0, node_P0=node_P0, master_x0=s.x_hat0,
+        fusion=s.cfg.fusion, predictor=s.cfg.predictor, ts=s.ts, q=s.q, R=s.R, node_x0=node_x0, node_P0=node_P0,
+        master_x0=s.x_hat0,
         master_P0=s.P0, gains=s.gains, params=flat.param_vector, seed=s.cfg.seed, z=z, gamma=gamma, ref=s.ref[:K],
         late_step=np.array([r[0] for r in late_rows], dtype=int), late_node=np.array([r[1] for r in late_rows], dtype=int),
         late_lag=np.array([r[2] for r in late_rows], dtype=int),

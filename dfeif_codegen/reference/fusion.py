@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
+from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.linalg import spd_inv, wrap
 from dfeif_codegen.reference.node import Packet
 
@@ -80,16 +81,15 @@ class Master:
     """Fusion centre. Per step: `fuse` the packets that arrived, then `predict` with the input
     it broadcasts to the nodes."""
 
-    def __init__(self, flat, ts, q, x0, P0, n_nodes: int, rule: str = "difference", max_lag: int = 32):
+    def __init__(self, flat, ts, q, x0, P0, n_nodes: int, rule: str = "difference", max_lag: int = 32,
+                 predictor: str = predictors.DEFAULT):
         if rule not in RULES:
             raise ValueError(f"rule must be one of {RULES}, not {rule!r}")
         self.rule, self.n_nodes, self.max_lag = rule, n_nodes, max_lag
-        self.A, self.B, _ = flat.discrete(ts)
-        self.Q = flat.process_noise(ts, q)
-        self._flat, self._ts, self._q = flat, ts, q
+        self.predictor = predictors.make(predictor, flat, ts, q)
+        self.A, self.Q = self.predictor.Phi, self.predictor.Q
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])
-        self._ahead: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.k = 0
         self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
         self.x_prior, self.P_prior = self.x, self.P
@@ -134,10 +134,12 @@ class Master:
         self.x = c + self.P @ y
 
     def predict(self, v) -> None:
+        """Predict with the input it broadcasts (u for the held predictor, v for the Brunovsky one),
+        the one the nodes predict with."""
         v = np.atleast_1d(np.asarray(v, dtype=float))
         self._v[self.k] = v
         self._v.pop(self.k - self.max_lag, None)
-        self.x_prior = self.A @ self.x + self.B @ v
+        self.x_prior = self.predictor.mean(self.x, v)
         self.P_prior = self.A @ self.P @ self.A.T + self.Q
         self.k += 1
 
@@ -156,16 +158,13 @@ class Master:
         return x, P, xp, Pp
 
     def _bring(self, p: Packet):
-        """A packet's (x, P, x_pred, P_pred) brought from its step to the current one in one step
-        of length N: A(N Ts), Q_d(N Ts) in closed form and the stored inputs' effect (docs/algorithms.md,
-        master 1), equal to N one-step predictions."""
+        """A packet's (x, P, x_pred, P_pred) brought from its step to the current one with the
+        stored inputs: the covariances in one step of length N (Φ over N periods and the noise of
+        N periods in closed form, equal to N one-step predictions), the means by the predictor
+        (docs/algorithms.md, master 1)."""
         N = self.k - p.step
         if N == 0:
             return p.x, p.P, p.x_pred, p.P_pred
-        effect = np.zeros_like(p.x)
-        for i in range(p.step, self.k):
-            effect = self.A @ effect + self.B @ self._v[i]
-        if N not in self._ahead:
-            self._ahead[N] = (self._flat.discrete(N * self._ts)[0], self._flat.process_noise(N * self._ts, self._q))
-        A, Q = self._ahead[N]
-        return A @ p.x + effect, A @ p.P @ A.T + Q, A @ p.x_pred + effect, A @ p.P_pred @ A.T + Q
+        x, x_pred = self.predictor.bring([p.x, p.x_pred], [self._v[i] for i in range(p.step, self.k)])
+        A, Q = self.predictor.ahead(N)
+        return x, A @ p.P @ A.T + Q, x_pred, A @ p.P_pred @ A.T + Q

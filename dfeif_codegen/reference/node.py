@@ -1,10 +1,12 @@
-"""One camera node: the derivative-free Kalman filter on the canonical (Brunovsky) model, with
-packet drops and late measurements, exactly in the order of docs/algorithms.md ("Node filter").
+"""One camera node: the derivative-free Kalman filter in canonical coordinates, with packet drops
+and late measurements, exactly in the order of docs/algorithms.md ("Node filter").
 
-The filter runs on the linear canonical model, so no Jacobian appears; the nonlinearity lives in
-the input `v = F + G u` that the master broadcasts. A window of the last `max_lag + 1` steps is
-kept so that a late measurement can either be replayed in time order (exact) or folded in at
-once by Xia et al.'s retrodiction (docs/mathematics.md section 4).
+No Jacobian appears at run time: the covariance moves by constant matrices and the mean by the
+predictor's map (predictor.py: by default the canonical dynamics integrated with the applied u
+held; `brunovsky`, the chapter's linear chain driven by the broadcast v = F + G u). A window of
+the last `max_lag + 1` steps is kept so that a late measurement can either be replayed in time
+order (exact) or, with the Brunovsky predictor, folded in at once by Xia et al.'s retrodiction
+(docs/mathematics.md section 4).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.linalg import SingularMatrixError, cholesky, spd_solve, wrap
 
 COUNTERS = ("updates", "drops", "late_applied", "late_rejected")
@@ -32,7 +35,7 @@ class Packet:
 @dataclass
 class _Slot:
     """One step of history: its prior, its measurement, what its update computed, and the
-    input used to predict out of it."""
+    input used to predict out of it (u, or v with the Brunovsky predictor)."""
 
     x_prior: np.ndarray
     P_prior: np.ndarray
@@ -67,21 +70,25 @@ def posterior(P: np.ndarray, K: np.ndarray, R: np.ndarray, heads) -> np.ndarray:
 
 class NodeFilter:
     """Local filter of one node. Per step: `update` once, `update_delayed` any number of times,
-    then `predict` with the broadcast input."""
+    then `predict` with the input the master broadcast: the applied u (the default `held`
+    predictor) or v = F + G u (`brunovsky`)."""
 
     def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay",
-                 dtype=np.float64):
+                 dtype=np.float64, predictor: str = predictors.DEFAULT):
         """`dtype` is the precision of every stored value and operation: float64 for the
         reference; float32 gives a second single-precision implementation (numpy and LAPACK
-        instead of the generated C), to tell the method's conditioning from the C's rounding."""
+        instead of the generated C), to tell the method's conditioning from the C's rounding
+        (the held predictor's mean map is evaluated in double and rounded)."""
         if oosm not in ("replay", "retrodict"):
             raise ValueError(f"oosm must be 'replay' or 'retrodict', not {oosm!r}")
+        predictors.check(predictor, oosm)
         if max_lag < 1:
             raise ValueError("max_lag must be at least 1")
         self.flat, self.ts, self.q, self.oosm, self.max_lag = flat, ts, q, oosm, max_lag
         self.dtype = np.dtype(dtype)
-        self.A, self.B, self.C = (a.astype(self.dtype) for a in flat.discrete(ts))
-        self.Q = flat.process_noise(ts, q).astype(self.dtype)
+        self.predictor = predictors.make(predictor, flat, ts, q, self.dtype)
+        self.A, self.Q = self.predictor.Phi, self.predictor.Q
+        self.B, self.C = (a.astype(self.dtype) for a in flat.discrete(ts)[1:])
         self.R = measurement_covariance(R, flat.m).astype(self.dtype)
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])
@@ -132,7 +139,8 @@ class NodeFilter:
         return True
 
     def predict(self, v) -> None:
-        """Predict to step k + 1 with the input the master broadcast for step k."""
+        """Predict to step k + 1 with the input the master broadcast for step k (u for the held
+        predictor, v for the Brunovsky one)."""
         if not self._updated:
             raise RuntimeError(f"predict before update at step {self.k}")
         v = np.atleast_1d(np.asarray(v, dtype=self.dtype))
@@ -154,7 +162,7 @@ class NodeFilter:
         return np.atleast_1d(np.asarray(z, dtype=self.dtype)).reshape(self.flat.m)
 
     def _propagate(self, x, P, v):
-        return self.A @ x + self.B @ v, self.A @ P @ self.A.T + self.Q
+        return self.predictor.mean(x, v), self.A @ P @ self.A.T + self.Q
 
     def _correct(self, slot: _Slot):
         """The update of one step from its slot's prior; fills e, S, K, P_post."""

@@ -149,11 +149,13 @@ static inline int pivots_ok(const real* piv)
     return (piv[0] > (real)0) ? 1 : 0;
 }
 
-/* Prediction of a state, x1 = A x + B v, P1 = A P A' + Q; 0 or an error code. */
-static inline int predict_step(const real* post, const real* v, const real* q, real* prior)
+/* Prediction of a state with the input u held (the heads relative to `centre`); 0 or an error
+ * code. */
+static inline int predict_step(const real* post, const real* u, const real* q, const real* centre,
+                               real* prior)
 {
     int rc = DC_MOTOR_LINK_OK;
-    (void)dc_motor_link_kern_node_predict(post, v, q, prior, &prior[NX]);
+    (void)dc_motor_link_kern_node_predict(post, u, q, centre, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
@@ -307,7 +309,11 @@ static int prior_P(const dc_motor_link_node* node, uint32_t j, real* prior)
         }
         rc = update_step(prior, zero, used, node->R, post);
         if (rc == DC_MOTOR_LINK_OK) {
-            rc = predict_step(post, zero, node->q, prior);
+            /* the covariance alone: the held mean at x = 0 may leave the model's domain */
+            (void)dc_motor_link_kern_node_predict_P(&post[NX], node->q, &prior[NX]);
+            if (dc_motor_link_finite(&prior[NX], (size_t)NPP) == 0) {
+                rc = DC_MOTOR_LINK_ERR_NONFINITE;
+            }
         }
         s++;
     }
@@ -343,7 +349,7 @@ static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, real
         if ((rc == DC_MOTOR_LINK_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot], node->q, prior);
+            rc = predict_step(post, &node->ring_v[slot], node->q, node->centre, prior);
             if (rc == DC_MOTOR_LINK_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -416,8 +422,9 @@ int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs
     return rc;
 }
 
-int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
+int dc_motor_link_node_predict(dc_motor_link_node* node, const real input[NY])
 {
+    const real* v = input;
     real next[NXP];
     int slot;
     uint32_t hist;
@@ -429,7 +436,7 @@ int dc_motor_link_node_predict(dc_motor_link_node* node, const real v[NY])
         rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
     if (rc == DC_MOTOR_LINK_OK) { /* a non-finite v makes the prediction so */
-        rc = predict_step(node->post, v, node->q, next);
+        rc = predict_step(node->post, v, node->q, node->centre, next);
     }
     if (rc == DC_MOTOR_LINK_OK) {
         slot = (int)node->slot;

@@ -171,11 +171,13 @@ static inline int pivots_ok(const real* piv)
     return two_link_arm_positive(piv, NY);
 }
 
-/* Prediction of a state, x1 = A x + B v, P1 = A P A' + Q; 0 or an error code. */
-static inline int predict_step(const real* post, const real* v, const real* q, real* prior)
+/* Prediction of a state with the input u held (the heads relative to `centre`); 0 or an error
+ * code. */
+static inline int predict_step(const real* post, const real* u, const real* q, const real* centre,
+                               real* prior)
 {
     int rc = TWO_LINK_ARM_OK;
-    (void)two_link_arm_kern_node_predict(post, v, q, prior, &prior[NX]);
+    (void)two_link_arm_kern_node_predict(post, u, q, centre, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
@@ -335,7 +337,11 @@ static int prior_P(const two_link_arm_node* node, uint32_t j, real* prior)
         }
         rc = update_step(prior, zero, used, node->R, post);
         if (rc == TWO_LINK_ARM_OK) {
-            rc = predict_step(post, zero, node->q, prior);
+            /* the covariance alone: the held mean at x = 0 may leave the model's domain */
+            (void)two_link_arm_kern_node_predict_P(&post[NX], node->q, &prior[NX]);
+            if (two_link_arm_finite(&prior[NX], (size_t)NPP) == 0) {
+                rc = TWO_LINK_ARM_ERR_NONFINITE;
+            }
         }
         s++;
     }
@@ -371,7 +377,7 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
         if ((rc == TWO_LINK_ARM_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot * NY], node->q, prior);
+            rc = predict_step(post, &node->ring_v[slot * NY], node->q, node->centre, prior);
             if (rc == TWO_LINK_ARM_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -444,8 +450,9 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
     return rc;
 }
 
-int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
+int two_link_arm_node_predict(two_link_arm_node* node, const real input[NY])
 {
+    const real* v = input;
     real next[NXP];
     int slot;
     uint32_t hist;
@@ -457,7 +464,7 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real v[NY])
         rc = TWO_LINK_ARM_ERR_SEQUENCE;
     }
     if (rc == TWO_LINK_ARM_OK) { /* a non-finite v makes the prediction so */
-        rc = predict_step(node->post, v, node->q, next);
+        rc = predict_step(node->post, v, node->q, node->centre, next);
     }
     if (rc == TWO_LINK_ARM_OK) {
         slot = (int)node->slot;

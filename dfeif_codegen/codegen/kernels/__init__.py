@@ -13,6 +13,7 @@ The package, dependencies pointing down the list:
   retro     the node's retrodiction kernels (`--oosm retrodict`)
   loops     node_predict and info of long chains as C loops over small parts
   fusion    the master's kernels (difference and paper rules, stale-packet prediction)
+  held      the held-input predictor's kernels (`--predictor held`, the default)
   ci        covariance intersection's Newton-step kernels (`--fusion ci`)
   control   the flatness-based control kernel
 and this module, which picks the kernels the options need (`build`): a new kernel is written in
@@ -25,7 +26,7 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 
-from dfeif_codegen.codegen.kernels import ci, control, fusion, loops, node, retro
+from dfeif_codegen.codegen.kernels import ci, control, fusion, held, loops, node, retro
 from dfeif_codegen.codegen.kernels.chains import Chains
 from dfeif_codegen.codegen.kernels.csource import Loop
 from dfeif_codegen.codegen.options import Options
@@ -34,7 +35,7 @@ from dfeif_codegen.codegen.options import Options
 # alias an argument, and the compiler keeps the intermediates in registers (the node's kernels,
 # called once per step on the hot path; measured: about half their instructions; and info, whose
 # Cortex-M4F code this halves at n = 10).
-LOCAL_WORK = ("update", "node_predict", "retro_step", "retro_finish", "info")
+LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_finish", "info")
 
 # node_predict and info are printed as loops (`Loop`) when their straight-line code would have
 # more operations (CasADi's count) than their limit here. The limits differ because what the
@@ -73,8 +74,15 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     """All kernels the chosen options need, named `<prefix>_kern_<name>`."""
     s = Chains(flat, opts)
     name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
-    node_predict, info = node.node_predict(s, name("node_predict")), node.info(s, name("info"))
-    filt = [node.predict(s, name("predict")), node_predict, node.update(s, name("update")), info]
+    info = node.info(s, name("info"))
+    if opts.predictor == "held":
+        h = held.Held(flat, opts.ts)
+        node_predict = held.node_predict(h, name("node_predict"))
+        filt = [held.predict(h, name("predict")), node_predict, node.update(s, name("update")), info]
+        filt += [held.node_predict_P(h, name("node_predict_P"))] if opts.oosm == "replay" else []
+    else:
+        node_predict = node.node_predict(s, name("node_predict"))
+        filt = [node.predict(s, name("predict")), node_predict, node.update(s, name("update")), info]
     if opts.oosm == "retrodict":
         filt += [retro.retro_step(s, name("retro_step")), retro.retro_finish(s, name("retro_finish"))]
     if opts.fusion == "difference":
@@ -83,12 +91,15 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
         fus = [fusion.master_info(s, name("master_info")), fusion.fuse_finish(s, name("fuse_finish"))]
     if opts.fusion == "ci":
         fus += ci.ci_kernels(s, name)
-    fus += [fusion.advance(s, name("advance")), fusion.input_step(s, name("input_step"))]
+    if opts.predictor != "held":   # the held master predicts stale packets step by step
+        fus += [fusion.advance(s, name("advance")), fusion.input_step(s, name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
-    # so its Theta(n^3) straight-line code is not printed twice
-    looped = {f.name(): loop(s, f.name()) for key, f, loop in (("node_predict", node_predict, loops.node_predict_loop),
-                                                               ("info", info, loops.info_loop))
-              if f.n_instructions() > LOOP_OPS[key]}
+    # so its Theta(n^3) straight-line code is not printed twice. The held node_predict stays
+    # straight-line (its loops would need the mean map split out: not done)
+    loopable = [("info", info, loops.info_loop)]
+    if opts.predictor != "held":
+        loopable.append(("node_predict", node_predict, loops.node_predict_loop))
+    looped = {f.name(): loop(s, f.name()) for key, f, loop in loopable if f.n_instructions() > LOOP_OPS[key]}
     return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"))]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
                      wrappers={name("predict"): name("node_predict")}, loops=looped)

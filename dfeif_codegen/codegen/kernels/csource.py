@@ -194,7 +194,9 @@ def _straight_line(comment: str, f: ca.Function, body: str, real: str, registers
                                                                  for line in lines]
     elif own_work:
         lines.insert(0, f"casadi_real w[{info.sz_w}];")
-    lines = [f"(void){n};" for n, k in ins if k == 0] + lines   # an empty input: never read
+    # an input the expressions never read (an empty one; the held predictor's centre when F and G
+    # do not depend on the heads): a cast, or -Wunused-parameter
+    lines = [f"(void){n};" for n, k in ins if k == 0 or not any(re.search(rf"\b{n}\[", ln) for ln in lines)] + lines
     lines.append("return 0;")
     text = f"/* {wrap_comment(info.signature)} */\n" + _function(f"{'static ' if static else ''}int {f.name()}",
                                                                   info.parameters(real), lines)

@@ -1,0 +1,121 @@
+"""The filters' prediction step, one class per `--predictor` (docs/mathematics.md section 3):
+
+- `held` (the default): the mean integrated over the period with the applied input u held, as
+  the plant holds it (ETD2RK on the canonical dynamics, symbolic/sampling.py), the covariance by
+  the constant Φ₀, Q₀ of the dynamics linearized once at build time. Takes u.
+- `brunovsky` (the chapter's): the exact model of the canonical chain with v = F + G u held.
+  Linear, so a packet N steps old is brought forward in one step of length N. Takes v.
+
+Both keep the covariance recursion independent of the state, so a node's replay and the master's
+information-difference fusion stay exact (the nodes' information gains do not depend on the mean).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from dfeif_codegen.symbolic import numeric, sampling
+from dfeif_codegen.symbolic.sampling import DEFAULT, PREDICTORS, for_method  # noqa: F401 (re-exported)
+
+
+def check(name: str, oosm: str = "replay") -> None:
+    """ValueError naming the options for an unknown predictor or one retrodiction cannot use."""
+    if name not in PREDICTORS:
+        raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, not {name!r}")
+    if oosm == "retrodict" and name != "brunovsky":
+        raise ValueError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the transition "
+                         f"over the lag, ill-conditioned for the {name} predictor's); use --oosm replay")
+
+
+def held_mean_sx(flat, H: sampling.HeldSampling, x: ca.SX, u: ca.SX, p) -> ca.SX:
+    """One ETD2RK step of the canonical dynamics with u held (the C prints the same increment)."""
+    return x + sampling.held_increment_sx(flat, H, x, x, u, p)
+
+
+class Brunovsky:
+    """x⁺ = A_d x + B_d v, P⁺ = A_d P A_dᵀ + Q_d (closed forms, discretize.py)."""
+
+    name = "brunovsky"
+
+    def __init__(self, flat, ts: float, q, dtype=np.float64):
+        self.flat, self.ts, self.q, self.dtype = flat, float(ts), q, np.dtype(dtype)
+        A, self.B, _ = flat.discrete(ts)
+        self.Phi, self.B = A.astype(self.dtype), self.B.astype(self.dtype)
+        self.Q = flat.process_noise(ts, q).astype(self.dtype)
+        self._ahead: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def mean(self, x, v) -> np.ndarray:
+        return self.Phi @ x + self.B @ v
+
+    def ahead(self, N: int) -> tuple[np.ndarray, np.ndarray]:
+        """Φ over N periods and the noise of N periods (A_d(N Ts), Q_d(N Ts): closed forms)."""
+        if N not in self._ahead:
+            self._ahead[N] = (self.flat.discrete(N * self.ts)[0], self.flat.process_noise(N * self.ts, self.q))
+        return self._ahead[N]
+
+    def bring(self, xs: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
+        """Means predicted over len(inputs) steps: A(N Ts) x plus the inputs' effect (linear)."""
+        effect = np.zeros_like(xs[0])
+        for v in inputs:
+            effect = self.Phi @ effect + self.B @ v
+        A = self.ahead(len(inputs))[0]
+        return [A @ x + effect for x in xs]
+
+
+class Held:
+    """x⁺ by ETD2RK with u held, P⁺ = Φ₀ P Φ₀ᵀ + Q₀ (symbolic/sampling.py)."""
+
+    name = "held"
+
+    def __init__(self, flat, ts: float, q, dtype=np.float64):
+        self.flat, self.ts, self.q, self.dtype = flat, float(ts), q, np.dtype(dtype)
+        self.H = _cached(("sampling", id(flat), self.ts), flat, lambda: sampling.held_sampling(flat, ts))
+        self.Phi = self.H.E.astype(self.dtype)
+        self.Q = self.H.Q(q).astype(self.dtype)
+        self._step = _mean_function(flat, self.H)
+        self._p = flat.param_vector
+        self._ahead: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def mean(self, x, u) -> np.ndarray:
+        return self._step(x, u, self._p).astype(self.dtype)
+
+    def ahead(self, N: int) -> tuple[np.ndarray, np.ndarray]:
+        """Φ₀^N and the noise of N periods (the Van Loan integral over N Ts)."""
+        if N not in self._ahead:
+            H = self.H.ahead(N)
+            self._ahead[N] = (H.E, H.Q(self.q))
+        return self._ahead[N]
+
+    def bring(self, xs: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
+        """Means predicted step by step with the stored inputs (the map is nonlinear)."""
+        out = []
+        for x in xs:
+            for u in inputs:
+                x = self.mean(x, u)
+            out.append(x)
+        return out
+
+
+_CACHE: dict[tuple, tuple] = {}
+
+
+def _cached(key: tuple, flat, make_value):
+    """One value per flat system and period (a sweep builds hundreds of filters of one model)."""
+    if key not in _CACHE or _CACHE[key][0] is not flat:
+        _CACHE[key] = (flat, make_value())
+    return _CACHE[key][1]
+
+
+def _mean_function(flat, H) -> numeric.Numeric:
+    """The ETD2RK step as one CasADi function (x, u, p) -> x⁺."""
+    def make():
+        x, u, p = ca.SX.sym("x", flat.n), ca.SX.sym("u", flat.m), ca.SX.sym("p", len(flat.params))
+        return numeric.Numeric(ca.Function("held_mean", [x, u, p], [held_mean_sx(flat, H, x, u, p)], {"cse": True}))
+    return _cached(("mean", id(flat), H.ts), flat, make)
+
+
+def make(name: str, flat, ts: float, q, dtype=np.float64):
+    """The predictor called `name` (one of PREDICTORS)."""
+    check(name)
+    return (Held if name == "held" else Brunovsky)(flat, ts, q, dtype)

@@ -1,0 +1,187 @@
+"""Build-time constants of the held-input predictor: the canonical dynamics linearized once, and
+the matrices of its exact sampling (docs/mathematics.md section 3).
+
+The plant holds u over a period, so the canonical state obeys ζ̇ = A_c ζ + B_c (F(ζ) + G(ζ) u)
+with u constant. With L₀ = ∂(F + G u)/∂ζ at one nominal point and A = A_c + B_c L₀, the mean is
+stepped by the second-order exponential integrator ETD2RK (Cox and Matthews 2002) on the
+remainder n(ζ, u) = F(ζ) + G(ζ) u - L₀ ζ (what A leaves out; it enters through B_c only):
+
+    a  = E ζ + Γ₁ n(ζ, u),     ζ⁺ = a + Γ₂ (n(a, u) - n(ζ, u)),
+
+with E = e^{A Ts}, Γ₁ = Ts φ₁(A Ts) B_c, Γ₂ = Ts φ₂(A Ts) B_c. Since E = I + Ψ A with
+Ψ = Ts φ₁(A Ts), the first stage is a = ζ + Ψ (A_c ζ + B_c (F(ζ) + G(ζ) u)): an increment, the
+vector field through Ψ, which is how both the reference and the C compute it (E ζ and Γ₁ L₀ ζ
+are large and cancel where the plant has a fast mode, which single precision cannot afford).
+The covariance moves by the
+constant transition Φ₀ = E and Q₀ = Σ_j q_j U_j, U_j the Van Loan integral of unit white noise
+on chain j's top derivative through A. Everything here is computed once, in double, by matrix
+exponentials of augmented matrices: no Jacobian at run time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import ldexp
+
+import casadi as ca
+import numpy as np
+
+from dfeif_codegen.errors import ModelError
+from dfeif_codegen.symbolic import numeric
+from dfeif_codegen.symbolic.flatness import nominal_state
+
+PREDICTORS = ("held", "brunovsky")
+"""`held`: the mean integrated with u held as the plant holds it (the default); `brunovsky`: the
+chapter's exact model of the canonical chain with v = F + G u held instead."""
+DEFAULT = "held"
+
+
+def for_method(predictor: str | None, oosm: str) -> str:
+    """`predictor`, or when None the one a late-measurement method works with: Brunovsky for
+    retrodiction (the only one it can use), else the default."""
+    return predictor or ("brunovsky" if oosm == "retrodict" else DEFAULT)
+
+
+def expm(M: np.ndarray) -> np.ndarray:
+    """e^M of a small matrix by scaling and squaring a Taylor series: the argument is scaled to a
+    norm below 1/8, where 18 terms leave a truncation error below 1e-30 of the result, then
+    squared back. Rounding is that of the squarings (~ 2^s ε), ample for build-time constants
+    of the sizes used here (tests compare with scipy.linalg.expm)."""
+    M = np.asarray(M, dtype=float)
+    norm = np.max(np.sum(np.abs(M), axis=1)) if M.size else 0.0
+    s = max(0, int(np.ceil(np.log2(norm * 8.0))) if norm > 0 else 0)
+    X = M * ldexp(1.0, -s)
+    out, term = np.eye(len(M)), np.eye(len(M))
+    for k in range(1, 19):
+        term = term @ X / k
+        out = out + term
+    for _ in range(s):
+        out = out @ out
+    return out
+
+
+def phi_matrices(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """E = e^{A h}, h φ₁(A h) B and h φ₂(A h) B from one exponential of the augmented matrix
+    [[A, B, 0], [0, 0, I], [0, 0, 0]] h: its blocks (0,1) and (0,2) are ∫₀ʰ e^{A(h-s)} B ds =
+    h φ₁ B and ∫₀ʰ e^{A(h-s)} B s ds = h² φ₂ B."""
+    n, m = B.shape
+    M = np.zeros((n + 2 * m, n + 2 * m))
+    M[:n, :n], M[:n, n:n + m], M[n:n + m, n + m:] = A, B, np.eye(m)
+    X = expm(M * h)
+    return X[:n, :n], X[:n, n:n + m], X[:n, n + m:] / h
+
+
+def van_loan(A: np.ndarray, b: np.ndarray, h: float) -> np.ndarray:
+    """∫₀ʰ e^{A s} b bᵀ e^{Aᵀ s} ds for unit white noise entering through the column b: Van
+    Loan's exponential over a span t = h / 2^s short enough that ‖A t‖ ≤ 1, then s doublings
+    Q(2t) = Q(t) + e^{A t} Q(t) e^{Aᵀ t}. Van Loan over the whole span would exponentiate -A h,
+    which a fast stable mode makes huge (e^{500 · 0.32} for the motor's current over 32 periods),
+    and lose every digit of Q to cancellation; the doublings only add positive terms."""
+    n = len(A)
+    norm = np.max(np.sum(np.abs(A), axis=1)) * h
+    s = max(0, int(np.ceil(np.log2(norm)))) if norm > 0 else 0
+    t = h * ldexp(1.0, -s)
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n], M[:n, n:], M[n:, n:] = -A, np.outer(b, b), A.T
+    X = expm(M * t)
+    Q, E = X[n:, n:].T @ X[:n, n:], X[n:, n:].T
+    for _ in range(s):
+        Q = Q + E @ Q @ E.T
+        E = E @ E
+    return (Q + Q.T) / 2
+
+
+@dataclass(frozen=True)
+class HeldSampling:
+    """The constants of the held-input predictor at one period `ts` (see the module docstring).
+    `zeta0`, `u0`: the point L₀ was taken at."""
+
+    ts: float
+    zeta0: np.ndarray
+    u0: np.ndarray
+    L0: np.ndarray         # (m, n)
+    Bc: np.ndarray         # (n, m)
+    A: np.ndarray          # A_c + B_c L₀
+    E: np.ndarray          # e^{A Ts} = Φ₀
+    Psi: np.ndarray        # Ts φ₁(A Ts): E = I + Ψ A
+    G1: np.ndarray         # Ts φ₁(A Ts) B_c = Ψ B_c
+    G2: np.ndarray         # Ts φ₂(A Ts) B_c
+    U: np.ndarray          # (m, n, n): Q₀ per unit density of each chain
+
+    def Q(self, q) -> np.ndarray:
+        """Q₀ for densities q (a scalar or one per chain)."""
+        qs = np.broadcast_to(np.asarray(q, dtype=float), (self.U.shape[0],))
+        return np.einsum("j,jab->ab", qs, self.U)
+
+    def ahead(self, steps: int) -> "HeldSampling":
+        """The same linearization over `steps` periods: E = Φ₀^steps and the noise of that span."""
+        return assemble(self.A, self.Bc, self.L0, self.zeta0, self.u0, steps * self.ts)
+
+
+def assemble(A, Bc, L0, zeta0, u0, ts) -> HeldSampling:
+    """The constants for the linear part A = A_c + B_c L₀ at period ts."""
+    E, G1, G2 = phi_matrices(A, Bc, ts)
+    Psi = phi_matrices(A, np.eye(len(A)), ts)[1]
+    U = np.array([van_loan(A, Bc[:, j], ts) for j in range(Bc.shape[1])])
+    return HeldSampling(float(ts), np.asarray(zeta0, float), np.asarray(u0, float), L0, Bc, A, E, Psi, G1, G2, U)
+
+
+def remainder_function(flat) -> ca.Function:
+    """(ζ, u, p) -> F(ζ) + G(ζ) u, and its Jacobian in ζ, as one CasADi function."""
+    z, u, p = ca.SX.sym("z", flat.n), ca.SX.sym("u", flat.m), ca.SX.sym("p", len(flat.params))
+    table = {s: z[i] for i, s in enumerate(flat.zeta)} | {s: p[i] for i, s in enumerate(flat.params)}
+    F = ca.vertcat(*[numeric.to_casadi(flat.F[j], table, f"F-bar[{j}]") for j in range(flat.m)])
+    G = ca.SX(flat.m, flat.m)
+    for i in range(flat.m):
+        for j in range(flat.m):
+            G[i, j] = numeric.to_casadi(flat.G[i, j], table, f"G-bar[{i},{j}]")
+    top = F + ca.mtimes(G, u)
+    return ca.Function("top", [z, u, p], [top, ca.jacobian(top, z)])
+
+
+def held_increment_sx(flat, H: HeldSampling, x: ca.SX, z: ca.SX, u: ca.SX, p) -> ca.SX:
+    """x⁺ - x for one ETD2RK step with u held, from the absolute state z (x may be z relative to
+    a centre on the chain heads: A_c never reads a head). In the increment form of the module
+    docstring of sampling.py: d = Ψ (A_c x + B_c v(z)), a = z + d, and
+    x⁺ - x = d + Γ₂ (v(a) - v(z) - L₀ d), v = F + G u: no large terms that cancel."""
+    top = remainder_function(flat)
+    Ac, _, _ = flat.canonical()
+    v0 = top(z, u, p)[0]
+    d = ca.mtimes(constant(H.Psi), ca.mtimes(constant(Ac), x) + ca.mtimes(constant(H.Bc), v0))
+    return d + ca.mtimes(constant(H.G2), top(z + d, u, p)[0] - v0 - ca.mtimes(constant(H.L0), d))
+
+
+def constant(a) -> ca.DM:
+    """A constant matrix with its exact zeros structural (no work emitted for them)."""
+    return ca.sparsify(ca.DM(np.atleast_2d(a)))
+
+
+def nominal_point(flat, x=None, u=None) -> tuple[np.ndarray, np.ndarray]:
+    """ζ₀ = Φ(x) at the model's nominal state (or `x`), and u₀: given, else the input that holds
+    the flat outputs' top derivatives at 0 there (F + G u₀ = 0, the equilibrium input when the
+    nominal state is an equilibrium)."""
+    x = nominal_state(flat.model) if x is None else np.asarray(x, dtype=float)
+    zeta0 = flat.phi_num(x)
+    if u is None:
+        with np.errstate(all="ignore"):
+            try:
+                u = np.linalg.solve(flat.G_num(zeta0), -flat.F_num(zeta0))
+            except np.linalg.LinAlgError:
+                u = np.full(flat.m, np.nan)
+    u = np.asarray(u, dtype=float).reshape(flat.m)
+    if not (np.all(np.isfinite(zeta0)) and np.all(np.isfinite(u))):
+        raise ModelError(f"{flat.model.where('states')}: the canonical model cannot be linearized at the nominal "
+                         f"state {list(x)}: declare a 'nominal' where Phi and G are defined and G is regular")
+    return zeta0, u
+
+
+def held_sampling(flat, ts: float, x=None, u=None) -> HeldSampling:
+    """The held-input predictor's constants at period `ts`, linearized at the nominal point (or
+    at the physical state `x` and input `u`, to measure the sensitivity to that choice)."""
+    zeta0, u0 = nominal_point(flat, x, u)
+    _, jac = remainder_function(flat)(zeta0, u0, flat.param_vector)
+    L0 = np.array(jac, dtype=float).reshape(flat.m, flat.n)
+    if not np.all(np.isfinite(L0)):
+        raise ModelError(f"{flat.model.where('states')}: dF/dzeta + dG/dzeta u is not finite at the nominal state")
+    Ac, Bc, _ = flat.canonical()
+    return assemble(Ac + Bc @ L0, Bc, L0, zeta0, u0, ts)

@@ -1,0 +1,136 @@
+"""The held-input predictor's build-time constants and mean map (symbolic/sampling.py,
+reference/predictor.py) against independent methods: scipy's matrix exponential, the Brunovsky
+closed forms (the constants with L₀ = 0 must reduce to them), quadrature of the Van Loan
+integral, and a tight-tolerance ODE solution of the same canonical model."""
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from scipy.integrate import quad_vec, solve_ivp
+from scipy.linalg import expm as scipy_expm
+
+from dfeif_codegen.errors import ModelError
+from dfeif_codegen.reference import predictor as predictors
+from dfeif_codegen.symbolic import discretize, flatness, model, sampling
+from dfeif_codegen.symbolic.flatness import nominal_state
+
+MODELS = ("dc_motor_link", "two_link_arm")
+
+
+@lru_cache(maxsize=None)
+def flat_system(name):
+    return flatness.derive(model.load(name))
+
+
+def rel(a, b):
+    return np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+def test_expm_equals_scipy_on_random_and_stiff_matrices():
+    rng = np.random.default_rng(0)
+    for scale in (1e-3, 1.0, 30.0):
+        M = scale * rng.standard_normal((5, 5))
+        # scaling and squaring in double: ~ (squarings) ε ‖e^M‖ on both sides
+        assert rel(sampling.expm(M), scipy_expm(M)) < 1e-12
+    A = sampling.held_sampling(flat_system("dc_motor_link"), 0.01).A * 0.01   # a fast stable mode
+    assert rel(sampling.expm(A), scipy_expm(A)) < 1e-12
+
+
+@pytest.mark.parametrize("degrees", [[3], [2, 3], [4, 1]])
+def test_constants_reduce_to_the_brunovsky_closed_forms_when_L0_is_zero(degrees):
+    """With L₀ = 0, A = A_c: E = A_d, Γ₁ = B_d (∫ e^{A_c s} B_c ds), Γ₂ = ∫ e^{A_c (h-s)} B_c s ds / h
+    and U_j the chain's Q_d for unit density (discretize.py's closed forms)."""
+    ts = 0.03
+    Ac, Bc, _ = discretize.brunovsky(degrees)
+    m, n = len(degrees), sum(degrees)
+    H = sampling.assemble(Ac, Bc, np.zeros((m, n)), np.zeros(n), np.zeros(m), ts)
+    Ad, Bd, _ = discretize.discrete(degrees, ts)
+    assert np.allclose(H.E, Ad, rtol=0, atol=1e-15) and np.allclose(H.G1, Bd, rtol=1e-13, atol=1e-18)
+    G2 = quad_vec(lambda s: scipy_expm(Ac * (ts - s)) @ Bc * s, 0, ts, epsabs=1e-16)[0] / ts
+    assert rel(H.G2, G2) < 1e-12
+    assert rel(H.Q(np.arange(1.0, m + 1)), discretize.process_noise(degrees, ts, np.arange(1.0, m + 1))) < 1e-12
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_noise_matches_quadrature_and_stays_accurate_over_many_periods(name):
+    """U_j by quadrature of e^{A s} b bᵀ e^{Aᵀ s}; over 32 periods the plain Van Loan exponential
+    would cancel (e^{-A t} of the fast mode), the doublings must not."""
+    H = sampling.held_sampling(flat_system(name), 0.01)
+    for steps in (1, 32):
+        t = steps * H.ts
+        for j in range(H.Bc.shape[1]):
+            b = H.Bc[:, j]
+            want = quad_vec(lambda s: (lambda e: np.outer(e, e))(scipy_expm(H.A * s) @ b), 0, t,
+                            epsabs=0, epsrel=1e-13, limit=400)[0]
+            assert rel(H.ahead(steps).U[j], want) < 1e-9, (steps, j)
+        # and the noise of N periods is the sum of N one-period noises through E
+        Q1, E = H.Q(1.0), H.E
+        acc = np.zeros_like(Q1)
+        for _ in range(steps):
+            acc = E @ acc @ E.T + Q1
+        assert rel(H.ahead(steps).Q(1.0), acc) < 1e-10
+
+
+@lru_cache(maxsize=None)
+def _tight_steps(name, ts):
+    """Canonical states along a closed-loop-like input sequence and, for each, the exact state one
+    period later with u held (DOP853 at rtol 1e-12)."""
+    flat = flat_system(name)
+    top = sampling.remainder_function(flat)
+    Ac, Bc, _ = flat.canonical()
+    p = flat.param_vector
+    rng = np.random.default_rng(7)
+    zeta0, u0 = sampling.nominal_point(flat)
+    out = []
+    for _ in range(12):
+        x = nominal_state(flat.model) + rng.normal(0, 0.3, flat.n)
+        z = flat.phi_num(x)
+        u = u0 + rng.normal(0, 2.0, flat.m)
+        end = solve_ivp(lambda t, s: Ac @ s + Bc @ np.asarray(top(s, u, p)[0]).ravel(), (0, ts), z,
+                        method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+        out.append((z, u, end))
+    return out
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_mean_map_is_second_order_exact_sampling_of_the_held_input(name):
+    """One period against the tight ODE solution of the same canonical model with u held, at Ts
+    and Ts/2: far below the Brunovsky model's error (which holds v instead of u), and shrinking
+    with the period faster than first order overall (the fast stable mode's components reduce the
+    order of the top derivative's error, as usual for exponential integrators on stiff parts)."""
+    flat = flat_system(name)
+    errs = {}
+    for ts in (0.01, 0.005):
+        pred = predictors.make("held", flat, ts, 1.0)
+        bru = predictors.make("brunovsky", flat, ts, 1.0)
+        e_held, e_bru = [], []
+        for z, u, end in _tight_steps(name, ts):
+            v = flat.F_num(z) + flat.G_num(z) @ u
+            e_held.append(np.abs(pred.mean(z, u) - end))
+            e_bru.append(np.abs(bru.mean(z, v) - end))
+        errs[ts] = np.max(e_held, axis=0)
+        # at least 30 times more exact than holding v, on every state
+        assert np.all(errs[ts] * 30 < np.max(e_bru, axis=0)), (errs[ts], np.max(e_bru, axis=0))
+    ratio = errs[0.01] / errs[0.005]
+    print(f"\n{name}: held mean, worst one-step error at Ts = 0.01 {errs[0.01]}, ratio to Ts/2 {ratio}")
+    assert np.linalg.norm(errs[0.01]) / np.linalg.norm(errs[0.005]) > 2.5, ratio
+
+
+def test_linearization_point_can_be_moved_and_is_reported_when_undefined():
+    flat = flat_system("dc_motor_link")
+    base = sampling.held_sampling(flat, 0.01)
+    moved = sampling.held_sampling(flat, 0.01, x=[0.7, 0.0, 0.0])
+    # F has -(R m g l / (J L)) sin ζ₀ - (m g l / J) cos(ζ₀) ζ₁: its derivative in ζ₀ scales by cos 0.7
+    assert moved.L0[0, 0] == pytest.approx(base.L0[0, 0] * np.cos(0.7), rel=1e-12)
+    assert base.u0 == pytest.approx([0.0], abs=1e-12)   # the nominal state is an equilibrium
+    with pytest.raises(ModelError, match="cannot be linearized"):
+        sampling.held_sampling(flat, 0.01, x=[0.0, 0.0, np.nan])
+
+
+def test_retrodiction_needs_the_brunovsky_predictor():
+    with pytest.raises(ValueError, match="--oosm retrodict needs --predictor brunovsky"):
+        predictors.check("held", "retrodict")
+    with pytest.raises(ValueError, match="predictor must be one of held, brunovsky"):
+        predictors.check("rk4")
+    predictors.check("brunovsky", "retrodict")
