@@ -197,7 +197,7 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     under a time and memory budget (`max_seconds` in seconds, `max_memory` in GB, as the
     command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
     there is one) before it replaces the folder, atomically. `force` allows replacing files the
-    toolkit did not write there. `predictor`: "held" (u held) or "brunovsky"; None: held, and
+    toolkit did not write there. `predictor`: "held" (u held) or "brunovsky"; None: brunovsky, and
     brunovsky with retrodict (the only one it can use)."""
     if isinstance(out, str) and not out.strip():
         raise BuildError(f"--out {out!r}: an empty path (give a folder; . for the current one)")

@@ -30,7 +30,7 @@ class Options:
     fusion: str = "difference"
     precision: str = "double"
     singular_rtol: float = 1e-6  # control returns ERR_SINGULAR below this fraction of |det G| nominal
-    predictor: str | None = None  # u held (None: held, brunovsky with retrodict) or the chapter's Brunovsky chain
+    predictor: str | None = None  # u held, or (None) the chapter's Brunovsky chain or the chapter's Brunovsky chain
 
     def __post_init__(self) -> None:
         ts = self.ts

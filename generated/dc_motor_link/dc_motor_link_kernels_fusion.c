@@ -1,6 +1,6 @@
 /* DO NOT EDIT: dc_motor_link module, generated from template kernels.c.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
-/* Master fusion kernels: master_gain, fuse_finish.
+/* Master fusion kernels: master_gain, fuse_finish, advance, input_step.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
@@ -370,6 +370,156 @@ int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Pc[9], const dc_moto
     piv[3] = w3;
     piv[4] = w7;
     piv[5] = w9;
+    return 0;
+    return 0;
+}
+
+/* dc_motor_link_kern_advance:(N,x[3],P[3x3],effect[3],q)->(x1[3],P1[3x3]) */
+int dc_motor_link_kern_advance(const dc_motor_link_real N[1], const dc_motor_link_real x[3],
+                               const dc_motor_link_real P[9], const dc_motor_link_real effect[3],
+                               const dc_motor_link_real q[1], dc_motor_link_real x1[3],
+                               dc_motor_link_real P1[9])
+{
+    dc_motor_link_real w0;
+    dc_motor_link_real w1;
+    dc_motor_link_real w2;
+    dc_motor_link_real w3;
+    dc_motor_link_real w4;
+    dc_motor_link_real w5;
+    dc_motor_link_real w6;
+    dc_motor_link_real w7;
+    dc_motor_link_real w8;
+    dc_motor_link_real w9;
+    dc_motor_link_real w10;
+    dc_motor_link_real w11;
+    dc_motor_link_real w12;
+    dc_motor_link_real w13;
+    w0 = x[0];
+    w1 = 1.0000000000000000e-02;
+    w2 = N[0];
+    w1 = (w1 * w2);
+    w2 = x[1];
+    w3 = (w1 * w2);
+    w0 = (w0 + w3);
+    w3 = dc_motor_link_fusion_sq(w1);
+    w4 = 2.;
+    w3 = (w3 / w4);
+    w5 = x[2];
+    w6 = (w3 * w5);
+    w0 = (w0 + w6);
+    w6 = effect[0];
+    w0 = (w0 + w6);
+    x1[0] = w0;
+    w0 = (w1 * w5);
+    w2 = (w2 + w0);
+    w0 = effect[1];
+    w2 = (w2 + w0);
+    x1[1] = w2;
+    w2 = effect[2];
+    w5 = (w5 + w2);
+    x1[2] = w5;
+    w5 = P[0];
+    w2 = P[3];
+    w0 = (w1 * w2);
+    w5 = (w5 + w0);
+    w0 = P[6];
+    w6 = (w3 * w0);
+    w5 = (w5 + w6);
+    w6 = P[4];
+    w7 = (w1 * w6);
+    w2 = (w2 + w7);
+    w7 = P[7];
+    w8 = (w3 * w7);
+    w2 = (w2 + w8);
+    w8 = (w2 * w1);
+    w5 = (w5 + w8);
+    w8 = (w1 * w7);
+    w0 = (w0 + w8);
+    w8 = P[8];
+    w9 = (w3 * w8);
+    w0 = (w0 + w9);
+    w3 = (w0 * w3);
+    w5 = (w5 + w3);
+    w3 = q[0];
+    w9 = dc_motor_link_fusion_sq(w1);
+    w10 = (w9 * w1);
+    w11 = (w10 * w1);
+    w12 = (w11 * w1);
+    w12 = (w3 * w12);
+    w13 = 20.;
+    w12 = (w12 / w13);
+    w5 = (w5 + w12);
+    P1[0] = w5;
+    w5 = (w0 * w1);
+    w2 = (w2 + w5);
+    w11 = (w3 * w11);
+    w5 = 8.;
+    w11 = (w11 / w5);
+    w2 = (w2 + w11);
+    P1[1] = w2;
+    w11 = (w3 * w10);
+    w5 = 6.;
+    w11 = (w11 / w5);
+    w0 = (w0 + w11);
+    P1[2] = w0;
+    P1[3] = w2;
+    w2 = (w1 * w7);
+    w6 = (w6 + w2);
+    w2 = (w1 * w8);
+    w7 = (w7 + w2);
+    w2 = (w7 * w1);
+    w6 = (w6 + w2);
+    w10 = (w3 * w10);
+    w2 = 3.;
+    w10 = (w10 / w2);
+    w6 = (w6 + w10);
+    P1[4] = w6;
+    w9 = (w3 * w9);
+    w9 = (w9 / w4);
+    w7 = (w7 + w9);
+    P1[5] = w7;
+    P1[6] = w0;
+    P1[7] = w7;
+    w3 = (w3 * w1);
+    w8 = (w8 + w3);
+    P1[8] = w8;
+    return 0;
+    return 0;
+}
+
+/* dc_motor_link_kern_input_step:(effect[3],v)->(effect1[3]) */
+int dc_motor_link_kern_input_step(const dc_motor_link_real effect[3], const dc_motor_link_real v[1],
+                                  dc_motor_link_real effect1[3])
+{
+    dc_motor_link_real w0;
+    dc_motor_link_real w1;
+    dc_motor_link_real w2;
+    dc_motor_link_real w3;
+    dc_motor_link_real w4;
+    dc_motor_link_real w5;
+    dc_motor_link_real w6;
+    w0 = effect[0];
+    w1 = 1.0000000000000000e-02;
+    w2 = effect[1];
+    w3 = (w1 * w2);
+    w0 = (w0 + w3);
+    w3 = 5.0000000000000002e-05;
+    w4 = effect[2];
+    w5 = (w3 * w4);
+    w0 = (w0 + w5);
+    w5 = 1.6666666666666670e-07;
+    w6 = v[0];
+    w5 = (w5 * w6);
+    w0 = (w0 + w5);
+    effect1[0] = w0;
+    w0 = (w1 * w4);
+    w2 = (w2 + w0);
+    w3 = (w3 * w6);
+    w2 = (w2 + w3);
+    effect1[1] = w2;
+    w1 = (w1 * w6);
+    w4 = (w4 + w1);
+    effect1[2] = w4;
     return 0;
     return 0;
 }
