@@ -80,6 +80,18 @@ def _die_with(parent_pid: int) -> None:
         os._exit(1)
 
 
+def _out_of_memory(exc: BaseException) -> bool:
+    """A failed allocation under RLIMIT_AS, however it surfaced: a MemoryError anywhere in the
+    chain, or a C extension (sympy's or CasADi's) returning NULL without setting an exception,
+    which Python reports as SystemError "error return without exception set", possibly wrapped."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, MemoryError) or "error return without exception set" in str(seen):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False
+
+
 def _child(conn, theirs, parent_pid: int, fn, args, max_bytes: float, max_seconds: float) -> None:
     theirs.close()      # the parent's read end: held here, it would keep the pipe open
     _die_with(parent_pid)
@@ -110,7 +122,7 @@ def _child(conn, theirs, parent_pid: int, fn, args, max_bytes: float, max_second
     except RecursionError:
         conn.send(("recursion", None))
     except BaseException as exc:  # a bug: the parent reports it as an internal error
-        conn.send(("bug", f"{type(exc).__name__}: {exc}"))
+        conn.send(("memory", None) if _out_of_memory(exc) else ("bug", f"{type(exc).__name__}: {exc}"))
     finally:
         conn.close()
 

@@ -61,8 +61,8 @@ def test_readme_example_runs_as_written_and_matches_the_reference(in_tmp):
     # the same calls on the numpy reference
     flat = flatness.derive(dc.load_model("dc_motor_link"))
     ts, x0, P0, R, q = 0.01, ns["x0"], ns["P0"], ns["R"], ns["q"]
-    node = NodeFilter(flat, ts, q, R, x0, P0, max_lag=32, oosm="replay")
-    master = Master(flat, ts, q, x0, P0, n_nodes=2, rule="difference", max_lag=32)
+    node = NodeFilter(flat, ts, q, R, x0, P0, max_lag=32, oosm="replay", predictor="held")
+    master = Master(flat, ts, q, x0, P0, n_nodes=2, rule="difference", max_lag=32, predictor="held")
     gains = hurwitz_gains(3, 5.0)
     ctrl = FlatController(flat, gains=gains)
     for k, z in enumerate(ns["frames"]):
