@@ -71,6 +71,7 @@ def run_cli(*args, timeout=600) -> subprocess.CompletedProcess:
 def quick(tmp_path_factory):
     out = tmp_path_factory.mktemp("reproduce")
     doc = out / "docs" / "experiment.md"
+    doc.parent.mkdir()   # --doc names a file of an existing folder, as every output file
     proc = run_cli("--runs", "2", "--quick", "--out", str(out), "--doc", str(doc), "--quiet", "--workers", "2")
     assert proc.returncode == 0, proc.stderr
     return out, doc, proc
