@@ -47,7 +47,8 @@ def nees_band(n: int, runs: int) -> tuple[float, float]:
 
 
 METRICS = ("trace_nodes", "trace_master", "rmse_nodes", "rmse_master", "rmse_tracking",
-           "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected", "us_per_step")
+           "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected", "us_per_step",
+           "saturated_steps")
 
 
 def summarize(runs: list[dict], n: int) -> dict:
