@@ -58,7 +58,7 @@ def summarize(runs: list[dict], n: int) -> dict:
     if not runs:
         return out
     for key in METRICS:
-        if key not in runs[0]:
+        if any(key not in r for r in runs):     # e.g. records resumed from an older version
             continue
         mean, half = mean_ci([r[key] for r in runs])
         out[key] = {"mean": mean.tolist(), "ci95": half.tolist()}
