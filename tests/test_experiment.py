@@ -268,3 +268,12 @@ def test_simulate_counts_saturated_steps(tmp_path, capsys):
     assert "steps with an input clamped to its declared limits, per run:" in text
     rows = json.loads((tmp_path / "o.json").read_text())["tables"][0]["rows"]
     assert all(r["saturated_steps"]["mean"] > 0 for r in rows)
+
+
+def test_simulate_filters_plot_draws_the_comparison(tmp_path):
+    """Issue 24 finding 9: `--filters` with `--plot DIR` draws the filters' comparison figure."""
+    scen = tmp_path / "tiny.toml"
+    scen.write_text(TINY)
+    assert cli.main(["simulate", "--scenario", str(scen), "--quiet", "--filters", "df,ekf",
+                     "--plot", str(tmp_path / "figs")]) == 0
+    assert (tmp_path / "figs" / "compare_seesaw_filters.png").stat().st_size > 10_000

@@ -237,3 +237,23 @@ def simulation_figures(directory: str, figures: dict, flat) -> list[str]:
                                   f"{name}: master estimation error {label} ({ref}, {how})", flat,
                                   np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]))
     return written
+
+
+def filters_figures(directory: str, result, flat) -> list[str]:
+    """`simulate --filters ... --plot DIR`: per reference, the master RMSE per state and delay row
+    of each filter on the same recordings (replay + difference), with 95% intervals."""
+    written = []
+    labels = [row_text(" ".join(str(d) for d in row.d) + f" {row.p:g}") for row in result.rows]
+    for ref in dict.fromkeys(t.reference for t in result.tables):
+        series = {}
+        for k in result.settings["filters"]:
+            table = result.table(ref, f"{k}-replay", "difference")
+            try:
+                series[k] = (table.mean("rmse_master"), table.ci95("rmse_master"))
+            except KeyError:            # every run of this filter failed: nothing to draw
+                continue
+        path = Path(directory) / f"compare_{ref}_filters.png"
+        comparison_figure(path, f"{flat.model.name}: master RMSE per filter, same recordings ({ref})", flat,
+                          labels, series)
+        written.append(str(path))
+    return written
