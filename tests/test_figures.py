@@ -36,3 +36,40 @@ def test_every_figure_renders(tmp_path):
                               {"DF": (np.ones((2, 3)), np.full((2, 3), 0.1)), "EKF": (np.ones((2, 3)), np.zeros((2, 3)))})
     for name in "abcd":
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
+
+
+def test_legends_cover_no_data(tmp_path, monkeypatch):
+    """Issue 24 finding 9: every legend lies outside every panel's plotting area (so it covers no
+    data) and inside the figure (so it is not cut off). Checked on the drawn figure's pixel boxes."""
+    import matplotlib.pyplot as plt
+
+    drawn, close = [], plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: drawn.append(fig))
+    flat = ex._flat("dc_motor_link")
+    t = np.arange(300) * 0.01
+    truth = np.column_stack([np.sin(t * (i + 1)) for i in range(flat.n)])
+    figures.states_figure(tmp_path / "a.png", "t", flat, t, truth + 1e-3, truth, truth, np.ones((300, flat.m)))
+    figures.error_figure(tmp_path / "b.png", "t", flat, t, truth + 1e-3, truth, np.full((300, flat.n), 1e-6))
+    lags = np.where(np.arange(600).reshape(2, 300) % 3 == 0, 5, 0)
+    lags[0, 7] = -1
+    figures.delay_figure(tmp_path / "c.png", "t", t, lags, 0.01)
+    figures.comparison_figure(tmp_path / "d.png", "t", flat, ["(0, 0, 0)", "(4, 6, 0.8)"],
+                              {"df": (np.ones((2, flat.n)), np.full((2, flat.n), 0.1)),
+                               "ekf": (np.ones((2, flat.n)), np.zeros((2, flat.n)))})
+    assert len(drawn) == 4
+    for fig in drawn:
+        fig.canvas.draw()
+        r = fig.canvas.get_renderer()
+        page = fig.bbox
+        panels = [ax for ax in fig.axes if ax.get_visible()]
+        legends = [ax.get_legend() for ax in panels if ax.get_legend() is not None]
+        assert legends
+        for leg in legends:
+            box = leg.get_window_extent(r)
+            assert page.x0 - 1 <= box.x0 and box.x1 <= page.x1 + 1 and page.y0 - 1 <= box.y0 and box.y1 <= page.y1 + 1
+            for ax in panels:
+                area = ax.get_window_extent(r)
+                inter_w = min(box.x1, area.x1) - max(box.x0, area.x0)
+                inter_h = min(box.y1, area.y1) - max(box.y0, area.y0)
+                assert inter_w <= 1 or inter_h <= 1, "a legend covers a panel's plotting area"
+        close(fig)

@@ -233,3 +233,44 @@ def test_forged_frames_rejected_by_cause_in_the_running_programs(runs, tmp_path_
     assert node["R"]["tag"] == 1 and node["R"]["length"] == 1
     errors, _ = run.compare(out)
     assert all(e.ok for e in errors), verify.table(errors)
+
+
+def _bench_fig(cpus, load, median, p99, own):
+    """A synthetic `codegen network --bench` measurement: only the values the text must derive from."""
+    tp = {"model": "dc_motor_link", "keyed": False, "packets_per_s": 1.0, "datagrams_per_s": 1.5, "accepted": 2,
+          "expected": 2, "master_cpu_us_per_datagram": 4.0, "tick_rtt_median_us": own, "tick_rtt_p99_us": own}
+    nw = {"steps": 500, "wall_s": 3.0, "equal": True, "latency_median_us": median, "latency_p99_us": p99,
+          "master_busy_us_per_step": 2.0, "node_busy_us_per_step": [1.0, 1.0], "cpu_s": {"master": 0.25},
+          "datagrams": 10}
+    return {"sizes": [], "throughput": [tp], "network": nw, "cpus": cpus, "load": load}
+
+
+def test_bench_text_derives_from_what_was_measured():
+    """Issue 24 finding 9: no fixed sentence about the machine; every claim follows the measured values."""
+    from dfeif_codegen.net import bench
+
+    fast = bench.markdown(_bench_fig(8, 0.5, 150.0, 900.0, 40.0))
+    for fixed in ("2 cores", "shared VM", "10-25 us", "scheduling delays", "other jobs"):
+        assert fixed not in fast
+    assert "8 processors" in fast and "load average 0.50" in fast
+    assert "Both latency targets are met." in fast and "Targets missed" not in fast
+    slow = bench.markdown(_bench_fig(3, 1.0, 300.0, 3000.0, 60.0))
+    # 300 us median - 60 us master round trip - (2 + 1 + 1) us C busy time = 236 us for the other hops
+    assert "Targets missed: median 300 us" in slow and "remaining 236 us" in slow
+    assert "10.0 times the median" in slow and "3 processors" in slow
+
+
+def test_bench_network_summary_prints_no_dict_repr():
+    """The `codegen network` summary writes its per-process CPU and rejection counts as text, not `{'k': v}`."""
+    from types import SimpleNamespace
+
+    lay = SimpleNamespace(size=lambda k: 8 * k, packet_reals=3, command_reals=1)
+    out = SimpleNamespace(steps=10, layout=lay)
+    rec = SimpleNamespace(gamma=np.ones(4), late_step=[1], pkt_step=[1, 2])
+    f = {"wall_s": 1.0, "datagrams": 30, "accepted": 20, "rejected": {"crc": 2, "stale": 1},
+         "latency_median_us": 100.0, "latency_p99_us": 500.0, "master_busy_us_per_step": 2.0,
+         "cpu_s": {"master": 0.125, "node0": 0.25}}
+    text = run.summary(run.Options(), out, f, rec)
+    assert "{" not in text and "'" not in text
+    assert "rejected crc 2, stale 1" in text and "CPU: master 0.125 s, node0 0.250 s" in text
+    assert "rejected none" in run.summary(run.Options(), out, {**f, "rejected": {}}, rec)

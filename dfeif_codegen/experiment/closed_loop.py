@@ -616,4 +616,17 @@ def metrics(res: Result) -> dict:
         "rmse_est_tracking_master": np.sqrt(np.mean(_errors(flat, rec.x[k0:], desired) ** 2, axis=0)),
         "late_applied": sum(c["late_applied"] for c in res.counters),
         "late_rejected": sum(c["late_rejected"] for c in res.counters),
+        "saturated_steps": saturated_steps(flat, rec.u),
     }
+
+
+def saturated_steps(flat, u: np.ndarray) -> int:
+    """Steps (whole run) whose input the controller clamped to a declared limit: a clamped input
+    equals its limit, up to single precision's rounding of the limit (1e-6 relative) in a float build."""
+    inputs = flat.model.inputs
+    lo = np.array([-np.inf if w.min is None else w.min for w in inputs])
+    hi = np.array([np.inf if w.max is None else w.max for w in inputs])
+    tol = 1e-6 * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    tol_hi = 1e-6 * np.maximum(1.0, np.abs(np.where(np.isfinite(hi), hi, 0.0)))
+    at = (u[:, :len(inputs)] <= lo + tol) | (u[:, :len(inputs)] >= hi - tol_hi)
+    return int(np.count_nonzero(at.any(axis=1)))

@@ -3,7 +3,7 @@ units. Each canonical state is labelled by its flat output and derivative order 
 that implies (theta, theta' [rad/s], theta'' [rad/s^2]); the input by its name and unit.
 
 - states against the reference (the reference drawn wide underneath, so it stays visible), one
-  legend per panel, and the input;
+  legend per panel (above it, outside the axes), and the input;
 - the estimation error x_hat - x with the filter's own +-3 sigma band (where a consistent filter
   keeps 99.7% of it);
 - the delays: each late frame as a dot at (taken at, lag), per node, with the shares of on-time,
@@ -72,6 +72,13 @@ def row_text(label: str) -> str:
     return f"({ds}, p) = ({', '.join(parts)})"
 
 
+def _legend(ax, ncol: int = 1) -> None:
+    """The legend in one line above the panel, outside the axes: it never covers data
+    (tight_layout makes room for it)."""
+    ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=ncol, borderaxespad=0.2,
+              framealpha=0.9)
+
+
 def _grid(plt, panels, height=2.3):
     cols = 2 if panels > 1 else 1
     rows = (panels + cols - 1) // cols
@@ -92,12 +99,12 @@ def states_figure(path, title, flat, t, est, truth, ref, u, who="estimate"):
         ax.plot(t, est[:, i], color="tab:blue", ls="--", lw=0.8, label=who)
         ax.plot(t, ref[:, i], color="tab:red", lw=0.8, zorder=5)     # and thin on top: seen through noise
         ax.set_ylabel(label)
-        ax.legend(fontsize=7, loc="upper right", ncol=3)
+        _legend(ax, 3)
     for j, label in enumerate(ulabels):
         ax = axes[len(labels) + j]
         ax.plot(t, u[:, j], color="tab:green", lw=0.8, label="control input")
         ax.set_ylabel(label)
-        ax.legend(fontsize=7, loc="upper right")
+        _legend(ax)
     for ax in axes:
         ax.set_xlabel("time [s]")
     fig.suptitle(title)
@@ -127,7 +134,7 @@ def error_figure(path, title, flat, t, est, truth, var, metrics_from=1.0):
         if lim:
             ax.set_ylim(-lim, lim)
         ax.set_ylabel("error of " + label)
-        ax.legend(fontsize=7, loc="upper right", ncol=2)
+        _legend(ax, 2)
         ax.set_xlabel("time [s]")
     fig.suptitle(title)
     fig.tight_layout()
@@ -152,7 +159,7 @@ def delay_figure(path, title, t, delays, ts):
         ax.axhline(0, color="tab:green", lw=1.0, label=f"on time: {100 * on:.0f}%")
         ax.set_ylim(-1, top + 1)
         ax.set_ylabel(f"node {i + 1}: delay\n[steps of {1000 * ts:g} ms]")
-        ax.legend(fontsize=7, loc="upper right", ncol=3)
+        _legend(ax, 3)
         sec = ax.secondary_yaxis("right", functions=(lambda s: s * ts * 1000, lambda ms: ms / (ts * 1000)))
         sec.set_ylabel("[ms]")
     axes.flat[-1].set_xlabel("time the frame was taken [s]")
@@ -177,7 +184,7 @@ def comparison_figure(path, title, flat, row_labels, series):
         ax.set_yscale("log")
         ax.set_xticks(xs, row_labels, fontsize=7)
         ax.set_ylabel("master RMSE of\n" + label)
-        ax.legend(fontsize=7)
+        _legend(ax, len(series))
         ax.set_xlabel("delay row (d1, d2, p)")
     fig.suptitle(title)
     fig.tight_layout()
@@ -229,4 +236,24 @@ def simulation_figures(directory: str, figures: dict, flat) -> list[str]:
                 error_figure(save(folder / f"fig{last + 1}_{ref}_master_error_{key}.png"),
                                   f"{name}: master estimation error {label} ({ref}, {how})", flat,
                                   np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]))
+    return written
+
+
+def filters_figures(directory: str, result, flat) -> list[str]:
+    """`simulate --filters ... --plot DIR`: per reference, the master RMSE per state and delay row
+    of each filter on the same recordings (replay + difference), with 95% intervals."""
+    written = []
+    labels = [row_text(" ".join(str(d) for d in row.d) + f" {row.p:g}") for row in result.rows]
+    for ref in dict.fromkeys(t.reference for t in result.tables):
+        series = {}
+        for k in result.settings["filters"]:
+            table = result.table(ref, f"{k}-replay", "difference")
+            try:
+                series[k] = (table.mean("rmse_master"), table.ci95("rmse_master"))
+            except KeyError:            # every run of this filter failed: nothing to draw
+                continue
+        path = Path(directory) / f"compare_{ref}_filters.png"
+        comparison_figure(path, f"{flat.model.name}: master RMSE per filter, same recordings ({ref})", flat,
+                          labels, series)
+        written.append(str(path))
     return written

@@ -197,7 +197,10 @@ class _Printer:
                    f"band)", [f"node {i + 1}" for i in range(nodes)] + ["master", "95% band"], nees_rows)
         late = [f"{s['late_applied']['mean']:.0f}/{s['late_rejected']['mean']:.0f}" if s.get("runs") else "-"
                 for s in summaries]
-        print("  late frames applied/rejected per run (all nodes): " + ", ".join(late) + "\n", file=self.out)
+        print("  late frames applied/rejected per run (all nodes): " + ", ".join(late), file=self.out)
+        sat = [f"{s['saturated_steps']['mean']:.1f}" if "saturated_steps" in s else "-" for s in summaries]
+        print("  steps with an input clamped to its declared limits, per run: " + ", ".join(sat) + "\n",
+              file=self.out)
 
 
 def print_tables(out, rows, tables: list[Table], states: list[str], nodes: int, bound=None) -> None:

@@ -99,4 +99,8 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
         from dfeif_codegen.experiment.figures import simulation_figures
 
         result.written, result.plot_dir = simulation_figures(plot, result.figures, p.flat), plot
+        if result.settings.get("filters"):
+            from dfeif_codegen.experiment.figures import filters_figures
+
+            result.written += filters_figures(plot, result, p.flat)
     return result

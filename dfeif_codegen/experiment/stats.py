@@ -47,7 +47,8 @@ def nees_band(n: int, runs: int) -> tuple[float, float]:
 
 
 METRICS = ("trace_nodes", "trace_master", "rmse_nodes", "rmse_master", "rmse_tracking",
-           "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected", "us_per_step")
+           "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected", "us_per_step",
+           "saturated_steps")
 
 
 def summarize(runs: list[dict], n: int) -> dict:
@@ -57,7 +58,7 @@ def summarize(runs: list[dict], n: int) -> dict:
     if not runs:
         return out
     for key in METRICS:
-        if key not in runs[0]:
+        if any(key not in r for r in runs):     # e.g. records resumed from an older version
             continue
         mean, half = mean_ci([r[key] for r in runs])
         out[key] = {"mean": mean.tolist(), "ci95": half.tolist()}

@@ -435,14 +435,23 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
         out = launch(o, work)
         errors, rec = compare(out)
         f = figures(out)
-    summary = "\n".join([
+    return Network(out, f, errors, summary(o, out, f, rec))
+
+
+def pairs(values: dict, fmt: str) -> str:
+    """A dict as readable text ("master 0.120 s, node0 0.080 s"), not its Python repr."""
+    return ", ".join(f"{k} {fmt.format(v)}" for k, v in values.items())
+
+
+def summary(o: Options, out: Outcome, f: dict, rec) -> str:
+    """The run's summary as printed by `codegen network`."""
+    return "\n".join([
         f"codegen network: {o.model}, {o.precision}, {o.nodes} nodes as separate processes on {HOST}, "
         f"scenario {o.scenario} row {o.row} seed {o.seed}, {out.steps} steps in {f['wall_s']:.1f} s",
         f"wire: packet {out.layout.size(out.layout.packet_reals)} B, command "
         f"{out.layout.size(out.layout.command_reals)} B{' + SipHash-2-4 tag' if o.key else ''}; "
-        f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {f['rejected'] or 'none'}",
+        f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {pairs(f['rejected'], '{}') or 'none'}",
         f"logged arrivals: {int(rec.gamma.sum())} on-time frames, {len(rec.late_step)} late, "
         f"{len(rec.pkt_step)} packets fused",
         f"frame -> command latency: median {f['latency_median_us']:.0f} us, p99 {f['latency_p99_us']:.0f} us "
-        f"(master busy {f['master_busy_us_per_step']:.1f} us/step); CPU s: {f['cpu_s']}"])
-    return Network(out, f, errors, summary)
+        f"(master busy {f['master_busy_us_per_step']:.1f} us/step); CPU: {pairs(f['cpu_s'], '{:.3f} s') or 'not measured'}"])
