@@ -20,6 +20,7 @@ from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.experiment import model_error
 from dfeif_codegen.experiment.trajectory import KINDS
+from dfeif_codegen.symbolic import disturbance as disturbances
 
 BUILTIN = ("paper", "unicycle", "pvtol")
 
@@ -33,6 +34,7 @@ _ALLOWED = {
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
     "model_error": model_error.KEYS,
+    "disturbance": disturbances.KEYS,
 }
 
 
@@ -82,6 +84,7 @@ class Scenario:
     uplink: Link = field(default_factory=Link)
     grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
     model_error: model_error.ParamError = model_error.NONE    # the plant's parameters against the model's
+    disturbance: disturbances.Disturbance | None = None        # the filters' disturbance states, if any
     _lines: dict = field(default_factory=dict, repr=False)
 
     def where(self, key: str) -> str:
@@ -326,4 +329,6 @@ def loads(text: str, source: str = "<string>") -> Scenario:
     _read_network(r, data)
     if "model_error" in data:
         r.sc.model_error = model_error.from_table(data["model_error"], r.fail)
+    if "disturbance" in data:
+        r.sc.disturbance = disturbances.from_table(data["disturbance"], r.fail)
     return r.sc
