@@ -263,6 +263,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     harness.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
+    sc.without_disturbance("codegen verify")
     sc.check_model(experiment.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
     scenarios.check_window(sc, max_lag, nodes)

@@ -23,6 +23,7 @@ import numpy as np
 
 from dfeif_codegen.symbolic import flatness
 from dfeif_codegen.symbolic import model as model_mod
+from dfeif_codegen.symbolic.disturbance import augment
 from dfeif_codegen.reference.control import FlatController
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.linalg import wrap
@@ -150,6 +151,8 @@ class Config:
     # the plant's parameters against the model's (experiment/model_error.py); out of repr, so a
     # run without model error keeps its id in --results files (sweep.run_id adds it when set)
     plant_error: ParamError = field(default=EXACT_MODEL, repr=False)
+    # the filters' disturbance states (symbolic/disturbance.py), None: none; out of repr as above
+    disturbance: object = field(default=None, repr=False)
 
 
 @dataclass
@@ -238,11 +241,18 @@ class FilterBank:
     """Nodes, master and controller, stepped exactly as the protocol says."""
 
     def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                 node_dtype=np.float64, predictor: str = predictors.DEFAULT):
+                 node_dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
+        """`disturbance`: the filters' states are extended by one per chain (their x0, P0 here
+        are the canonical ones; the disturbances start at 0 with their initial spread); what
+        `step` returns stays the canonical part, what the controller and the metrics read."""
+        m, self.n = flat.m, flat.n
+        node_x0, node_P0 = zip(*[augment(x, P, disturbance, m) for x, P in zip(node_x0, node_P0)])
+        master_x0, master_P0 = augment(master_x0, master_P0, disturbance, m)
         self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
-                                 dtype=node_dtype, predictor=predictor) for i in range(len(R))]
+                                 dtype=node_dtype, predictor=predictor, disturbance=disturbance)
+                      for i in range(len(R))]
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
-                             predictor=predictor)
+                             predictor=predictor, disturbance=disturbance)
         self.takes_v = predictor == "brunovsky"
         self.control = FlatController(flat, gains=gains)
         self.max_lag = max_lag
@@ -258,9 +268,10 @@ class FilterBank:
             sent[k] = node.packet()
             sent.pop(k - self.max_lag - 1, None)
         self.master.fuse([sent.get(s) if s >= 0 else None for sent, s in zip(self.sent, sources)])
-        u, v = self.control(self.master.x, ref)
-        out = (applied, [nd.x.copy() for nd in self.nodes], [nd.P.copy() for nd in self.nodes],
-               self.master.x.copy(), self.master.P.copy(), u, v)
+        n = self.n
+        u, v = self.control(self.master.x[:n], ref)
+        out = (applied, [nd.x[:n].copy() for nd in self.nodes], [nd.P[:n, :n].copy() for nd in self.nodes],
+               self.master.x[:n].copy(), self.master.P[:n, :n].copy(), u, v)
         w = v if self.takes_v else u      # what the master broadcasts for the nodes' prediction
         for node in self.nodes:
             node.predict(w)
@@ -417,7 +428,8 @@ class Setup:
 
     def bank(self) -> "FilterBank":
         return FilterBank(self.flat, self.ts, self.q, self.R, self.node_x0, self.node_P0, self.x_hat0, self.P0,
-                          self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion, predictor=self.cfg.predictor)
+                          self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion, predictor=self.cfg.predictor,
+                          disturbance=self.cfg.disturbance)
 
 
 def prepare(cfg: Config) -> Setup:
@@ -445,7 +457,7 @@ def prepare(cfg: Config) -> Setup:
     q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
     R = np.array([c.R for c in cams])
     oosm = cfg.method if cfg.method in OOSM else "replay"
-    predictors.check(cfg.predictor, oosm)
+    predictors.check(cfg.predictor, oosm, cfg.disturbance)
     # which frame each update takes, and the late frames applied: fixed by the network alone
     upd = np.where(net.lag == 0, 0, -1)
     if cfg.method == "as-current":   # a step without its frame takes the freshest late one arriving

@@ -97,6 +97,13 @@ class Scenario:
         shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
 
+    def without_disturbance(self, command: str) -> None:
+        """The commands that run the generated C: disturbance states are in the reference only."""
+        if self.disturbance is not None:
+            raise ScenarioError(f"{self.where('disturbance')}: disturbance states are in the reference filters only, "
+                                f"not yet in the generated C that {command} runs; use codegen simulate --engine "
+                                "reference")
+
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
         m = flat.m

@@ -30,6 +30,7 @@ stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import math
 from pathlib import Path
@@ -41,6 +42,7 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.experiment import shapes
 from dfeif_codegen.experiment.trajectory import flags
+from dfeif_codegen.symbolic.disturbance import KINDS as DISTURBANCES, Disturbance
 
 MARKER = "# Starting scenario written by `codegen scenario`"
 
@@ -95,10 +97,11 @@ def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
               duration: float = 5.0, seed: int = 1000, rounds: int = 3,
-              shape: shapes.Shape | None = None, **options) -> tuple[np.ndarray, list[str]]:
+              shape: shapes.Shape | None = None, **options) -> tuple:
     """q per chain and a log of the rounds (see the module docstring). `options`: the filters'
     settings of the closed loops (closed_loop.Config fields, e.g. the predictor the scenario
-    selects), so q is calibrated for the filter that will run."""
+    selects), so q is calibrated for the filter that will run. With `disturbance` among them
+    (a Disturbance, its densities ignored): (q, log, the Disturbance with calibrated densities)."""
     shape = shape or shapes.from_domains(flat)
     q = _reference_q(flat, spec, ts, substeps, shape)
     floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
@@ -114,6 +117,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
         # too small a q is what these loops are run to measure: their NEES is meant to be high,
         # only a plant that leaves its domain or overflows ends one
 
+    dist = options.pop("disturbance", None)
     for _ in range(rounds):
         cfg = config(q, seed)
         try:
@@ -128,7 +132,28 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
                                  getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
         break
-    return match_nees(flat, q, config, [seed + i for i in range(NEES_RUNS)], log)
+    seeds = [seed + i for i in range(NEES_RUNS)]
+    if dist is None:
+        return match_nees(flat, q, config, seeds, log)
+    # with disturbance states q stays the residual's and the disturbances' densities (first
+    # guess: q per chain) are scaled to the NEES instead: they take what white noise on the top
+    # derivative does not describe (the coloured part of the residual, a wrong parameter)
+    qd, log = match_nees(flat, q.copy(), _with_disturbance(config, q, dist), seeds, log)
+    log[-1] = log[-1].replace(" at q = ", f" at q = {_fmt(q)}, disturbance q = ")
+    return q, log, _densities(dist, qd)
+
+
+def _with_disturbance(config, q, dist):
+    """`config` whose first argument scales the disturbance densities instead of q (q is kept
+    at the residual's value: the disturbance states take what the residual does not describe)."""
+    def make(qd, run_seed, duration=None):
+        cfg = config(q, run_seed) if duration is None else config(q, run_seed, duration)
+        return dataclasses.replace(cfg, disturbance=_densities(dist, qd))
+    return make
+
+
+def _densities(dist: Disturbance, qd) -> Disturbance:
+    return Disturbance(dist.kind, tuple(float(v) for v in qd), dist.tau, dist.p0_std)
 
 
 NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 2, 1.1, 8, 20.0
@@ -208,8 +233,10 @@ def _fmt(values) -> str:
     return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
 
 
-def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str, list[str]]:
-    """The TOML text of a starting scenario for model `spec`, and the calibration log."""
+def starting_scenario(spec: str, shape: shapes.Shape | None = None,
+                      disturbance: Disturbance | None = None) -> tuple[str, list[str]]:
+    """The TOML text of a starting scenario for model `spec`, and the calibration log;
+    `disturbance` (its densities ignored): calibrated for the held filter with those states."""
     flat = ex._flat(spec)
     shape = shape or shapes.from_domains(flat)
     model = flat.model
@@ -221,7 +248,11 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str
     if model.measurement is None:
         std = [float(f"{0.004 * abs(a):.3g}") for a in shape.amplitude]
         noise_std = [std, [1.25 * s for s in std]]
-    q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape)
+    if disturbance is None:
+        q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape)
+    else:
+        q, log, disturbance = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape, predictor="held",
+                                        disturbance=disturbance)
     if all(entry.startswith("closed loop diverged") for entry in log[1:]):
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged "
                             f"(q up to {_fmt(q)} on a {shape.kind} of amplitude {_fmt(shape.amplitude)} around "
@@ -279,6 +310,12 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
+    if disturbance is not None:
+        lines += ["# one disturbance state per chain on its top derivative (run with --predictor held);",
+                  "# q: their densities, scaled so that the master's NEES averages n",
+                  "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {_toml_list(disturbance.q)}"]
+        lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
+        lines += [""]
     return "\n".join(lines), log
 
 
@@ -288,10 +325,14 @@ def _toml_list(values) -> str:
 
 def scenario(model: str, out: str | None = None, max_seconds: float | None = None,
              max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
-             phase=None, period: float | None = None) -> str:
+             phase=None, period: float | None = None, disturbance: str | None = None,
+             tau: float | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
-    derivation runs under `max_seconds` CPU seconds and `max_memory` GB."""
+    derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `disturbance`
+    ("random_walk" or "gauss_markov", `tau` its time constant [s]): the scenario adds
+    disturbance states and calibrates their densities."""
+    dist = _disturbance_option(disturbance, tau)
     path = Path(out) if out else None
     if path is not None and path.exists():
         try:
@@ -306,7 +347,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     flat = ex.derive(model, max_seconds, max_memory)
     ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
     try:
-        text, _ = starting_scenario(model, ref)
+        text, _ = starting_scenario(model, ref, dist)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
                             f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "
@@ -315,3 +356,19 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")
     return text
+
+
+def _disturbance_option(kind: str | None, tau: float | None) -> Disturbance | None:
+    """--disturbance KIND [--tau S], checked before any work."""
+    if kind is None:
+        if tau is not None:
+            raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+        return None
+    if kind not in DISTURBANCES:
+        raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(DISTURBANCES)}")
+    if kind == "gauss_markov":
+        if tau is None or not math.isfinite(tau) or tau <= 0:
+            raise ScenarioError(f"--tau {tau}: --disturbance gauss_markov needs a time constant > 0 [s]")
+    elif tau is not None:
+        raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+    return Disturbance(kind, (1.0,), tau)
