@@ -137,7 +137,15 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
         return match_nees(flat, q, config, seeds, log)
     # with disturbance states q stays the residual's and the disturbances' densities (first
     # guess: q per chain) are scaled to the NEES instead: they take what white noise on the top
-    # derivative does not describe (the coloured part of the residual, a wrong parameter)
+    # derivative does not describe (the coloured part of the residual, a wrong parameter). When
+    # the NEES is below n already with them negligible (the model explains the data), q is
+    # scaled as without them and the densities stay at that floor (1e-6 q)
+    floor = 1e-6 * q
+    if _master_nees(_with_disturbance(config, q, dist), floor, seeds) <= flat.n * NEES_TOL:
+        log.append(f"master NEES below n with disturbance q = {_fmt(floor)} (1e-6 q): the model needs none")
+        q, log = match_nees(flat, q, lambda qq, s, d=None: _with_disturbance(config, qq, dist)(floor, s, d), seeds,
+                            log)
+        return q, log, _densities(dist, floor)
     qd, log = match_nees(flat, q.copy(), _with_disturbance(config, q, dist), seeds, log)
     log[-1] = log[-1].replace(" at q = ", f" at q = {_fmt(q)}, disturbance q = ")
     return q, log, _densities(dist, qd)
