@@ -196,6 +196,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--disturbance", metavar="KIND", default=None,
                    help="random_walk or gauss_markov: add disturbance states and calibrate their densities")
     p.add_argument("--tau", type=float, default=None, metavar="S", help="the Gauss-Markov time constant [s]")
+    p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
+                   help="calibrate against a plant with that model error (as simulate's), and write it")
     _budget_options(p)
 
     p = add("inspect")
@@ -318,7 +320,8 @@ def scenario(args: argparse.Namespace) -> int:
 
     text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
                             offset=args.offset, phase=args.phase, period=args.period,
-                            disturbance=args.disturbance, tau=args.tau, **_budget(args))
+                            disturbance=args.disturbance, tau=args.tau, param_error=args.param_error,
+                            **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 
