@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from dfeif_codegen.experiment import compare
+from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.symbolic.disturbance import Disturbance
 
 FLOOR = 1e-6
@@ -42,6 +43,19 @@ def with_densities(dist: Disturbance, qd) -> Disturbance:
     return Disturbance(dist.kind, tuple(float(v) for v in qd), dist.tau, dist.p0_std)
 
 
+def first_guess(flat, ts: float, loops: list) -> np.ndarray:
+    """Per chain, the density of a random walk that gathers in one second the variance of what
+    the held model misses on the chain's top derivative along the loops: the top state's
+    one-step residual over Ts, squared and averaged (the disturbance it would take)."""
+    pred = predictors.make("held", flat, ts, np.ones(flat.m))
+    tops = [c.offset + c.degree - 1 for c in flat.chains]
+    miss = []
+    for res in loops:
+        z, u = res.zeta, res.recording.u
+        miss.append(np.array([z[k + 1] - pred.mean(z[k], u[k]) for k in range(len(z) - 1)])[:, tops] / ts)
+    return np.maximum(np.mean(np.concatenate(miss) ** 2, axis=0), 1e-300)
+
+
 def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: list[str]):
     """(q, log, the Disturbance with calibrated densities) from the results of the loops closed
     by the Brunovsky filter; `match(q, log, nees)` is starter.match_nees with its NEES measure
@@ -51,7 +65,9 @@ def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: l
         log.append(f"held filter's NEES at or below n with disturbance q = {_text(floor.q)}: the model needs none")
         q, log = match(q, log, lambda qq: held_nees(loops, qq, floor))
         return q, log, floor
-    qd, log = match(np.asarray(q, dtype=float), log, lambda qd: held_nees(loops, q, with_densities(dist, qd)))
+    guess = first_guess(flat, loops[0].recording.ts, loops)
+    log.append(f"disturbance q from what the held model misses on the top derivatives: {_text(guess)}")
+    qd, log = match(guess, log, lambda qd: held_nees(loops, q, with_densities(dist, qd)))
     log[-1] = log[-1].replace(" at q = ", f" at q = {_text(q)}, disturbance q = ")
     return q, log, with_densities(dist, qd)
 
