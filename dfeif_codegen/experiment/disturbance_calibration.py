@@ -52,7 +52,9 @@ def first_guess(flat, ts: float, loops: list) -> np.ndarray:
     miss = []
     for res in loops:
         z, u = res.zeta, res.recording.u
-        miss.append(np.array([z[k + 1] - pred.mean(z[k], u[k]) for k in range(len(z) - 1)])[:, tops] / ts)
+        r = np.array([z[k + 1] - pred.mean(z[k], u[k]) for k in range(len(z) - 1)])[:, tops]
+        angle = np.array([c.angle and c.degree == 1 for c in flat.chains])    # a top that is an angle head
+        miss.append(np.where(angle, (r + np.pi) % (2 * np.pi) - np.pi, r) / ts)
     return np.maximum(np.mean(np.concatenate(miss) ** 2, axis=0), 1e-300)
 
 
