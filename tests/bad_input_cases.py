@@ -114,6 +114,10 @@ def generated() -> dict:
     c["disturbance in the C engine"] = (
         "scenario field", ["simulate", *S, "--predictor", "held"],
         {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--engine reference"])
+    for cmd in ("verify", "network"):
+        c[f"{cmd} with disturbance states"] = (
+            "scenario field", [cmd, *S], {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'},
+            ["disturbance", f"codegen {cmd}", "--engine reference"])
     c |= _opt("option: not a choice", "scenario", "--disturbance", ["walk", ""])
     c |= _opt("option: out of range", "scenario", "--tau", ["0", "-1", "nan"], extra=("--disturbance", "gauss_markov"))
     c |= _opt("option: not a number", "bench", "--repeat", INT_BAD)
