@@ -184,10 +184,11 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None
 
 
 def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTERS),
-               predictor: str = predictors.DEFAULT) -> dict:
+               predictor: str = predictors.DEFAULT, disturbance=None) -> dict:
     """Elementary operations of one predict and one update of each filter (CasADi's instruction
     count of the SX functions after common-subexpression elimination): a machine-independent
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
-    return {kind: filter_of(spec, float(ts), q, substeps, kind, predictor=predictor).operations()
+    return {kind: filter_of(spec, float(ts), q, substeps, kind, predictor=predictor,
+                            disturbance=disturbance if kind == "df" else None).operations()
             for kind in kinds}

@@ -89,7 +89,8 @@ def one(cfg: ex.Config, engine: Engine, codes: dict, series, kind: str = "df"):
         return f"{type(exc).__name__}: {exc}", None
     if kind != "df":
         from dfeif_codegen.experiment import compare
-        m = compare.evaluate(res, kind.split("-")[0])
+        base = kind.split("-")[0]      # the derivative-free filter with the run's disturbance states
+        m = compare.evaluate(res, base, disturbance=cfg.disturbance if base == "df" else None)
         return (m["failed"] if "failed" in m else m), None
     return res.metrics, (series(res) if series else None)
 
