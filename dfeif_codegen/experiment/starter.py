@@ -138,8 +138,8 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             # 20% on the motor): more runs than the fixed model's two
             seeds = [seed + i for i in range(DRAWN_RUNS if cfg.plant_error.draw != "none" else NEES_RUNS)]
             loops = [ex.run(config(q, s, NEES_SECONDS)) for s in seeds]
-            return disturbance_calibration.densities(
-                flat, held, loops, dist, lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees), NEES_TOL, log)
+            match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees)  # noqa: E731
+            return disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
                                  getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
