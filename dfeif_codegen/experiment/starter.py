@@ -24,6 +24,9 @@ What a user would otherwise guess, derived from the model:
   along the reference) turns by more than 0.3 rad per period: the flat controller holds u over
   Ts and cannot cancel such a mode, whatever q (the comment says which Ts would do).
 
+With `--disturbance` the scenario also gets disturbance states for the held filter, their
+densities calibrated to the same NEES target (experiment/disturbance_calibration.py).
+
 The residual grows with the relative degree and with how fast the dynamics are against Ts: a
 stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e7, the motor ~20.
 """
