@@ -14,7 +14,7 @@ import pytest
 from dfeif_codegen import cli
 from dfeif_codegen.check import verify
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.net import run
+from dfeif_codegen.net import launch, run
 
 KEY = "00112233445566778899aabbccddeeff"
 # Every process and the launcher have deadlines; a run of 1-2 simulated seconds takes 10-30 s
@@ -92,7 +92,7 @@ def test_bit_flips_rejected_counted_and_rest_equal_reference(runs):
 
 
 def test_node_killed_and_restarted(runs):
-    out = runs("node-restart", duration=2.0, faults=(run.Fault(1, 60, 90),), step_timeout=0.05)
+    out = runs("node-restart", duration=2.0, faults=(launch.Fault(1, 60, 90),), step_timeout=0.05)
     assert out.returncodes == {name: 0 for name in out.returncodes}
     assert out.master["events"] == [(1, "silent", 59), (1, "rejoined", 90)]
     restarted = out.nodes[1]
@@ -108,7 +108,7 @@ def test_node_killed_and_restarted(runs):
 
 
 def test_master_restarted(runs):
-    out = runs("master-restart", duration=2.0, faults=(run.Fault("master", 60, 90),), command_timeout=0.1)
+    out = runs("master-restart", duration=2.0, faults=(launch.Fault("master", 60, 90),), command_timeout=0.1)
     assert out.returncodes == {name: 0 for name in out.returncodes}
     for node in out.nodes:     # the nodes kept filtering through the outage, predicting with the last v
         assert sorted(node["steps"]) == list(range(out.steps))
@@ -147,14 +147,14 @@ def test_a_process_that_ended_early_is_named(tmp_path):
     import signal
     import time
 
-    dead = run._Proc("node1", ["sh", "-c", "echo 'node 1: nothing received in time, exiting' >&2; exit 3"], tmp_path)
-    killed = run._Proc("node0", ["sleep", "30"], tmp_path)
-    alive = run._Proc("master", ["sleep", "30"], tmp_path)
+    dead = launch._Proc("node1", ["sh", "-c", "echo 'node 1: nothing received in time, exiting' >&2; exit 3"], tmp_path)
+    killed = launch._Proc("node0", ["sleep", "30"], tmp_path)
+    alive = launch._Proc("master", ["sleep", "30"], tmp_path)
     killed.p.send_signal(signal.SIGKILL)
     time.sleep(0.5)
     early = {p.name: p.ended() for p in (dead, killed, alive)}
     assert early == {"node1": 3, "node0": -9, "master": None}
-    msg = run._who_ended(early, tmp_path)
+    msg = launch._who_ended(early, tmp_path)
     assert "node1 ended early (exit 3: node 1: nothing received in time, exiting)" in msg
     assert "node0 ended early (killed by signal 9)" in msg and "master" not in msg
     for p in (dead, killed, alive):

@@ -26,7 +26,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from dfeif_codegen.check import harness, loader
+from dfeif_codegen.check import driver_io, harness, loader
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment.plant import Camera, Plant, _fixed, parametric_step
 from dfeif_codegen.symbolic import numeric
@@ -241,7 +241,7 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
         if call == FAILED_PLANT or err == ERR_NONFINITE:   # where numpy's loop sees the plant diverge
             ex.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"], steps=step)  # an earlier cause
             raise ex.Diverged(f"diverged at t = {s.t[step]:.2f} s: the state is not finite")
-        raise CEngineError(harness.failure({"failed_step": step, "failed_call": call, "status": err}))
+        raise CEngineError(driver_io.failure({"failed_step": step, "failed_call": call, "status": err}))
     counters = []
     health = (ctypes.c_uint32 * 4)()
     for i in range(M):
