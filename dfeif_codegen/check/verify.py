@@ -250,8 +250,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     from pathlib import Path
 
     from dfeif_codegen.check import driver_io, harness, stages, target as targets
-    from dfeif_codegen.experiment import scenario as scenarios
-    from dfeif_codegen.experiment import closed_loop as experiment
+    from dfeif_codegen.experiment import derivation, scenario as scenarios
 
     from dfeif_codegen.codegen.options import Options
     from dfeif_codegen.symbolic.sampling import for_method
@@ -263,7 +262,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     driver_io.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
-    sc.check_model(experiment.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
+    sc.check_model(derivation.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
     scenarios.check_window(sc, max_lag, nodes)
     precision = precision or ("float" if target == "cortex-m4f" else "double")

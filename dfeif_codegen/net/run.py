@@ -15,6 +15,7 @@ import numpy as np
 from dfeif_codegen.check import harness, verify
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import derivation
 from dfeif_codegen.net import session
 from dfeif_codegen.net.launch import HOST, Options, Outcome, launch, make_config
 
@@ -119,7 +120,7 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
                 predictor=predictor)
     if keep and Path(keep).exists() and any(Path(keep).iterdir()):
         raise ScenarioError(f"--keep {keep}: not empty (the run writes its programs and logs there)")
-    ex.derive(o.model, max_seconds, max_memory)   # under the budget; make_config reuses it
+    derivation.derive(o.model, max_seconds, max_memory)   # under the budget; make_config reuses it
     make_config(o)   # bad scenario or row: one line, before any build
     with tempfile.TemporaryDirectory(prefix="codegen-network-") as tmp:
         work = Path(keep) if keep else Path(tmp)
