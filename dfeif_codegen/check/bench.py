@@ -44,29 +44,28 @@ def build_times(model: str, repeat: int, work: Path) -> list[float]:
     return out
 
 
+def _harness_program(model: harness.ModelDir, work: Path, kind: str, defines: tuple[str, ...]) -> Path:
+    """templates/harness/<kind>.c.j2 rendered for the model and compiled with its sources for
+    callgrind (`defines`: -D options of the build); the executable's path."""
+    work.mkdir(parents=True, exist_ok=True)
+    template = f"harness/{kind}.c.j2"
+    src = work / f"{model.name}_{kind}.c"
+    src.write_text(render.environment(model.precision).get_template(template).render(
+        p=model.name, P=model.name.upper(), banner=render.banner(template, model.name, __version__)))
+    return harness.compile_program([*model.sources(), src], work / kind, [model.path],
+                                   [harness.BIND_NOW, *(f"-D{d}" for d in defines)])
+
+
 def callgrind(model: harness.ModelDir, work: Path, defines: tuple[str, ...] = ()) -> dict[str, float]:
     """Instructions per call of each section of bench.c.j2 (`defines`: -D options of the build)."""
-    work.mkdir(parents=True, exist_ok=True)
-    env = render.environment(model.precision)
-    src = work / f"{model.name}_bench.c"
-    src.write_text(env.get_template("harness/bench.c.j2").render(
-        p=model.name, P=model.name.upper(), banner=render.banner("harness/bench.c.j2", model.name, __version__)))
-    exe = harness.compile_program([*model.sources(), src], work / "bench", [model.path],
-                                  [harness.BIND_NOW, *(f"-D{d}" for d in defines)])
-    return harness.callgrind(exe, work)[0]
+    return harness.callgrind(_harness_program(model, work, "bench", defines), work)[0]
 
 
 def worst_case(model: harness.ModelDir, work: Path, defines: tuple[str, ...] = ()) -> dict[str, dict]:
     """Per public entry point, the instructions of its costliest call and the median call, over the
     calls of templates/harness/worst.c.j2, which drives every entry point down its longest path
     (lag N_max, packets N_max steps stale, distinct nodes, keyed frames of the largest kind)."""
-    work.mkdir(parents=True, exist_ok=True)
-    env = render.environment(model.precision)
-    src = work / f"{model.name}_worst.c"
-    src.write_text(env.get_template("harness/worst.c.j2").render(
-        p=model.name, P=model.name.upper(), banner=render.banner("harness/worst.c.j2", model.name, __version__)))
-    exe = harness.compile_program([*model.sources(), src], work / "worst", [model.path],
-                                  [harness.BIND_NOW, *(f"-D{d}" for d in defines)])
+    exe = _harness_program(model, work, "worst", defines)
     calls: dict[str, list[int]] = {}
     for name, _, total in harness.callgrind_dumps(exe, work)[0]:
         if name.startswith("worst/"):
