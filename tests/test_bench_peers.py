@@ -31,6 +31,14 @@ def test_growth_fit_recovers_a_power_law():
     assert abs(bench_peers.growth(sizes, 7.0 * sizes ** 2.25) - 2.25) < 1e-12
 
 
+def test_chain_rows_give_each_n_its_ratio_to_the_previous_one():
+    """The scaling tables' shared rows (host and Cortex-M4F): n in order, thousands separated, the
+    ratio to the previous n to two decimals, then the table's own cells."""
+    ch = {8: {"step": 12345, "t": 7}, 2: {"step": 1000, "t": 3}, 4: {"step": 2500, "t": 5}}
+    assert bench_peers.chain_rows(ch, lambda c: (c["t"], "x")) == [
+        "| 2 | 1,000 | - | 3 | x |", "| 4 | 2,500 | 2.50 | 5 | x |", "| 8 | 12,345 | 4.94 | 7 | x |"]
+
+
 def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
     """The compare step (bench_peers.checked) raises unless the dense-loop and the straight-line filters end where the generated
     filter ends after 200 steps (1e-9), each with the generated filter's predictor (held: the

@@ -50,6 +50,17 @@ def growth(sizes, costs) -> float:
     return float(np.polyfit(np.log(np.asarray(sizes, float)), np.log(np.asarray(costs, float)), 1)[0])
 
 
+def chain_rows(ch: dict, cells) -> list[str]:
+    """The scaling tables' rows, one per chain length n: n, the node step's instructions, their
+    ratio to the previous n, then the cells `cells(ch[n])` of the table at hand."""
+    ns = sorted(ch)
+    rows = []
+    for a, n in enumerate(ns):
+        prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
+        rows.append(f"| {n} | {ch[n]['step']:,.0f} | {prev} | " + " | ".join(str(c) for c in cells(ch[n])) + " |")
+    return rows
+
+
 def chain_model(n: int) -> str:
     """A flat chain of n integrators with one measured output, as a model file."""
     states = "".join(f'[[states]]\nname = "x{i}"\n' for i in range(1, n + 1))

@@ -170,10 +170,7 @@ def scaling_markdown(sc: dict) -> list[str]:
     out = [f"### Scaling on the Cortex-M4F (float, {OPT})", "",
            "| n | node step instructions | x previous n | cycles (estimate) | filter kernels .text [B] "
            "| fusion kernels .text [B] |", "|---:|---:|---:|---:|---:|---:|"]
-    for a, n in enumerate(ns):
-        prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
-        out.append(f"| {n} | {_fmt(ch[n]['step'])} | {prev} | {_cyc(ch[n]['cycles'])} | {ch[n]['filter_text']} "
-                   f"| {ch[n]['fusion_text']} |")
+    out += bench_peers.chain_rows(ch, lambda c: (_cyc(c["cycles"]), c["filter_text"], c["fusion_text"]))
     g = bench_peers.growth
     out += ["", f"Fitted growth over n = {ns[0]}..{ns[-1]}: node step ~ n^{g(ns, [ch[n]['step'] for n in ns]):.2f}, "
             f"filter kernels .text ~ n^{g(ns, [ch[n]['filter_text'] for n in ns]):.2f}, fusion kernels .text ~ "

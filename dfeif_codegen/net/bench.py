@@ -143,7 +143,7 @@ def measure(work: Path) -> dict:
 def markdown(fig: dict) -> str:
     lines = [MARK, "## Network (`codegen network --bench`)", "",
              f"Measured on this machine ({machine(fig)}; loopback UDP, 127.0.0.1 only).", "",
-             "### Wire sizes (bytes per frame: 28-byte header, reals, 8-byte tag field, CRC-32)", "",
+             f"### Wire sizes (bytes per frame: {wire.HEADER.size}-byte header, reals, 8-byte tag field, CRC-32)", "",
              "| model | precision | packet | command | camera | tick |", "|---|---|---:|---:|---:|---:|"]
     lines += [f"| {r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]} | {r[5]} |" for r in fig["sizes"]]
     lines += ["", "### Master throughput (Python sender, so a lower bound; target >= 20,000 packets/s)", "",

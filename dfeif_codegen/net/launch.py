@@ -60,8 +60,8 @@ class Options:
     faults: tuple = ()
     step_timeout: float = 1.0         # relay: how long a master tick waits for missing packets
     command_timeout: float = 2.0      # plant: how long it waits for the master's command
-    # tests: datagrams sent straight to a program at the start of a step (forged, replayed):
-    # inject(k) -> [("master" | node index, bytes)], called at each step of inject_at
+    # tests: datagrams sent straight to a program at the start of a step (forged, replayed), after
+    # that step's faults: inject(k) -> [("master" | node index, bytes)], called at each step of inject_at
     inject_at: tuple = ()
     inject: object = None
 
@@ -175,7 +175,9 @@ def _write_configs(o: Options, s: session.Setup, lay: wire.Layout, work: Path, p
 
 @dataclass
 class _Commands:
-    """The command lines of the node and master programs (a restart gets its own log)."""
+    """The command lines of the node and master programs (a restart gets its own log). The
+    master's epoch is its boot count (`-e`); a node is started knowing the current one, as a
+    firmware would keep the last epoch it heard."""
 
     o: Options
     s: session.Setup
@@ -183,10 +185,11 @@ class _Commands:
     work: Path
     ports: list[int]
     idle_ms: int
+    epoch: int = 0
 
     def _tail(self, restart: int) -> list:
         key = ["-k", self.o.key] if self.o.key else []
-        return ["-s", restart << 24, *key, "-t", str(self.idle_ms)]
+        return ["-s", restart << 24, "-e", self.epoch, *key, "-t", str(self.idle_ms)]
 
     def node(self, i: int, restart: int = 0) -> list:
         s, work = self.s, self.work
@@ -244,8 +247,6 @@ def _drive(o: Options, cmds: _Commands, procs: dict, plant: _Proc, deadline: flo
             finished = True
         elif line.startswith("pause"):
             k = int(line.split()[1])
-            if o.inject is not None and k in o.inject_at:
-                _send_forged(o.inject(k), cmds.ports)  # type: ignore[operator]
             for f in o.faults:
                 name = "master" if f.who == "master" else f"node{f.who}"
                 if f.at == k:
@@ -253,9 +254,14 @@ def _drive(o: Options, cmds: _Commands, procs: dict, plant: _Proc, deadline: flo
                     retired.append(procs.pop(name))
                 if f.back == k:
                     restarts[name] = restarts.get(name, 0) + 1
+                    if f.who == "master":
+                        cmds.epoch = restarts[name]    # a new boot: a new epoch
                     cmd = cmds.master(restarts[name]) if f.who == "master" else cmds.node(f.who, restarts[name])
                     procs[name] = _Proc(f"{name}.{restarts[name]}", cmd, cmds.work)
                     time.sleep(0.05)
+            if o.inject is not None and k in o.inject_at:     # after a restart: at the new process
+                time.sleep(0.3 if any(f.back == k for f in o.faults) else 0)
+                _send_forged(o.inject(k), cmds.ports)  # type: ignore[operator]
             plant.p.stdin.write("\n")
             plant.p.stdin.flush()
     plant.p.stdin.close()
