@@ -21,7 +21,8 @@ import numpy as np
 
 from dfeif_codegen.experiment import compare
 from dfeif_codegen.reference import predictor as predictors
-from dfeif_codegen.symbolic.disturbance import Disturbance
+from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.symbolic.disturbance import KINDS, Disturbance
 
 FLOOR = 1e-6
 
@@ -76,3 +77,19 @@ def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: l
 
 def _text(values) -> str:
     return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
+
+
+def from_options(kind: str | None, tau: float | None) -> Disturbance | None:
+    """--disturbance KIND [--tau S], checked before any work."""
+    if kind is None:
+        if tau is not None:
+            raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+        return None
+    if kind not in KINDS:
+        raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(KINDS)}")
+    if kind == "gauss_markov":
+        if tau is None or not math.isfinite(tau) or tau <= 0:
+            raise ScenarioError(f"--tau {tau}: --disturbance gauss_markov needs a time constant > 0 [s]")
+    elif tau is not None:
+        raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+    return Disturbance(kind, (1.0,), tau)

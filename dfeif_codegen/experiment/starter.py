@@ -42,10 +42,11 @@ import numpy as np
 
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.experiment import disturbance_calibration, shapes
 from dfeif_codegen.experiment.trajectory import flags
-from dfeif_codegen.symbolic.disturbance import KINDS as DISTURBANCES, Disturbance
+from dfeif_codegen.symbolic.disturbance import Disturbance
 
 MARKER = "# Starting scenario written by `codegen scenario`"
 
@@ -355,7 +356,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     ("random_walk" or "gauss_markov", `tau` its time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
     --param-error`): the calibration's plants and the scenario get that model error."""
-    dist = _disturbance_option(disturbance, tau)
+    dist = disturbance_calibration.from_options(disturbance, tau)
     plant_error = None
     if param_error is not None:
         from dfeif_codegen.experiment import model_error
@@ -372,7 +373,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         from dfeif_codegen.paths import writable_file
         writable_file(path, "--out")
-    flat = ex.derive(model, max_seconds, max_memory)
+    flat = derivation.derive(model, max_seconds, max_memory)
     if plant_error is not None:
         plant_error.check(flat.model, lambda key: "--param-error")
     ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
@@ -387,18 +388,3 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
         path.write_text(text + "\n", encoding="utf-8")
     return text
 
-
-def _disturbance_option(kind: str | None, tau: float | None) -> Disturbance | None:
-    """--disturbance KIND [--tau S], checked before any work."""
-    if kind is None:
-        if tau is not None:
-            raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
-        return None
-    if kind not in DISTURBANCES:
-        raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(DISTURBANCES)}")
-    if kind == "gauss_markov":
-        if tau is None or not math.isfinite(tau) or tau <= 0:
-            raise ScenarioError(f"--tau {tau}: --disturbance gauss_markov needs a time constant > 0 [s]")
-    elif tau is not None:
-        raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
-    return Disturbance(kind, (1.0,), tau)
