@@ -34,17 +34,27 @@ class Shape:
     offset: tuple
     phase: tuple
     cycles: tuple
-    period: float
+    period: float             # for a user's trajectory: the length of its file, in whole steps
+    trajectory: object = None  # experiment/trajectory_file.Trajectory, for kind "trajectory"
+    rate: float = 0.0          # its angular frequency [rad/s], measured (from_trajectory)
 
     def config(self) -> dict:
         """The closed_loop.Config fields of this reference."""
+        if self.trajectory is not None:
+            return dict(reference="trajectory", trajectory=self.trajectory, amplitude=self.amplitude,
+                        offset=self.offset, period=self.period)
         return dict(reference="seesaw" if self.kind == "seesaw" else "sinusoid", amplitude=self.amplitude,
                     offset=self.offset, phase=self.phase, cycles=self.cycles, period=self.period)
 
     @property
     def omega(self) -> float:
         """The fastest angular frequency of the outputs [rad/s]."""
-        return 2 * math.pi * max(self.cycles) / self.period
+        return self.rate or 2 * math.pi * max(self.cycles) / self.period
+
+    @property
+    def limit(self) -> float:
+        """The longest run this reference serves [s]: a periodic one repeats, a file ends."""
+        return self.period if self.trajectory is not None else math.inf
 
 
 def _numbers(text: str | None, m: int, flag: str) -> list[float] | None:
@@ -93,6 +103,37 @@ def from_domains(flat, shape: str = "sinusoid", amplitude=None, offset=None, pha
     if period is not None and not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
         raise ScenarioError(f"--period {period}: needs a positive number of seconds")
     return Shape(shape, tuple(amp), tuple(off), tuple(phases), tuple(cycles), float(period or PERIOD))
+
+
+MIN_SECONDS = 2.0   # a starting scenario measures from 1 s on: a shorter file leaves nothing
+
+
+def from_trajectory(flat, traj) -> Shape:
+    """The reference of a starting scenario that follows a user's CSV (trajectory_file): its
+    length in whole steps, each output's half swing and mean, and the angular frequency of a
+    sinusoid with the same ratio of rms speed to rms swing (what P0 and the q floor scale with)."""
+    from dfeif_codegen.experiment import trajectory_file
+
+    mdl = flat.model
+    names, ts = [o.name for o in mdl.outputs], float(mdl.ts)
+    span = math.floor((traj.t[-1] + 1e-9 * ts) / ts) * ts
+    if span < MIN_SECONDS:
+        raise ScenarioError(f"{traj.path}: covers {traj.t[-1]:g} s from t = 0; a starting scenario needs at "
+                            f"least {MIN_SECONDS:g} s")
+    trajectory_file.check(traj, names, flat.degrees, span - ts, mdl.name)
+    refs = traj.outputs(names, flat.degrees)
+    grid = np.arange(int(round(span / ts))) * ts
+    rates = []
+    for ref in refs:
+        y = np.array([ref.flags(t, 1) for t in grid])
+        swing = float(np.sqrt(np.mean((y[:, 0] - y[:, 0].mean()) ** 2)))
+        if swing > 0:
+            rates.append(float(np.sqrt(np.mean(y[:, 1] ** 2))) / swing)
+    rate = max(rates) if rates and max(rates) > 0 else 2 * math.pi / span
+    amp = traj.amplitude(names)
+    offset = tuple(float(np.mean(traj.column(n))) for n in names)
+    m = flat.m
+    return Shape("trajectory", amp, offset, (0.0,) * m, (1,) * m, span, traj, rate)
 
 
 PERIODS = tuple(5.0 * 2.0 ** k for k in range(8))   # 5 s to 640 s, tried in order: slower references last

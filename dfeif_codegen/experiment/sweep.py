@@ -72,6 +72,8 @@ def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
     key = (engine, cfg) if kind == "df" else (engine, cfg, kind)
     if cfg.plant_error.active:          # out of Config's repr, so error-free runs keep their ids
         key = (*key, cfg.plant_error)
+    if cfg.trajectory is not None:      # the same: path, content digest and smoothing of the CSV
+        key = (*key, cfg.trajectory)
     return hashlib.sha256(repr(key).encode()).hexdigest()[:20]
 
 
