@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import sympy as sp
@@ -134,6 +135,32 @@ def from_trajectory(flat, traj) -> Shape:
     offset = tuple(float(np.mean(traj.column(n))) for n in names)
     m = flat.m
     return Shape("trajectory", amp, offset, (0.0,) * m, (1,) * m, span, traj, rate)
+
+
+def of_trajectory(flat, trajectory: str, smoothing, out: Path | None, shaped: bool):
+    """The user's CSV as the starting scenario's reference, checked over its whole length (the
+    transform defined at every sample); and how the scenario will name it."""
+    import os
+
+    from dfeif_codegen.experiment import closed_loop as ex
+    from dfeif_codegen.experiment import trajectory_file
+    from dfeif_codegen.experiment.trajectory import flags
+
+    if shaped:
+        raise ScenarioError("--trajectory: the file gives the reference; --shape, --amplitude, --offset, --phase "
+                            "and --period do not apply")
+    if not (isinstance(smoothing, (int, float)) and math.isfinite(smoothing) and smoothing >= 0):
+        raise ScenarioError(f"--smoothing {smoothing}: needs a window of 0 or more seconds")
+    traj = trajectory_file.read(Path(trajectory), float(smoothing))
+    shape = from_trajectory(flat, traj)
+    refs = traj.outputs([o.name for o in flat.model.outputs], flat.degrees)
+    t = np.arange(int(round(shape.period / flat.model.ts))) * flat.model.ts
+    try:
+        ex.check_reference(flat, [flags(refs, flat.degrees, tk) for tk in t], t)
+    except ArithmeticError as exc:
+        raise ScenarioError(f"{trajectory}: {exc}") from None
+    return shape, Path(os.path.relpath(Path(trajectory).resolve(),
+                                       (out.parent if out else Path(".")).resolve())).as_posix()
 
 
 PERIODS = tuple(5.0 * 2.0 ** k for k in range(8))   # 5 s to 640 s, tried in order: slower references last
