@@ -6,7 +6,8 @@ width around its nominal value (kept inside the domain), other outputs by 0.5 ar
 at the nominal state. `shape` picks how the outputs move together: `sinusoid` (in phase),
 `seesaw`, `circle` (the second output a quarter period behind the first: a mobile robot keeps its
 speed away from zero) and `figure8` (the second output at twice the frequency). Every number can
-be given instead (`codegen scenario --amplitude ... --offset ... --phase ... --period ...`).
+be given instead (`codegen scenario --amplitude ... --offset ... --phase ... --period ...`), or
+the reference taken from a user's CSV (`--trajectory`: `from_trajectory`, `of_trajectory`).
 """
 
 from __future__ import annotations

@@ -19,7 +19,13 @@ What a user would otherwise guess, derived from the model:
   the motor 17.5, where the paper's hand calibration chose 20. That fixes the chains'
   proportions; their common scale is then set so that the master's NEES, averaged over two 20 s
   closed loops without delays, is n (within 10%), the middle of its 95% band (`match_nees`),
-  with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings).
+  with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings). A
+  scale whose loop is lost is followed by one ten times larger, then ten times smaller, a decade
+  further each way in turn (a stiff plant needs more q, a PVTOL's degree-4 chains far less than
+  their residual); when none closes, the command refuses with the reason. Last, the replay loop
+  must close under the grid's hardest delays (the prediction then carries the estimate for up to
+  30 steps): q rises by half decades until it does (`close_with_delays`: the maglev of the tests
+  needs 3.2 times its NEES-matched q, or it drifts onto its magnet).
 - a warning, as a comment, when an oscillatory mode of the plant (eigenvalues of its Jacobian
   along the reference) turns by more than 0.3 rad per period: the flat controller holds u over
   Ts and cannot cancel such a mode, whatever q (the comment says which Ts would do).
