@@ -19,13 +19,10 @@ What a user would otherwise guess, derived from the model:
   the motor 17.5, where the paper's hand calibration chose 20. That fixes the chains'
   proportions; their common scale is then set so that the master's NEES, averaged over two 20 s
   closed loops without delays, is n (within 10%), the middle of its 95% band (`match_nees`),
-  with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings). A
-  scale whose loop is lost is followed by one ten times larger, then ten times smaller, a decade
-  further each way in turn (a stiff plant needs more q, a PVTOL's degree-4 chains far less than
-  their residual); when none closes, the command refuses with the reason. Last, the replay loop
-  must close under the grid's hardest delays (the prediction then carries the estimate for up to
-  30 steps): q rises by half decades until it does (`close_with_delays`: the maglev of the tests
-  needs 3.2 times its NEES-matched q, or it drifts onto its magnet).
+  with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings),
+  searching both ways after a lost loop (`_after_loss`); none closing is exit 2. Last, q rises
+  by half decades until the replay loop closes under the grid's hardest delays too
+  (`close_with_delays`).
 - a warning, as a comment, when an oscillatory mode of the plant (eigenvalues of its Jacobian
   along the reference) turns by more than 0.3 rad per period: the flat controller holds u over
   Ts and cannot cancel such a mode, whatever q (the comment says which Ts would do).
@@ -37,6 +34,7 @@ stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e
 from __future__ import annotations
 
 import importlib
+import json
 import math
 from pathlib import Path
 
@@ -44,6 +42,7 @@ import numpy as np
 
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.experiment import shapes
 from dfeif_codegen.experiment.trajectory import flags
@@ -147,12 +146,10 @@ DELAY_STEPS = 6    # half decades q may rise by to close the loop under the hard
 
 
 def close_with_delays(q, config, seeds, links, log) -> tuple[np.ndarray, list[str]]:
-    """The NEES match runs without delays, where every frame corrects the estimate on time; under
-    the scenario's hardest delays the estimate rests on the model's prediction for many steps, and
-    a q at the edge there loses the loop (an open-loop unstable maglev drifts onto its magnet).
-    Run the replay loop with those delays (every seed, simulate's own divergence tests: the
-    domain, the tracking bound, the NEES) and raise q by half a decade until it closes; past
-    DELAY_STEPS keep the NEES-matched q and say so."""
+    """Under the hardest delays the estimate rides the model's prediction for many steps, and a q
+    matched without delays can lose the loop (the maglev of the tests drifts onto its magnet).
+    Run the replay loop there (simulate's divergence tests) and raise q by half a decade until it
+    closes; past DELAY_STEPS keep the NEES-matched q and say so."""
     import dataclasses
 
     def lost(q) -> str | None:
@@ -186,11 +183,9 @@ NO_LOOP = "every scale of q tried"
 
 
 def _after_loss(tried, scale: float, lost: int) -> float:
-    """The next log scale of q after one that lost a closed loop. Before any loop closed: ten
-    times more, then ten times less, a decade further each way in turn (0, +1, -1, +2, -2, ...
-    decades): too small a q lets the estimate lag (a stiff plant), too large a one passes the
-    cameras' noise into the derivatives the control differentiates (a chain of degree 4 whose
-    residual overshoots: the PVTOL). After one closed: halfway back to the closest one."""
+    """The next log scale of q after a lost loop. Before any closed: 0, +1, -1, +2, -2, ... decades
+    (a stiff plant needs more q; a PVTOL's degree-4 chains, whose residual overshoots, far less).
+    After one closed: halfway back to the closest."""
     if tried:
         best = min(tried, key=lambda t: abs(t[1]))[0]
         return (scale + best) / 2
@@ -276,20 +271,15 @@ def _fmt(values) -> str:
 
 
 def _reference_lines(shape: shapes.Shape, file: str | None) -> list[str]:
-    """The [reference] table: the shape's numbers, or the user's CSV (`file`, as the scenario
-    names it: relative to the scenario's folder)."""
+    """The [reference] table: the shape's numbers, or the user's CSV (`file`: relative to it)."""
     if shape.trajectory is not None:
         smoothing = [f"smoothing = {shape.trajectory.smoothing:g}"] if shape.trajectory.smoothing else []
         return ["[reference]           # the user's trajectory (columns t, each flat output, <name>_d<k>)",
-                f"file = {_toml_string(file)}", *smoothing, ""]
+                f"file = {json.dumps(file)}", *smoothing, ""]
     return [f"[reference]           # {shape.kind}, from the flat outputs' declared domains",
             f"amplitude = {_toml_list(shape.amplitude)}", f"period = {shape.period:g}",
             f"offset = {_toml_list(shape.offset)}", f"phase = {_toml_list(shape.phase)}",
             f"cycles = {_toml_list(shape.cycles)}", "harmonics = 4", ""]
-
-
-def _toml_string(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
 def starting_scenario(spec: str, shape: shapes.Shape | None = None,
@@ -387,13 +377,13 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         from dfeif_codegen.paths import writable_file
         writable_file(path, "--out")
-    flat = ex.derive(model, max_seconds, max_memory)
+    flat = derivation.derive(model, max_seconds, max_memory)
     file = None
     if trajectory is None:
         ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
     else:
         ref, file = shapes.of_trajectory(flat, trajectory, smoothing, path,
-                                      shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period)))
+                                         shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period)))
     try:
         text, _ = starting_scenario(model, ref, file)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
