@@ -6,7 +6,7 @@
  * little-endian master agree. Layout (docs/wire.md):
  *   0 magic "DFEW" | 4 version | 5 kind | 6 flags (bit 0 keyed) | 7 bytes per real
  *   8 model hash prefix (8 bytes) | 16 node id u16 | 18 reals in the payload u16
- *   20 step u32 | 24 sequence number u32 | 28 payload (reals)
+ *   20 step u32 | 24 sequence number u32 | 28 epoch u32 | 32 payload (reals)
  *   then a SipHash-2-4 tag (8 bytes, zero without a key) over everything before it,
  *   then CRC-32 (IEEE, reflected 0xEDB88320, = zlib.crc32) over everything before it. */
 #include <string.h>
@@ -23,6 +23,7 @@
 #define PACKET_SIZE UNICYCLE_PACKET_WIRE_SIZE
 #define COMMAND_REALS UNICYCLE_COMMAND_REALS
 #define COMMAND_SIZE UNICYCLE_COMMAND_WIRE_SIZE
+#define ANNOUNCE_SIZE UNICYCLE_ANNOUNCE_WIRE_SIZE
 
 /* The model's SHA-256 (hex), and its first 8 bytes: the frames' model field. */
 const char unicycle_model_hash[65] = UNICYCLE_MODEL_HASH;
@@ -215,6 +216,7 @@ int unicycle_frame_encode(const unicycle_frame_header* header, const real* value
         put16(&buf[18], count);
         put32(&buf[20], header->step);
         put32(&buf[24], header->seq);
+        put32(&buf[28], header->epoch);
         for (i = 0; i < count; i++) {
             put_real(&buf[HDR + (RS * i)], values[i]);
         }
@@ -276,13 +278,15 @@ int unicycle_frame_decode(const uint8_t* buf, size_t len, const uint8_t* key, ui
         header->node = get16(&buf[16]);
         header->step = get32(&buf[20]);
         header->seq = get32(&buf[24]);
+        header->epoch = get32(&buf[28]);
     }
     return rc;
 }
 
 /* The packet's reals in wire order: centre, x, P, x_pred, P_pred. */
 int unicycle_packet_encode(const unicycle_packet* packet, uint16_t node, uint32_t seq,
-                           const uint8_t* key, uint8_t buf[UNICYCLE_PACKET_WIRE_SIZE])
+                           uint32_t epoch, const uint8_t* key,
+                           uint8_t buf[UNICYCLE_PACKET_WIRE_SIZE])
 {
     real values[UNICYCLE_PACKET_REALS];
     unicycle_frame_header h;
@@ -297,6 +301,7 @@ int unicycle_packet_encode(const unicycle_packet* packet, uint16_t node, uint32_
         h.node = node;
         h.step = packet->step;
         h.seq = seq;
+        h.epoch = epoch;
         rc = unicycle_frame_encode(&h, values, PACKET_REALS, key, buf, PACKET_SIZE);
     }
     return rc;
@@ -329,7 +334,7 @@ int unicycle_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key,
 }
 
 int unicycle_command_encode(uint32_t step, const real v[NY], const real u[UNICYCLE_NU],
-                            uint32_t seq, const uint8_t* key,
+                            uint32_t seq, uint32_t epoch, const uint8_t* key,
                             uint8_t buf[UNICYCLE_COMMAND_WIRE_SIZE])
 {
     real values[UNICYCLE_COMMAND_REALS];
@@ -342,9 +347,22 @@ int unicycle_command_encode(uint32_t step, const real v[NY], const real u[UNICYC
         h.node = UNICYCLE_MASTER_ID;
         h.step = step;
         h.seq = seq;
+        h.epoch = epoch;
         rc = unicycle_frame_encode(&h, values, COMMAND_REALS, key, buf, COMMAND_SIZE);
     }
     return rc;
+}
+
+int unicycle_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const uint8_t* key,
+                             uint8_t buf[UNICYCLE_ANNOUNCE_WIRE_SIZE])
+{
+    unicycle_frame_header h;
+    h.kind = UNICYCLE_KIND_ANNOUNCE;
+    h.node = UNICYCLE_MASTER_ID;
+    h.step = step;
+    h.seq = seq;
+    h.epoch = epoch;
+    return unicycle_frame_encode(&h, NULL, 0u, key, buf, ANNOUNCE_SIZE);
 }
 
 static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
@@ -440,13 +458,16 @@ static void count_reject(unicycle_wire_counters* c, int rc)
     case UNICYCLE_ERR_WIRE_GAIN:
         c->gain++;
         break;
+    case UNICYCLE_ERR_WIRE_EPOCH:
+        c->epoch++;
+        break;
     default:
         c->other++;
         break;
     }
 }
 
-int unicycle_inbox_init(unicycle_inbox* inbox, const uint8_t key[16], uint32_t base)
+int unicycle_inbox_init(unicycle_inbox* inbox, const uint8_t key[16], uint32_t base, uint32_t epoch)
 {
     int rc = UNICYCLE_ERR_ARG;
     if (inbox != NULL) {
@@ -456,6 +477,7 @@ int unicycle_inbox_init(unicycle_inbox* inbox, const uint8_t key[16], uint32_t b
             inbox->keyed = 1;
         }
         inbox->base = base;
+        inbox->epoch = epoch;
         rc = UNICYCLE_OK;
     }
     return rc;
@@ -469,20 +491,37 @@ static int seq_fresh(uint32_t seq, uint32_t last)
     return ((ahead != 0u) && (ahead < 0x80000000u)) ? 1 : 0;
 }
 
-static int check_packet(const unicycle_master* master, const unicycle_inbox* inbox,
-                        const uint8_t* buf, size_t len, unicycle_packet* pk,
-                        unicycle_frame_header* h)
+/* The checks that need no master state: integrity, node id, and with a key the master's epoch
+ * (a frame of an earlier boot is refused: replay protection across restarts) and a fresh
+ * sequence number within it. */
+static int check_origin(const unicycle_inbox* inbox, const uint8_t* buf, size_t len,
+                        unicycle_packet* pk, unicycle_frame_header* h)
 {
     const uint8_t* key = (inbox->keyed != 0u) ? inbox->key : NULL;
-    uint32_t now = inbox->base + master->k;
     int rc = packet_decode(buf, len, key, pk, h);
     if (rc == UNICYCLE_OK) {
         if (h->node >= (uint16_t)NNODES) {
             rc = UNICYCLE_ERR_WIRE_NODE;
+        } else if ((inbox->keyed != 0u) && (h->epoch != inbox->epoch)) {
+            rc = UNICYCLE_ERR_WIRE_EPOCH;
         } else if ((inbox->keyed != 0u) && (inbox->seen[h->node] != 0u) &&
                    (seq_fresh(h->seq, inbox->last_seq[h->node]) == 0)) {
             rc = UNICYCLE_ERR_WIRE_REPLAY;
-        } else if (h->step > now) {
+        } else {
+            rc = UNICYCLE_OK;
+        }
+    }
+    return rc;
+}
+
+static int check_packet(const unicycle_master* master, const unicycle_inbox* inbox,
+                        const uint8_t* buf, size_t len, unicycle_packet* pk,
+                        unicycle_frame_header* h)
+{
+    uint32_t now = inbox->base + master->k;
+    int rc = check_origin(inbox, buf, len, pk, h);
+    if (rc == UNICYCLE_OK) {
+        if (h->step > now) {
             rc = UNICYCLE_ERR_WIRE_FUTURE;
         } else if ((h->step < inbox->base) || ((now - h->step) > (uint32_t)NMAX)) {
             rc = UNICYCLE_ERR_WIRE_OLD;
@@ -493,6 +532,27 @@ static int check_packet(const unicycle_master* master, const unicycle_inbox* inb
         } else {
             /* last: a packet refused here leaves its node's step open for the real one */
             rc = unicycle_packet_check(pk);
+        }
+    }
+    return rc;
+}
+
+int unicycle_inbox_join(unicycle_inbox* inbox, const uint8_t* buf, size_t len,
+                        unicycle_packet* packet, unicycle_frame_header* header)
+{
+    unicycle_packet pk;
+    unicycle_frame_header h;
+    int rc = UNICYCLE_ERR_ARG;
+    if ((inbox != NULL) && (buf != NULL) && (packet != NULL) && (header != NULL)) {
+        rc = check_origin(inbox, buf, len, &pk, &h);
+        if (rc == UNICYCLE_OK) {
+            rc = unicycle_packet_check(&pk);
+        }
+        if (rc != UNICYCLE_OK) {
+            count_reject(&inbox->rejected, rc);
+        } else {
+            *packet = pk;
+            *header = h;
         }
     }
     return rc;
@@ -559,7 +619,7 @@ int unicycle_master_fuse_inbox(unicycle_master* master, unicycle_inbox* inbox)
     return rc;
 }
 
-int unicycle_command_rx_init(unicycle_command_rx* rx, const uint8_t key[16])
+int unicycle_command_rx_init(unicycle_command_rx* rx, const uint8_t key[16], uint32_t epoch)
 {
     int rc = UNICYCLE_ERR_ARG;
     if (rx != NULL) {
@@ -568,7 +628,38 @@ int unicycle_command_rx_init(unicycle_command_rx* rx, const uint8_t key[16])
             (void)memcpy(rx->key, key, sizeof(rx->key));
             rx->keyed = 1;
         }
+        rx->epoch = epoch;
         rc = UNICYCLE_OK;
+    }
+    return rc;
+}
+
+/* A master frame's origin and freshness (keyed): an epoch older than the last one heard (RFC 1982
+ * order) is refused, a newer one is taken (the master restarted), and within an epoch the sequence
+ * number must be fresh. Taken frames set the node's epoch: its packets carry it. */
+static int master_frame_taken(unicycle_command_rx* rx, int decoded, const unicycle_frame_header* h)
+{
+    int rc = decoded;
+    if ((rc == UNICYCLE_OK) && (h->node != UNICYCLE_MASTER_ID)) {
+        rc = UNICYCLE_ERR_WIRE_NODE;
+    }
+    if ((rc == UNICYCLE_OK) && (rx->keyed != 0u)) {
+        uint32_t ahead = h->epoch - rx->epoch; /* (decoded: h is filled) */
+        if (ahead >= 0x80000000u) {
+            rc = UNICYCLE_ERR_WIRE_EPOCH;
+        } else if ((ahead == 0u) && (rx->seen != 0u) && (seq_fresh(h->seq, rx->last_seq) == 0)) {
+            rc = UNICYCLE_ERR_WIRE_REPLAY;
+        } else {
+            rc = UNICYCLE_OK;
+        }
+    }
+    if (rc != UNICYCLE_OK) {
+        count_reject(&rx->rejected, rc);
+    } else {
+        rx->epoch = h->epoch;
+        rx->seen = 1;
+        rx->last_seq = h->seq;
+        rx->accepted++;
     }
     return rc;
 }
@@ -581,24 +672,28 @@ int unicycle_command_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t
     real u1[UNICYCLE_NU];
     int rc = UNICYCLE_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
-        rc = command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h);
-        if ((rc == UNICYCLE_OK) && (h.node != UNICYCLE_MASTER_ID)) {
-            rc = UNICYCLE_ERR_WIRE_NODE;
-        }
-        if ((rc == UNICYCLE_OK) && (rx->keyed != 0u) && (rx->seen != 0u) &&
-            (seq_fresh(h.seq, rx->last_seq) == 0)) {
-            rc = UNICYCLE_ERR_WIRE_REPLAY;
-        }
-        if (rc != UNICYCLE_OK) {
-            count_reject(&rx->rejected, rc);
-        } else {
-            rx->seen = 1;
-            rx->last_seq = h.seq;
-            rx->accepted++;
+        (void)memset(v1, 0, sizeof(v1)); /* (set by a decode that succeeds; compilers cannot tell) */
+        (void)memset(u1, 0, sizeof(u1));
+        rc = master_frame_taken(rx,
+                                command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h),
+                                &h);
+        if (rc == UNICYCLE_OK) {
             *step = h.step;
             (void)memcpy(v, v1, sizeof(v1));
             (void)memcpy(u, u1, sizeof(u1));
         }
+    }
+    return rc;
+}
+
+int unicycle_announce_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t len)
+{
+    unicycle_frame_header h;
+    int rc = UNICYCLE_ERR_ARG;
+    if ((rx != NULL) && (buf != NULL)) {
+        rc = unicycle_frame_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL,
+                                   UNICYCLE_KIND_ANNOUNCE, NULL, 0u, &h);
+        rc = master_frame_taken(rx, rc, &h);
     }
     return rc;
 }
