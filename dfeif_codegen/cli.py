@@ -109,7 +109,7 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs", type=int, default=None, help="seeds to average over")
     p.add_argument("--seed", type=int, default=0, help="first seed")
     _filter_options(p, many=True)
-    p.add_argument("--reference", choices=["sinusoid", "seesaw"], action="append", help="(repeatable)")
+    p.add_argument("--reference", choices=["sinusoid", "seesaw", "trajectory"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
                    help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
     p.add_argument("--param-error", metavar="SPREAD|NAME=REL,...", default=None,
@@ -198,6 +198,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--tau", type=float, default=None, metavar="S", help="the Gauss-Markov time constant [s]")
     p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
                    help="calibrate against a plant with that model error (as simulate's), and write it")
+    p.add_argument("--trajectory", metavar="FILE.csv",
+                   help="track this CSV of the flat outputs (t, <output>, optionally <output>_d1, ...) instead of a shape")
+    p.add_argument("--smoothing", type=float, default=0.0, metavar="S",
+                   help="window [s] of the fit that differentiates outputs given without derivatives "
+                        "(default: the fewest samples the fit needs)")
     _budget_options(p)
 
     p = add("inspect")
@@ -321,7 +326,7 @@ def scenario(args: argparse.Namespace) -> int:
     text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
                             offset=args.offset, phase=args.phase, period=args.period,
                             disturbance=args.disturbance, tau=args.tau, param_error=args.param_error,
-                            **_budget(args))
+                            trajectory=args.trajectory, smoothing=args.smoothing, **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 

@@ -82,6 +82,25 @@ def generated() -> dict:
             ("binary", b"\x00\x01\x02", ["s.toml"])):
         c[f"scenario {name}"] = ("scenario file", ["simulate", *S], {"s.toml": text}, ["s.toml", *words])
     c["scenario missing"] = ("scenario file", ["simulate", "--scenario", "{d}/in/none.toml"], {}, ["none.toml"])
+    # --- a user's trajectory (experiment/trajectory_file.py): dc_motor_link's theta, 1 s at 10 ms ----
+    traj = "[scenario]\nduration = 1.0\nruns = 1\nmetrics_from = 0.2\n[reference]\nfile = \"t.csv\"\n"
+    rows = "".join(f"{k * 0.01!r},{0.1 * k * 0.01!r}\n" for k in range(101))
+    for name, csv, words in (
+            ("missing column", "t,phi\n" + rows, ["t.csv", "no column 'theta'"]),
+            ("NaN", "t,theta\n" + rows.replace("0.02,0.002", "0.02,nan"), ["t.csv:4", "column theta", "finite"]),
+            ("not a number", "t,theta\n" + rows.replace("0.02,0.002", "0.02,x"), ["t.csv:4", "column theta"]),
+            ("time not increasing", "t,theta\n" + rows.replace("0.03,", "0.02,"), ["t.csv:5", "time must increase"]),
+            ("one row", "t,theta\n0,0\n", ["t.csv", "at least 2"]),
+            ("shorter than the run", "t,theta\n" + rows[:rows.index("0.5,")], ["t.csv:51", "shorter than the run"]),
+            ("derivative missing", "t,theta,theta_d1\n" + rows.replace("\n", ",0\n"), ["t.csv", "theta_d2 missing"]),
+            ("missing", None, ["t.csv"])):
+        files = {"s.toml": traj} if csv is None else {"s.toml": traj, "t.csv": csv}
+        c[f"trajectory {name}"] = ("trajectory file", ["simulate", *S], files, ["s.toml", "reference.file", *words])
+    c["scenario --trajectory missing"] = ("trajectory file", ["scenario", "--trajectory", "{d}/in/none.csv"], {},
+                                          ["none.csv"])
+    c |= _opt("option: out of range", "scenario", "--smoothing", ["-1", "nan"], {"t.csv": "t,theta\n" + rows},
+              ["--trajectory", "{d}/in/t.csv"], ["--smoothing"])
+    c |= _opt("option: not a number", "scenario", "--smoothing", FLOAT_BAD, None, ["--trajectory", "x.csv"])
     # --- network -------------------------------------------------------------------------------
     c |= _opt("option: not a number", "network", "--duration", FLOAT_BAD)
     c |= _opt("option: out of range", "network", "--duration", ["0", "-5", "nan", "1e9", "inf"])

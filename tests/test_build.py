@@ -23,7 +23,7 @@ from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import model
 
 ROOT = Path(__file__).resolve().parents[1]
-MODELS = ["dc_motor_link", "two_link_arm"]
+MODELS = model.builtin_names()   # every built-in model: generated/ holds each one
 
 
 def cli_run(*argv: str, env: dict | None = None) -> subprocess.CompletedProcess:
@@ -37,7 +37,7 @@ def tree(folder: Path) -> dict[str, bytes]:
 
 @pytest.fixture(scope="module")
 def fresh(tmp_path_factory):
-    """Both built-in models built with default options through the CLI."""
+    """Every built-in model built with default options through the CLI."""
     out = tmp_path_factory.mktemp("fresh")
     for name in MODELS:
         result = cli_run("build", name, "--out", str(out))

@@ -121,3 +121,64 @@ def test_plant_holds_the_controller_states_over_a_period():
     np.testing.assert_allclose(after[4], -0.3 + (7.5 / m - g) * ts, rtol=0, atol=1e-13)
     np.testing.assert_allclose(after[6:], [7.5 + 40.0 * ts - 200.0 * ts**2 / 2, 40.0 - 200.0 * ts],
                                rtol=0, atol=1e-12)
+
+
+def _robot_run_config(name):
+    """The robot's own scenario, its first row with late frames, 3 s (a lap's start), seed 3."""
+    import dataclasses
+
+    from dfeif_codegen.experiment import plan, scenario
+
+    sc = scenario.load(name)
+    cfg = plan.make_config(sc, name, 2, 32, sc.references[0], sc.grid[1], "replay", "difference", 3)
+    return dataclasses.replace(cfg, duration=3.0, metrics_from=0.5)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_generated_control_and_extension_step_equal_the_reference_over_a_recorded_run(name, tmp_path):
+    """Along a closed loop recorded by the numpy reference, the generated C's control (u, v from
+    the master's estimate and the reference flags) and <model>_extension_step (the controller's
+    integrator states advanced under that u, the plant's input) give the reference's numbers to
+    1e-10 relative in double: the same formulas in another order, a few ulps per step, not fed
+    back (each step starts from the reference's recorded state)."""
+    import ctypes
+
+    import dfeif_codegen as dc
+    from dfeif_codegen.experiment import closed_loop as ex
+
+    cfg = _robot_run_config(name)
+    res = ex.run(cfg)
+    rec, flat = res.recording, ex._flat(name)
+    lib = dc.load(dc.build(name, tmp_path))
+    states = [s.name for s in flat.model.states]
+    xi_at = [states.index(s) for s in flat.extension.states]
+    assert xi_at == list(range(flat.n - len(xi_at), flat.n))            # the last NXI states
+    first = {j: states.index(c[0]) for j, c in enumerate(flat.extension.chains.values()) if c}
+    ptr = lambda a: ctypes.c_void_p(a.ctypes.data)  # noqa: E731
+    scale = np.max(np.abs(rec.u), axis=0)
+    for k in range(len(rec.u) - 1):
+        u, v = lib.control(rec.x[k], rec.ref[k], rec.gains)
+        assert np.all(np.abs(u - rec.u[k]) <= 1e-10 * (np.abs(rec.u[k]) + scale)), (k, u, rec.u[k])
+        np.testing.assert_allclose(v, rec.v[k], rtol=1e-10, atol=1e-12)
+        xi, plant_u = res.x_true[k, xi_at].copy(), np.zeros(flat.m)
+        lib.call("extension_step", ptr(xi), ptr(np.ascontiguousarray(rec.u[k])), ptr(plant_u))
+        np.testing.assert_allclose(xi, res.x_true[k + 1, xi_at], rtol=1e-10, atol=1e-12)
+        held = [res.x_true[k, first[j]] if j in first else rec.u[k, j] for j in range(flat.m)]
+        np.testing.assert_array_equal(plant_u, held)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_compiled_closed_loop_runs_the_extension_through_the_generated_c(name, host_cc):
+    """`simulate`'s compiled engine advances the controller's states with the generated
+    <model>_extension_step (templates/harness/closed_loop.c.j2) and equals the numpy engine to
+    1e-9 relative, the bound and reasoning of tests/test_engine_c.py (a stable loop damps the
+    ulp differences of two evaluation orders); the late frames applied are the same."""
+    from dfeif_codegen.check import closed_loop_c
+    from dfeif_codegen.experiment import closed_loop as ex
+
+    cfg = _robot_run_config(name)
+    c, py = closed_loop_c.run(cfg), ex.run(cfg)
+    assert c.counters == py.counters and c.counters[0]["late_applied"] > 0
+    np.testing.assert_allclose(c.x_true, py.x_true, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(c.recording.x, py.recording.x, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(c.recording.u, py.recording.u, rtol=1e-9, atol=1e-9 * np.abs(py.recording.u).max())

@@ -97,7 +97,7 @@ def read_results(rec, model: ModelDir, path: Path) -> tuple[dict, dict]:
 
 
 CALLS = {1: "node update", 2: "node update_delayed", 3: "node packet", 4: "master fuse", 5: "control",
-         6: "predict"}
+         6: "predict", 8: "extension_step"}
 
 
 def failure(status: dict, err: int | None = None) -> str:

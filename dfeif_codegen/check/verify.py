@@ -240,7 +240,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
            max_seconds: float | None = None, max_memory: float | None = None,
            predictor: str | None = None) -> Verification:
     """Build into a temporary folder, record a scenario (default the paper one, its first delay
-    row with late frames, sinusoid, 20 s) with the reference, run the C on it (host: ctypes, or a
+    row with late frames, its first reference (the paper's sinusoid), 20 s) with the reference, run the C on it (host: ctypes, or a
     program under ASan+UBSan with `sanitize`; cortex-m4f: QEMU) and compare. `progress(line)` is
     told the settings and the scenario as soon as they are known. The derivations (the
     reference's and the build's) run under `max_seconds` CPU seconds and `max_memory` GB. A
@@ -264,7 +264,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     sc = scenarios.load(scenario)
     sc.without_disturbance("codegen verify")
     sc.check_model(derivation.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
-    row = verify_row(sc)
+    row, ref = verify_row(sc), sc.references[0]   # the paper's: sinusoid; a CSV's: trajectory
     scenarios.check_window(sc, max_lag, nodes)
     precision = precision or ("float" if target == "cortex-m4f" else "double")
     if target == "host":
@@ -285,14 +285,14 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
                     f"target {target}, {inputs} inputs{' with ASan+UBSan' if sanitize else ''}")
         say(f"codegen verify: {settings}")
         try:
-            rec = record(model, oosm, fusion, "sinusoid", row, nodes, max_lag, scenario_spec=scenario,
+            rec = record(model, oosm, fusion, ref, row, nodes, max_lag, scenario_spec=scenario,
                          predictor=predictor)
         except (ArithmeticError, np.linalg.LinAlgError) as exc:
-            raise ScenarioError(f"{sc.source}: run sinusoid row {row + 1} seed 0: the Python reference itself "
+            raise ScenarioError(f"{sc.source}: run {ref} row {row + 1} seed 0: the Python reference itself "
                                 f"failed ({type(exc).__name__}: {exc}), so there is nothing to compare the C "
                                 "with") from None
         K = rec.ref.shape[0]
-        about = (f"scenario: {sc.name}, sinusoid, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
+        about = (f"scenario: {sc.name}, {ref}, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
                  f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
         say(about)
         compiled = stages.compile(built, target, sanitize, work)    # compile -> run -> compare, once each

@@ -32,6 +32,7 @@ from dfeif_codegen.experiment.recording import FilterBank, Recording, _Outputs
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.experiment.plant import Camera, Plant
 from dfeif_codegen.experiment.trajectory import Reference, flags
+from dfeif_codegen.experiment.trajectory_file import KIND as TRAJECTORY, Trajectory
 
 
 class UndefinedReference(ArithmeticError):
@@ -101,6 +102,9 @@ class Config:
     plant_error: ParamError = field(default=EXACT_MODEL, repr=False)
     # the filters' disturbance states (symbolic/disturbance.py), None: none; out of repr as above
     disturbance: object = field(default=None, repr=False)
+    # reference "trajectory": the user's CSV (experiment/trajectory_file.py); out of repr like
+    # plant_error (sweep.run_id adds it when set)
+    trajectory: Trajectory | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -161,12 +165,12 @@ def initial_covariance(flat, p0_std) -> np.ndarray:
 
 @lru_cache(maxsize=64)
 def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K, phase=(0.0,),
-                     cycles=(1,)) -> np.ndarray:
+                     cycles=(1,), trajectory=None) -> np.ndarray:
     """The reference flags of every step, checked to map into the domain (the same for every seed
     and method of a row: computed and checked once per process)."""
     flat = _flat(spec)
     cfg = Config(model=spec, reference=kind, amplitude=amplitude, period=period, offset=offset, harmonics=harmonics,
-                 phase=phase, cycles=cycles)
+                 phase=phase, cycles=cycles, trajectory=trajectory)
     refs = references(cfg, flat.m)
     t = np.arange(K) * ts
     table = np.array([flags(refs, flat.degrees, tk) for tk in t])
@@ -175,7 +179,13 @@ def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K, ph
     return table
 
 
-def references(cfg: Config, m: int) -> list[Reference]:
+def references(cfg: Config, m: int) -> list:
+    """Per flat output, its reference (anything with `flags(t, r)`)."""
+    if cfg.reference == TRAJECTORY:
+        flat = _flat(cfg.model)
+        if cfg.trajectory is None:
+            raise ValueError("reference 'trajectory' needs Config.trajectory (a CSV read by trajectory_file.read)")
+        return cfg.trajectory.outputs([o.name for o in flat.model.outputs], flat.degrees)
     amp, off, phase = _per_chain(cfg.amplitude, m), _per_chain(cfg.offset, m), _per_chain(cfg.phase, m)
     cycles = _per_chain(cfg.cycles, m)
     return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics, phase[j], int(cycles[j]))
@@ -232,7 +242,7 @@ def prepare(cfg: Config) -> Setup:
             for s, std in zip(cfg.noise_scale, cfg.noise_std)]
     t = np.arange(K) * ts
     ref = _reference_table(cfg.model, cfg.reference, cfg.amplitude, cfg.period, cfg.offset, cfg.harmonics, ts, K,
-                           tuple(cfg.phase), tuple(cfg.cycles))
+                           tuple(cfg.phase), tuple(cfg.cycles), cfg.trajectory)
 
     net_rng, noise_rng, init_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(3))
     net = Network(list(cfg.sensor), list(cfg.uplink), K, net_rng)

@@ -1,5 +1,5 @@
 """`codegen scenario --disturbance`: the disturbance states' densities (symbolic/disturbance.py),
-scaled so that the master's NEES averages n, the middle of its band (starter.match_nees).
+scaled so that the master's NEES averages n, the middle of its band (nees_match.match_nees).
 
 Why on recordings: the held filter's estimate does not yet close the flatness controller's loop
 well (reference/predictor.py: the controller computes u as if v were held), and under model
@@ -61,7 +61,7 @@ def first_guess(flat, ts: float, loops: list) -> np.ndarray:
 
 def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: list[str]):
     """(q, log, the Disturbance with calibrated densities) from the results of the loops closed
-    by the Brunovsky filter; `match(q, log, nees)` is starter.match_nees with its NEES measure
+    by the Brunovsky filter; `match(q, log, nees)` is nees_match.match_nees with its NEES measure
     `nees(q)`, `tol` its factor."""
     floor = with_densities(dist, FLOOR * np.asarray(q, dtype=float))
     if held_nees(loops, q, floor) <= flat.n * tol:

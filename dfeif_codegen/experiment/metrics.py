@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dfeif_codegen.experiment.derivation import _flat
+from dfeif_codegen.experiment.trajectory_file import KIND as TRAJECTORY
 from dfeif_codegen.reference.linalg import wrap
 
 if TYPE_CHECKING:
@@ -43,6 +44,8 @@ def tracking_bound(cfg: "Config", m: int) -> np.ndarray:
     if cfg.tracking_bound:
         return _per_chain(cfg.tracking_bound, m)
     amp = np.abs(_per_chain(cfg.amplitude, m))
+    if cfg.reference == TRAJECTORY:      # a user's CSV: half each output's swing over the file
+        amp = np.array(cfg.trajectory.amplitude([o.name for o in _flat(cfg.model).model.outputs]))
     return np.where(amp > 0, 2 * amp, np.inf)
 
 

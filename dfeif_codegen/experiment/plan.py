@@ -39,7 +39,7 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
-        predictor=predictor, disturbance=sc.disturbance)
+        predictor=predictor, disturbance=sc.disturbance, trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:
@@ -159,6 +159,8 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
     sc.check_model(flat)
     nodes, runs = _counts(sc, nodes, max_lag, runs)
     refs = list(reference or sc.references)
+    if ex.TRAJECTORY in refs and sc.trajectory is None:
+        raise ScenarioError(f"--reference {ex.TRAJECTORY}: {sc.source} has no [reference] file (a CSV of the flat outputs)")
     configs = list(dict.fromkeys(configurations(list(oosm or sc.oosm), list(fusion or sc.fusion), sc.baselines)))
     for method, _ in configs:
         oosm_of = method if method in ex.OOSM else "replay"

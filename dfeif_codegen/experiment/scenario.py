@@ -19,6 +19,7 @@ from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
 from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.experiment import model_error
+from dfeif_codegen.experiment import trajectory_file
 from dfeif_codegen.experiment.trajectory import KINDS
 from dfeif_codegen.symbolic import disturbance as disturbances
 
@@ -29,7 +30,8 @@ _ALLOWED = {
                  "oosm", "fusion", "baselines"},
     "filter": {"q", "p0_std", "initial_error"},
     "control": {"poles"},
-    "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound"},
+    "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound", "file",
+                  "smoothing"},
     "nodes": {"noise_scale", "noise_std"},
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
@@ -85,6 +87,7 @@ class Scenario:
     grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
     model_error: model_error.ParamError = model_error.NONE    # the plant's parameters against the model's
     disturbance: disturbances.Disturbance | None = None        # the filters' disturbance states, if any
+    trajectory: trajectory_file.Trajectory | None = None     # [reference] file: the reference "trajectory"
     _lines: dict = field(default_factory=dict, repr=False)
 
     def where(self, key: str) -> str:
@@ -135,6 +138,10 @@ class Scenario:
             if len(values) not in (1, m):
                 fail(key, f"needs 1 or {m} values (one per flat output) for model {flat.model.name}, "
                           f"got {len(values)}")
+        if self.trajectory is not None:
+            K = int(round(self.duration / ts))
+            trajectory_file.check(self.trajectory, [o.name for o in flat.model.outputs], flat.degrees,
+                                  (K - 1) * ts, flat.model.name, self.where("reference.file"))
         if len(self.p0_std) < max(flat.degrees):
             fail("filter.p0_std", f"needs {max(flat.degrees)} values (one per derivative order) for model "
                                   f"{flat.model.name}, got {len(self.p0_std)}")
@@ -263,7 +270,7 @@ def _read_head(r: _Reader, head: dict) -> None:
     sc.metrics_from = r.number(head, "scenario", "metrics_from", sc.metrics_from, positive=True)
     if sc.metrics_from >= sc.duration:
         r.fail("scenario.metrics_from", f"{sc.metrics_from} s leaves nothing of a {sc.duration} s run to measure")
-    sc.references = r.names(head, "scenario", "references", sc.references, KINDS)
+    sc.references = r.names(head, "scenario", "references", sc.references, (*KINDS, trajectory_file.KIND))
     sc.oosm = r.names(head, "scenario", "oosm", sc.oosm, OOSM)
     sc.fusion = r.names(head, "scenario", "fusion", sc.fusion, RULES)
     value = head.get("baselines", sc.baselines)
@@ -291,6 +298,28 @@ def _read_settings(r: _Reader, data: dict) -> None:
         sc.tracking_bound = r.numbers(ref, "reference", "tracking_bound", [])
     if any(c != int(c) or c < 1 for c in sc.cycles):
         r.fail("reference.cycles", f"needs whole numbers of cycles per period (>= 1), got {sc.cycles}")
+    _read_trajectory(r, ref, "references" in data.get("scenario", {}))
+
+
+def _read_trajectory(r: _Reader, ref: dict, listed: bool) -> None:
+    """[reference] file (a CSV, relative to the scenario file) and smoothing; a scenario with a
+    file runs the reference "trajectory" unless [scenario] references says otherwise."""
+    sc = r.sc
+    if "smoothing" in ref and "file" not in ref:
+        r.fail("reference.smoothing", "only applies to a [reference] file")
+    if "file" in ref:
+        if not isinstance(ref["file"], str) or not ref["file"]:
+            r.fail("reference.file", f"must be the path of a CSV file, got {ref['file']!r}")
+        smoothing = r.number(ref, "reference", "smoothing", 0.0, positive=True)
+        base = Path(sc.source).parent if sc.source not in {f"{b}.toml" for b in BUILTIN} else Path(".")
+        try:
+            sc.trajectory = trajectory_file.read(base / ref["file"], smoothing)
+        except ScenarioError as exc:
+            r.fail("reference.file", str(exc))
+        if not listed:
+            sc.references = [trajectory_file.KIND]
+    if trajectory_file.KIND in sc.references and sc.trajectory is None:
+        r.fail("scenario.references", f"'{trajectory_file.KIND}' needs a [reference] file (a CSV of the flat outputs)")
 
 
 def _read_network(r: _Reader, data: dict) -> None:

@@ -6,13 +6,15 @@ width around its nominal value (kept inside the domain), other outputs by 0.5 ar
 at the nominal state. `shape` picks how the outputs move together: `sinusoid` (in phase),
 `seesaw`, `circle` (the second output a quarter period behind the first: a mobile robot keeps its
 speed away from zero) and `figure8` (the second output at twice the frequency). Every number can
-be given instead (`codegen scenario --amplitude ... --offset ... --phase ... --period ...`).
+be given instead (`codegen scenario --amplitude ... --offset ... --phase ... --period ...`), or
+the reference taken from a user's CSV (`--trajectory`: `from_trajectory`, `of_trajectory`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import sympy as sp
@@ -34,17 +36,27 @@ class Shape:
     offset: tuple
     phase: tuple
     cycles: tuple
-    period: float
+    period: float             # for a user's trajectory: the length of its file, in whole steps
+    trajectory: object = None  # experiment/trajectory_file.Trajectory, for kind "trajectory"
+    rate: float = 0.0          # its angular frequency [rad/s], measured (from_trajectory)
 
     def config(self) -> dict:
         """The closed_loop.Config fields of this reference."""
+        if self.trajectory is not None:
+            return dict(reference="trajectory", trajectory=self.trajectory, amplitude=self.amplitude,
+                        offset=self.offset, period=self.period)
         return dict(reference="seesaw" if self.kind == "seesaw" else "sinusoid", amplitude=self.amplitude,
                     offset=self.offset, phase=self.phase, cycles=self.cycles, period=self.period)
 
     @property
     def omega(self) -> float:
         """The fastest angular frequency of the outputs [rad/s]."""
-        return 2 * math.pi * max(self.cycles) / self.period
+        return self.rate or 2 * math.pi * max(self.cycles) / self.period
+
+    @property
+    def limit(self) -> float:
+        """The longest run this reference serves [s]: a periodic one repeats, a file ends."""
+        return self.period if self.trajectory is not None else math.inf
 
 
 def _numbers(text: str | None, m: int, flag: str) -> list[float] | None:
@@ -93,6 +105,63 @@ def from_domains(flat, shape: str = "sinusoid", amplitude=None, offset=None, pha
     if period is not None and not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
         raise ScenarioError(f"--period {period}: needs a positive number of seconds")
     return Shape(shape, tuple(amp), tuple(off), tuple(phases), tuple(cycles), float(period or PERIOD))
+
+
+MIN_SECONDS = 2.0   # a starting scenario measures from 1 s on: a shorter file leaves nothing
+
+
+def from_trajectory(flat, traj) -> Shape:
+    """The reference of a starting scenario that follows a user's CSV (trajectory_file): its
+    length in whole steps, each output's half swing and mean, and the angular frequency of a
+    sinusoid with the same ratio of rms speed to rms swing (what P0 and the q floor scale with)."""
+    from dfeif_codegen.experiment import trajectory_file
+
+    mdl = flat.model
+    names, ts = [o.name for o in mdl.outputs], float(mdl.ts)
+    span = math.floor((traj.t[-1] + 1e-9 * ts) / ts) * ts
+    if span < MIN_SECONDS:
+        raise ScenarioError(f"{traj.path}: covers {traj.t[-1]:g} s from t = 0; a starting scenario needs at "
+                            f"least {MIN_SECONDS:g} s")
+    trajectory_file.check(traj, names, flat.degrees, span - ts, mdl.name)
+    refs = traj.outputs(names, flat.degrees)
+    grid = np.arange(int(round(span / ts))) * ts
+    rates = []
+    for ref in refs:
+        y = np.array([ref.flags(t, 1) for t in grid])
+        swing = float(np.sqrt(np.mean((y[:, 0] - y[:, 0].mean()) ** 2)))
+        if swing > 0:
+            rates.append(float(np.sqrt(np.mean(y[:, 1] ** 2))) / swing)
+    rate = max(rates) if rates and max(rates) > 0 else 2 * math.pi / span
+    amp = traj.amplitude(names)
+    offset = tuple(float(np.mean(traj.column(n))) for n in names)
+    m = flat.m
+    return Shape("trajectory", amp, offset, (0.0,) * m, (1,) * m, span, traj, rate)
+
+
+def of_trajectory(flat, trajectory: str, smoothing, out: Path | None, shaped: bool):
+    """The user's CSV as the starting scenario's reference, checked over its whole length (the
+    transform defined at every sample); and how the scenario will name it."""
+    import os
+
+    from dfeif_codegen.experiment import closed_loop as ex
+    from dfeif_codegen.experiment import trajectory_file
+    from dfeif_codegen.experiment.trajectory import flags
+
+    if shaped:
+        raise ScenarioError("--trajectory: the file gives the reference; --shape, --amplitude, --offset, --phase "
+                            "and --period do not apply")
+    if not (isinstance(smoothing, (int, float)) and math.isfinite(smoothing) and smoothing >= 0):
+        raise ScenarioError(f"--smoothing {smoothing}: needs a window of 0 or more seconds")
+    traj = trajectory_file.read(Path(trajectory), float(smoothing))
+    shape = from_trajectory(flat, traj)
+    refs = traj.outputs([o.name for o in flat.model.outputs], flat.degrees)
+    t = np.arange(int(round(shape.period / flat.model.ts))) * flat.model.ts
+    try:
+        ex.check_reference(flat, [flags(refs, flat.degrees, tk) for tk in t], t)
+    except ArithmeticError as exc:
+        raise ScenarioError(f"{trajectory}: {exc}") from None
+    return shape, Path(os.path.relpath(Path(trajectory).resolve(),
+                                       (out.parent if out else Path(".")).resolve())).as_posix()
 
 
 PERIODS = tuple(5.0 * 2.0 ** k for k in range(8))   # 5 s to 640 s, tried in order: slower references last

@@ -19,22 +19,26 @@ What a user would otherwise guess, derived from the model:
   the motor 17.5, where the paper's hand calibration chose 20. That fixes the chains'
   proportions; their common scale is then set so that the master's NEES, averaged over two 20 s
   closed loops without delays, is n (within 10%), the middle of its 95% band (`match_nees`),
-  with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings).
+  with the filter the scenario runs (`calibrate(..., **options)`: its closed-loop settings),
+  searching both ways after a lost loop (`_after_loss`); none closing is exit 2. Last, q rises
+  by half decades until the replay loop closes under the grid's hardest delays too
+  (`close_with_delays`).
 - a warning, as a comment, when an oscillatory mode of the plant (eigenvalues of its Jacobian
   along the reference) turns by more than 0.3 rad per period: the flat controller holds u over
   Ts and cannot cancel such a mode, whatever q (the comment says which Ts would do).
 
-With `--disturbance` the scenario also gets disturbance states for the held filter, their
-densities calibrated to the same NEES target (experiment/disturbance_calibration.py).
-
 The residual grows with the relative degree and with how fast the dynamics are against Ts: a
 stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e7, the motor ~20.
+
+With `--disturbance` the scenario also gets disturbance states for the held filter, their
+densities calibrated to the same NEES target (experiment/disturbance_calibration.py).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
+import json
 import math
 from pathlib import Path
 
@@ -45,6 +49,8 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.experiment import disturbance_calibration, shapes
+from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
+                                                 fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.trajectory import flags
 from dfeif_codegen.symbolic.disturbance import Disturbance
 
@@ -101,11 +107,13 @@ def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
               duration: float = 5.0, seed: int = 1000, rounds: int = 3,
-              shape: shapes.Shape | None = None, **options) -> tuple:
+              shape: shapes.Shape | None = None, delays: tuple | None = None, **options) -> tuple:
     """q per chain and a log of the rounds (see the module docstring). `options`: the filters'
     settings of the closed loops (closed_loop.Config fields, e.g. the predictor the scenario
-    selects), so q is calibrated for the filter that will run. With `disturbance` among them
-    (a Disturbance, its densities ignored): (q, log, the Disturbance with calibrated densities)."""
+    selects), so q is calibrated for the filter that will run; `delays`: the camera links
+    (network.Link per node) of the scenario's hardest delay row, which q must also close. With
+    `disturbance` among the options (a Disturbance, its densities ignored): (q, log, the
+    Disturbance with calibrated densities)."""
     shape = shape or shapes.from_domains(flat)
     q = _reference_q(flat, spec, ts, substeps, shape)
     floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
@@ -113,9 +121,9 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     q = np.maximum(q, floor)
     log = [f"along the reference: q = {_fmt(q)}"]
 
-    def config(q, run_seed, duration=duration):
-        return ex.Config(model=spec, ts=ts, duration=duration, substeps=substeps, q=tuple(q), poles=tuple(poles),
-                         p0_std=tuple(p0_std), **shape.config(),
+    def config(q, run_seed, duration=duration):   # a file's trajectory ends: no run beyond it
+        return ex.Config(model=spec, ts=ts, duration=min(duration, shape.limit), substeps=substeps, q=tuple(q),
+                         poles=tuple(poles), p0_std=tuple(p0_std), **shape.config(),
                          noise_std=tuple(None if s is None else tuple(s) for s in noise_std),
                          noise_scale=(1.0, 1.25), seed=run_seed, watch_nees=False, **options)
         # too small a q is what these loops are run to measure: their NEES is meant to be high,
@@ -133,7 +141,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             log.append(f"closed loop diverged: q x 10 -> {_fmt(q)}")
             continue
         k0 = int(round(cfg.metrics_from / ts))
-        rec = res.recording      # the residual of the predictor the loop ran (the chapter's on main)
+        rec = res.recording      # the residual of the predictor the loop ran
         if dist is not None:
             held = _held_residual_q(flat, ts, cfg, res, k0)
             q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:]), q)
@@ -150,7 +158,11 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
         break
     if dist is not None:
         raise ArithmeticError(f"every closed loop of the calibration diverged (q up to {_fmt(q)})")
-    return match_nees(flat, q, config, [seed + i for i in range(NEES_RUNS)], log)
+    seeds = [seed + i for i in range(NEES_RUNS)]
+    q, log = match_nees(flat, q, config, seeds, log)
+    if delays is None or NO_LOOP in log[-1]:
+        return q, log
+    return close_with_delays(q, config, seeds, delays, log)
 
 
 def _held_residual_q(flat, ts, cfg, res, k0) -> np.ndarray:
@@ -163,61 +175,6 @@ def _held_residual_q(flat, ts, cfg, res, k0) -> np.ndarray:
 
 
 DRAWN_RUNS = 8
-NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 2, 1.1, 8, 20.0
-
-
-def _master_nees(config, q, seeds) -> float:
-    """The master's NEES averaged over the steps and the runs (inf when a run fails)."""
-    values = []
-    for s in seeds:
-        try:
-            values.append(float(np.mean(ex.run(config(q, s, NEES_SECONDS)).metrics["nees_master"])))
-        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
-            return math.inf
-    return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
-
-
-def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list[str]]:
-    """Scale q (every chain alike, keeping the residual's proportions) until the master's NEES,
-    averaged over `seeds` closed loops without delays of NEES_SECONDS (the length of a
-    scenario's runs: the NEES of a filter with little process noise drifts over a run, so a
-    shorter run would match another q), is n within a factor NEES_TOL: the middle of its 95%
-    band for any number of runs. A secant on log NEES against log scale (NEES falls as q
-    grows); at most NEES_EVALS evaluations, keeping the closest. The residual alone does not get
-    there: it is coloured (correlated from step to step), which white noise of the same variance
-    does not describe, and the estimate's own error feeds back through u. `nees(q)`: another
-    measure of the master's NEES at q than `seeds` closed loops of `config`."""
-    n = flat.n
-    nees_at = nees or (lambda qq: _master_nees(config, qq, seeds))
-    tried = []                                   # (log scale, log NEES / n)
-    scale = 0.0
-    for _ in range(NEES_EVALS):
-        value = nees_at(q * math.exp(scale))
-        if not math.isfinite(value):
-            scale += math.log(10.0)             # too small a q lost a run: ten times more
-            continue
-        tried.append((scale, math.log(value / n)))
-        if abs(tried[-1][1]) <= math.log(NEES_TOL):
-            break
-        if len(tried) < 2 or tried[-1][0] == tried[-2][0]:
-            slope = -1.0                         # NEES ~ 1/q, the first guess
-        else:
-            (s0, e0), (s1, e1) = tried[-2], tried[-1]
-            slope = (e1 - e0) / (s1 - s0) if s1 != s0 else -1.0
-            slope = min(slope, -0.05)            # NEES falls with q; a flat stretch takes large steps
-        scale = tried[-1][0] - max(-3.0, min(3.0, tried[-1][1] / slope))   # within e^+-3 per step
-    if not tried:
-        log.append("master NEES: every scale of q lost a closed loop; q kept from the residual")
-        return q, log
-    best = min(tried, key=lambda t: abs(t[1]))
-    q = q * math.exp(best[0])
-    inside = abs(best[1]) <= math.log(NEES_TOL)
-    log.append(f"master NEES over {len(seeds)} runs without delays: {n * math.exp(best[1]):.3g} at q = {_fmt(q)} "
-               f"(x{math.exp(best[0]):.3g}; target n = {n}" + ("" if inside else f", not reached in {len(tried)} tries")
-               + ")")
-    return q, log
-
-
 def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: shapes.Shape | None = None) -> float:
     """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]."""
     shape = shape or shapes.from_domains(flat)
@@ -238,16 +195,24 @@ def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: sha
     return worst
 
 
-def _fmt(values) -> str:
-    return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
+def _reference_lines(shape: shapes.Shape, file: str | None) -> list[str]:
+    """The [reference] table: the shape's numbers, or the user's CSV (`file`: relative to it)."""
+    if shape.trajectory is not None:
+        smoothing = [f"smoothing = {shape.trajectory.smoothing:g}"] if shape.trajectory.smoothing else []
+        return ["[reference]           # the user's trajectory (columns t, each flat output, <name>_d<k>)",
+                f"file = {json.dumps(file)}", *smoothing, ""]
+    return [f"[reference]           # {shape.kind}, from the flat outputs' declared domains",
+            f"amplitude = {_toml_list(shape.amplitude)}", f"period = {shape.period:g}",
+            f"offset = {_toml_list(shape.offset)}", f"phase = {_toml_list(shape.phase)}",
+            f"cycles = {_toml_list(shape.cycles)}", "harmonics = 4", ""]
 
 
-def starting_scenario(spec: str, shape: shapes.Shape | None = None, disturbance: Disturbance | None = None,
-                      plant_error=None) -> tuple[str, list[str]]:
-    """The TOML text of a starting scenario for model `spec`, and the calibration log;
-    `disturbance` (its densities ignored): calibrated for the held filter with those states;
-    `plant_error` (model_error.ParamError): the calibration's plants have it, and so has the
-    scenario (its [model_error] table)."""
+def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | None = None,
+                      disturbance: Disturbance | None = None, plant_error=None) -> tuple[str, list[str]]:
+    """The TOML text of a starting scenario for model `spec`, and the calibration log; `file`:
+    how the scenario names a trajectory shape's CSV; `disturbance` (its densities ignored):
+    calibrated for the held filter with those states; `plant_error` (model_error.ParamError):
+    the calibration's plants have it, and so has the scenario (its [model_error] table)."""
     flat = ex._flat(spec)
     shape = shape or shapes.from_domains(flat)
     model = flat.model
@@ -259,12 +224,15 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, disturbance:
     if model.measurement is None:
         std = [float(f"{0.004 * abs(a):.3g}") for a in shape.amplitude]
         noise_std = [std, [1.25 * s for s in std]]
+    paper = scenario_mod.load("paper")   # its delay grid is the starting scenario's
     options = ({} if plant_error is None else {"plant_error": plant_error}) | \
         ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance})
-    q, log, *calibrated = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape, **options)
+    q, log, *calibrated = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape,
+                                    delays=paper.grid[-1].links(len(noise_std)), **options)
     disturbance = calibrated[0] if calibrated else None
-    if all(entry.startswith("closed loop diverged") for entry in log[1:]):
-        raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged "
+    if NO_LOOP in log[-1]:     # no closed loop of the NEES stage survived: nothing was calibrated
+        raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged or lost "
+                            f"its closed loop "
                             f"(q up to {_fmt(q)} on a {shape.kind} of amplitude {_fmt(shape.amplitude)} around "
                             f"{_fmt(shape.offset)}): the loop does not close on that reference; try "
                             "--amplitude, --offset, --period or --shape")
@@ -277,7 +245,6 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, disturbance:
                 f"# close whatever q. A period of about {0.1 / omega_max:.2g} s (scenario.ts) would, at "
                 f"{ts * omega_max / 0.1:.0f} times the work."]
         log.append(f"fastest oscillation {omega_max:.3g} rad/s: too fast for Ts = {ts:g} s")
-    paper = scenario_mod.load("paper")
     lines = [
         MARKER + f" for model {model.name}.",
         "# Every number below comes from the model (docs/experiment.md, \"A starting scenario\"):",
@@ -288,7 +255,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, disturbance:
         "[scenario]",
         f'name = "{model.name}_start"',
         f'description = "starting scenario for {model.name}, generated by codegen scenario"',
-        f"duration = {max(20.0, shape.period):g}",
+        f"duration = {shape.period if shape.trajectory is not None else max(20.0, shape.period):g}",
         "runs = 4",
         "substeps = 10",
         "metrics_from = 1.0",
@@ -305,14 +272,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, disturbance:
         "[control]",
         f"poles = {poles[0]:g}              # every pole at -0.1/Ts",
         "",
-        f"[reference]           # {shape.kind}, from the flat outputs' declared domains",
-        f"amplitude = {_toml_list(shape.amplitude)}",
-        f"period = {shape.period:g}",
-        f"offset = {_toml_list(shape.offset)}",
-        f"phase = {_toml_list(shape.phase)}",
-        f"cycles = {_toml_list(shape.cycles)}",
-        "harmonics = 4",
-        "",
+        *_reference_lines(shape, file),
     ]
     for i, node_std in enumerate(noise_std):
         lines += ["[[nodes]]", f"noise_scale = {1.0 if i == 0 else 1.25:g}" if node_std is None
@@ -322,7 +282,6 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, disturbance:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
     lines += _extra_tables(plant_error, disturbance)
     return "\n".join(lines), log
-
 
 
 def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
@@ -342,17 +301,21 @@ def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
         lines += [""]
     return lines
 
+
 def _toml_list(values) -> str:
     return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
 
 
 def scenario(model: str, out: str | None = None, max_seconds: float | None = None,
              max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
-             phase=None, period: float | None = None, disturbance: str | None = None,
-             tau: float | None = None, param_error: str | None = None) -> str:
+             phase=None, period: float | None = None, trajectory: str | None = None,
+             smoothing: float = 0.0, disturbance: str | None = None, tau: float | None = None,
+             param_error: str | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
-    derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `disturbance`
+    derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `trajectory`: a CSV of
+    the flat outputs (experiment/trajectory_file.py) to track instead of a shape, named in the
+    scenario relative to `out`'s folder (or to the current one when printed). `disturbance`
     ("random_walk" or "gauss_markov", `tau` its time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
     --param-error`): the calibration's plants and the scenario get that model error."""
@@ -376,9 +339,14 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     flat = derivation.derive(model, max_seconds, max_memory)
     if plant_error is not None:
         plant_error.check(flat.model, lambda key: "--param-error")
-    ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
+    file = None
+    if trajectory is None:
+        ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
+    else:
+        ref, file = shapes.of_trajectory(flat, trajectory, smoothing, path,
+                                         shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period)))
     try:
-        text, _ = starting_scenario(model, ref, dist, plant_error)
+        text, _ = starting_scenario(model, ref, file, dist, plant_error)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
                             f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "
@@ -387,4 +355,3 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")
     return text
-

@@ -75,6 +75,8 @@ def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
         key = (*key, cfg.plant_error)
     if cfg.disturbance is not None:     # likewise
         key = (*key, cfg.disturbance)
+    if cfg.trajectory is not None:      # the same: path, content digest and smoothing of the CSV
+        key = (*key, cfg.trajectory)
     return hashlib.sha256(repr(key).encode()).hexdigest()[:20]
 
 

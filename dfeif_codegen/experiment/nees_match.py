@@ -1,0 +1,122 @@
+"""Scaling a scenario's q until the master's NEES averages n (`match_nees`), and raising it until
+the closed loop survives the hardest delays (`close_with_delays`): the two searches of `codegen
+scenario`'s calibration (experiment/starter.py), over closed loops it describes by `config(q,
+seed, duration)`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from dfeif_codegen.experiment import closed_loop as ex
+
+
+def fmt(values) -> str:
+    return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
+
+
+DELAY_STEPS = 6    # half decades q may rise by to close the loop under the hardest delays
+
+
+def close_with_delays(q, config, seeds, links, log) -> tuple[np.ndarray, list[str]]:
+    """Under the hardest delays the estimate rides the model's prediction for many steps, and a q
+    matched without delays can lose the loop (the maglev of the tests drifts onto its magnet).
+    Run the replay loop there (simulate's divergence tests) and raise q by half a decade until it
+    closes; past DELAY_STEPS keep the NEES-matched q and say so."""
+    def lost(q) -> str | None:
+        for s in seeds:
+            cfg = dataclasses.replace(config(q, s, NEES_SECONDS), sensor=tuple(links), watch_nees=True)
+            try:
+                ex.run(cfg)
+            except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+                return str(exc)
+        return None
+
+    where = ", ".join(f"d = {lk.d} with p = {lk.p:g}" for lk in links)
+    first = lost(q)
+    first = first and first.split(" (")[0]
+    if first is None:
+        return q, log
+    for step in range(1, DELAY_STEPS + 1):
+        raised = q * 10 ** (step / 2)
+        if lost(raised) is None:
+            log.append(f"under the hardest delays ({where}) the loop was lost ({first}): q x {10 ** (step / 2):.3g} "
+                       f"-> {fmt(raised)} closes it")
+            return raised, log
+    log.append(f"WARNING: under the hardest delays ({where}) the loop is lost ({first}) up to q x "
+               f"{10 ** (DELAY_STEPS / 2):.3g}; q kept")
+    return q, log
+
+
+NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 2, 1.1, 8, 20.0
+NEES_LOST = 6      # scales of q whose closed loops were lost, at most, before giving up
+NO_LOOP = "every scale of q tried"
+
+
+def _after_loss(tried, scale: float, lost: int) -> float:
+    """The next log scale of q after a lost loop. Before any closed: 0, +1, -1, +2, -2, ... decades
+    (a stiff plant needs more q; a PVTOL's degree-4 chains, whose residual overshoots, far less).
+    After one closed: halfway back to the closest."""
+    if tried:
+        best = min(tried, key=lambda t: abs(t[1]))[0]
+        return (scale + best) / 2
+    k = (lost + 1) // 2
+    return math.log(10.0) * (k if lost % 2 else -k)
+
+
+def _master_nees(config, q, seeds) -> float:
+    """The master's NEES averaged over the steps and the runs (inf when a run fails)."""
+    values = []
+    for s in seeds:
+        try:
+            values.append(float(np.mean(ex.run(config(q, s, NEES_SECONDS)).metrics["nees_master"])))
+        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
+            return math.inf
+    return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
+
+
+def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list[str]]:
+    """Scale q (every chain alike, keeping the residual's proportions) until the master's NEES,
+    averaged over `seeds` closed loops without delays of NEES_SECONDS (the length of a
+    scenario's runs: the NEES of a filter with little process noise drifts over a run, so a
+    shorter run would match another q), is n within a factor NEES_TOL: the middle of its 95%
+    band for any number of runs. A secant on log NEES against log scale (NEES falls as q
+    grows); at most NEES_EVALS evaluations, keeping the closest. The residual alone does not get
+    there: it is coloured (correlated from step to step), which white noise of the same variance
+    does not describe, and the estimate's own error feeds back through u. `nees(q)`: another
+    measure of the master's NEES at q than `seeds` closed loops of `config`."""
+    n = flat.n
+    nees_at = nees or (lambda qq: _master_nees(config, qq, seeds))
+    tried = []                                   # (log scale, log NEES / n)
+    lost = 0
+    scale = 0.0
+    while len(tried) < NEES_EVALS and lost <= NEES_LOST:
+        value = nees_at(q * math.exp(scale))
+        if not math.isfinite(value):
+            lost += 1
+            scale = _after_loss(tried, scale, lost)
+            continue
+        tried.append((scale, math.log(value / n)))
+        if abs(tried[-1][1]) <= math.log(NEES_TOL):
+            break
+        if len(tried) < 2 or tried[-1][0] == tried[-2][0]:
+            slope = -1.0                         # NEES ~ 1/q, the first guess
+        else:
+            (s0, e0), (s1, e1) = tried[-2], tried[-1]
+            slope = (e1 - e0) / (s1 - s0) if s1 != s0 else -1.0
+            slope = min(slope, -0.05)            # NEES falls with q; a flat stretch takes large steps
+        scale = tried[-1][0] - max(-3.0, min(3.0, tried[-1][1] / slope))   # within e^+-3 per step
+    if not tried:
+        log.append(f"master NEES: {NO_LOOP} (x1e-{NEES_LOST // 2} to x1e{(NEES_LOST + 1) // 2}) lost a closed loop; "
+                   "q kept from the residual")
+        return q, log
+    best = min(tried, key=lambda t: abs(t[1]))
+    q = q * math.exp(best[0])
+    inside = abs(best[1]) <= math.log(NEES_TOL)
+    log.append(f"master NEES over {len(seeds)} runs without delays: {n * math.exp(best[1]):.3g} at q = {fmt(q)} "
+               f"(x{math.exp(best[0]):.3g}; target n = {n}" + ("" if inside else f", not reached in {len(tried)} tries")
+               + ")")
+    return q, log

@@ -1,0 +1,483 @@
+/* DO NOT EDIT: unicycle module, generated from template model.h.j2 by dfeif-codegen 0.1.0;
+ * regenerate with `codegen build unicycle`. */
+/**
+ * @file unicycle.h
+ * @brief Distributed derivative-free Kalman filtering for the flat model `unicycle`.
+ *
+ * differential-drive robot, speed and turn rate inputs, position seen by ceiling cameras
+ *
+ * The filters run on the canonical (Brunovsky) state zeta = [x_0, x_1, y_0, y_1],
+ * chain by chain; each chain's first entry is a measured flat output.
+ * The input of the canonical model is v = F(zeta) + G(zeta) u, computed at the master by
+ * unicycle_control() and broadcast: every node predicts with the same v (predictor
+ * "brunovsky").
+ *
+ * Conventions
+ * - Scalars are unicycle_real (double). Matrices are row-major arrays: A[i * cols + j].
+ * - All state lives in caller-owned structs: no malloc, no static mutable data, no stdio.
+ *   Functions are reentrant; separate structs are independent instances.
+ * - Every int function returns UNICYCLE_OK or a negative UNICYCLE_ERR_* code.
+ *   On an error the struct is left bit-for-bit unchanged, except that a late measurement rejected
+ *   for its lag or as a duplicate increments health.late_rejected.
+ * - Steps are counted by uint32_t (2^32 steps: 497 days at 100 Hz).
+ */
+#ifndef UNICYCLE_H
+#define UNICYCLE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- dimensions and build options ---------------------------------------------------------- */
+/** canonical state dimension n */
+#define UNICYCLE_NX 4
+/** entries of an NX x NX matrix */
+#define UNICYCLE_NXX (UNICYCLE_NX * UNICYCLE_NX)
+/** measured flat outputs (= inputs) m */
+#define UNICYCLE_NY 2
+/** entries of an NY x NY matrix */
+#define UNICYCLE_NYY (UNICYCLE_NY * UNICYCLE_NY)
+/** physical inputs */
+#define UNICYCLE_NU 2
+/** model parameters (a runtime vector; nominal values in unicycle_params_default) */
+#define UNICYCLE_NP 0
+/** length of a parameter array: NP, at least 1 (a C array has at least one element; without
+ * parameters its one entry is unused) */
+#define UNICYCLE_NP_SLOTS 1
+/** reference flags: per chain y_d, y_d', ..., y_d^(r) */
+#define UNICYCLE_NFLAGS 6
+/** |det G| at the nominal state, nominal parameters */
+#define UNICYCLE_DET_NOMINAL 0.5
+/* settable: codegen build --singular-rtol, or -D at compile time */
+#ifndef UNICYCLE_SINGULAR_RTOL
+/** control refuses below this fraction of DET_NOMINAL */
+#define UNICYCLE_SINGULAR_RTOL 1e-06
+#endif
+/** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
+#define UNICYCLE_PREDICTS_WITH_U 0
+/** late-measurement window: lags 1..NMAX steps */
+#define UNICYCLE_NMAX 32
+/** slots of a node's ring: steps k-NMAX..k */
+#define UNICYCLE_NRING (UNICYCLE_NMAX + 1)
+/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+#define UNICYCLE_NRING_NY (UNICYCLE_NRING * UNICYCLE_NY)
+#define UNICYCLE_NMAX_NY (UNICYCLE_NMAX * UNICYCLE_NY)
+/** camera nodes fused by the master */
+#define UNICYCLE_NNODES 2
+/** sampling period [s] */
+#define UNICYCLE_TS 0.02
+/** Newton steps of covariance intersection */
+#define UNICYCLE_CI_ITERATIONS 10
+#define UNICYCLE_PRECISION_FLOAT 0
+/** 0: replay (exact), 1: retrodiction */
+#define UNICYCLE_OOSM_RETRODICT 0
+#define UNICYCLE_FUSION_PAPER 0
+#define UNICYCLE_FUSION_DIFFERENCE 1
+#define UNICYCLE_FUSION_CI 0
+#define UNICYCLE_MODEL_HASH "ad07080a3464c8693edbeb7a53613d6a7048c148a31814c40590ea7da9f3f5af"
+
+/* Chains of the canonical state (initializers for int arrays of NY entries): degree, offset
+ * (= index of each output in zeta), angle (1: innovations wrapped to (-pi, pi]). clang-format
+ * cannot lay out a braced initializer in a macro, so it leaves these three lines alone. */
+/* clang-format off */
+#define UNICYCLE_CHAIN_DEGREES {2, 2}
+#define UNICYCLE_CHAIN_OFFSETS {0, 2}
+#define UNICYCLE_CHAIN_ANGLE {0, 0}
+/* clang-format on */
+
+/* Index of each parameter in params[NP] (the library's default table is laid out by them). */
+
+typedef double unicycle_real;
+
+/* The constants above that are not integers, as objects (for callers without this header, e.g.
+ * Python ctypes): TS, MODEL_HASH and CHAIN_ANGLE. */
+extern const unicycle_real unicycle_ts;
+extern const char unicycle_model_hash[65];
+extern const uint8_t unicycle_chain_angle[UNICYCLE_NY];
+
+/* ---- return codes ---------------------------------------------------------------------------- */
+#define UNICYCLE_OK 0
+/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
+#define UNICYCLE_ERR_ARG (-1)
+/** late measurement outside the window (lag < 1, > NMAX, > k) */
+#define UNICYCLE_ERR_LAG (-2)
+/** NaN or infinity in an input or a result */
+#define UNICYCLE_ERR_NONFINITE (-3)
+/** a matrix that must be positive definite (or invertible) is not */
+#define UNICYCLE_ERR_SINGULAR (-4)
+/** that step already has a measurement */
+#define UNICYCLE_ERR_DUPLICATE (-5)
+/** protocol order: update twice in a step, predict or late before update */
+#define UNICYCLE_ERR_SEQUENCE (-6)
+
+/** Node health counters. */
+typedef struct {
+    /** steps with an on-time measurement (gamma = 1) */
+    uint32_t updates;
+    /** steps without one (gamma = 0) */
+    uint32_t drops;
+    /** late measurements folded in */
+    uint32_t late_applied;
+    /** late measurements refused: lag out of window or duplicate */
+    uint32_t late_rejected;
+} unicycle_health;
+
+/** reals of a packed symmetric NX x NX matrix: its upper triangle, column by column */
+#define UNICYCLE_NPP ((UNICYCLE_NX * (UNICYCLE_NX + 1)) / 2)
+/** a node keeps the P prior of every CHECK_EVERY-th step and recomputes the ones between */
+#define UNICYCLE_NODE_CHECK_EVERY 4u
+/** checkpoints, (NMAX + CHECK_EVERY - 1) / CHECK_EVERY + 1: enough to hold the one at or before
+ * the oldest step of the window */
+#define UNICYCLE_NODE_NCHECK 9u
+/** flags kept, NMAX + CHECK_EVERY: the window and the steps back to the checkpoint it needs */
+#define UNICYCLE_NODE_NHIST 36u
+/** reals of the checkpoints, NCHECK * NPP */
+#define UNICYCLE_NODE_NCHECK_REALS 90
+
+/**
+ * One camera node's filter. Treat as opaque; read it through the functions below.
+ * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
+ * measurement and the input (v) used to predict out of it. Estimates, priors and measurements are
+ * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
+ * the estimate), so that single precision resolves the flat outputs to their own size, not to
+ * that of the distance travelled; the functions below add it back.
+ */
+typedef struct {
+    /** flat outputs' origin for the fields below */
+    unicycle_real centre[UNICYCLE_NY];
+    /** estimate at step k (posterior once updated): x, then P packed */
+    unicycle_real post[UNICYCLE_NX + UNICYCLE_NPP];
+    /** prediction into step k, before any update (the prior of step k): x, then P packed */
+    unicycle_real pred[UNICYCLE_NX + UNICYCLE_NPP];
+    /** measurement covariance */
+    unicycle_real R[UNICYCLE_NYY];
+    /** process-noise density per chain */
+    unicycle_real q[UNICYCLE_NY];
+    unicycle_real ring_x[UNICYCLE_NRING * UNICYCLE_NX];
+    unicycle_real ring_z[UNICYCLE_NRING_NY];
+    unicycle_real ring_v[UNICYCLE_NRING_NY];
+    /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), step s at entry
+     * (s / CHECK_EVERY) % NCHECK */
+    unicycle_real ring_P[UNICYCLE_NODE_NCHECK_REALS];
+    /** current step, and its slot (k % NRING) and flags' entry (k % NHIST) */
+    uint32_t k;
+    uint16_t slot;
+    uint16_t hist;
+    unicycle_health health;
+    /** update() done for step k */
+    uint8_t updated;
+    /** per step, at step % NHIST: bit 0 has a measurement, bit 1 used by the filter */
+    uint8_t ring_flags[UNICYCLE_NODE_NHIST];
+} unicycle_node;
+
+/** What a node sends to the master after the updates of its step: its estimate and its
+ * prediction, with the flat outputs relative to `centre` (add it back for absolute values). */
+typedef struct {
+    uint32_t step;
+    unicycle_real centre[UNICYCLE_NY];
+    unicycle_real x[UNICYCLE_NX];
+    unicycle_real P[UNICYCLE_NXX];
+    unicycle_real x_pred[UNICYCLE_NX];
+    unicycle_real P_pred[UNICYCLE_NXX];
+} unicycle_packet;
+
+/** Master health counters. */
+typedef struct {
+    /** successful fuse() calls */
+    uint32_t fusions;
+    /** packets fused */
+    uint32_t packets_used;
+    /** of those, packets predicted forward from an older step */
+    uint32_t packets_stale;
+    /** present packets older than NMAX steps or from the future */
+    uint32_t packets_ignored;
+} unicycle_master_health;
+
+/** The master: fuses the nodes' estimates (difference rule) and predicts. Its estimate and
+ * prediction are stored relative to `centre`, as in the node. */
+typedef struct {
+    /** flat outputs' origin for x and x_prior */
+    unicycle_real centre[UNICYCLE_NY];
+    /** fused estimate at step k */
+    unicycle_real x[UNICYCLE_NX];
+    unicycle_real P[UNICYCLE_NXX];
+    /** the master's own prediction into step k */
+    unicycle_real x_prior[UNICYCLE_NX];
+    unicycle_real P_prior[UNICYCLE_NXX];
+    unicycle_real q[UNICYCLE_NY];
+    /** inputs (v) of steps k-NMAX..k-1, step j in slot j % NMAX */
+    unicycle_real v[UNICYCLE_NMAX_NY];
+    uint32_t k;
+    unicycle_master_health health;
+} unicycle_master;
+
+/** Model parameters at their nominal values (model order, see UNICYCLE_P_*). */
+extern const unicycle_real unicycle_params_default[UNICYCLE_NP_SLOTS];
+
+/* sizeof, for callers that allocate without this header (e.g. Python ctypes). */
+size_t unicycle_node_size(void);
+size_t unicycle_master_size(void);
+size_t unicycle_packet_size(void);
+
+/* ---- node ------------------------------------------------------------------------------- */
+/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
+int unicycle_node_init(unicycle_node* node, const unicycle_real x0[UNICYCLE_NX],
+                       const unicycle_real P0[UNICYCLE_NXX], const unicycle_real R[UNICYCLE_NYY],
+                       const unicycle_real q[UNICYCLE_NY]);
+/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
+int unicycle_node_update(unicycle_node* node, const unicycle_real z[UNICYCLE_NY], int gamma);
+/** A measurement taken at step k - lag, after update() of step k (replay). */
+int unicycle_node_update_delayed(unicycle_node* node, const unicycle_real z[UNICYCLE_NY],
+                                 int32_t lag);
+/** Predict to step k + 1 (after update() of step k) with the broadcast input: v. */
+int unicycle_node_predict(unicycle_node* node, const unicycle_real input[UNICYCLE_NY]);
+/** Current estimate; either output may be NULL. */
+int unicycle_node_estimate(const unicycle_node* node, unicycle_real x[UNICYCLE_NX],
+                           unicycle_real P[UNICYCLE_NXX]);
+/** Information form Y = P^-1, y = Y x (Cholesky); either output may be NULL. */
+int unicycle_node_information(const unicycle_node* node, unicycle_real Y[UNICYCLE_NXX],
+                              unicycle_real y[UNICYCLE_NX]);
+/** The packet for the master: step, x, P, x_pred, P_pred. */
+int unicycle_node_packet(const unicycle_node* node, unicycle_packet* packet);
+int unicycle_node_health(const unicycle_node* node, unicycle_health* health);
+
+/* ---- master ----------------------------------------------------------------------------- */
+/** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
+int unicycle_master_init(unicycle_master* master, const unicycle_real x0[UNICYCLE_NX],
+                         const unicycle_real P0[UNICYCLE_NXX], const unicycle_real q[UNICYCLE_NY]);
+/**
+ * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
+ * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
+ * With no packet the estimate is the master's prediction. May be called again in the same step.
+ * A present packet whose P or P_pred is not symmetric positive definite, or (difference rule)
+ * whose P exceeds P_pred on the diagonal, refuses the call (ERR_SINGULAR).
+ */
+int unicycle_master_fuse(unicycle_master* master, const unicycle_packet packets[UNICYCLE_NNODES],
+                         const uint8_t present[UNICYCLE_NNODES]);
+/** Predict to step k + 1 with the broadcast input (v), as the nodes. */
+int unicycle_master_predict(unicycle_master* master, const unicycle_real input[UNICYCLE_NY]);
+/** Fused estimate; either output may be NULL. */
+int unicycle_master_estimate(const unicycle_master* master, unicycle_real x[UNICYCLE_NX],
+                             unicycle_real P[UNICYCLE_NXX]);
+
+/* ---- wire (docs/wire.md) ------------------------------------------------------------------- */
+/* Fixed-size little-endian frames: a 32-byte header (magic "DFEW", version, kind, flags, bytes per
+ * real, model hash prefix, node id, reals in the payload, step, sequence number, epoch), the
+ * payload, a SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes
+ * before it). The epoch is the master's boot: its commands and announcements carry it, the
+ * nodes' packets echo the last one they heard, and a keyed master takes only its own. */
+#define UNICYCLE_WIRE_VERSION 2u
+#define UNICYCLE_WIRE_HEADER 32u
+/** bytes of a frame of n reals: header, n reals of 8 bytes, tag (8) and CRC (4) */
+#define UNICYCLE_FRAME_SIZE(n) (44u + (8u * (size_t)(n)))
+/** node -> master: a unicycle_packet */
+#define UNICYCLE_KIND_PACKET 1u
+/** master -> nodes and actuator: (k, v, u) */
+#define UNICYCLE_KIND_COMMAND 2u
+/** master -> nodes: its epoch, no reals (a master that cannot command yet: restarted) */
+#define UNICYCLE_KIND_ANNOUNCE 5u
+/** node id field of the master's frames */
+#define UNICYCLE_MASTER_ID 0xFFFFu
+/** reals in a packet (NY + 2 NX + 2 NX^2) */
+#define UNICYCLE_PACKET_REALS 42
+/** reals in a command: v, u */
+#define UNICYCLE_COMMAND_REALS (UNICYCLE_NY + UNICYCLE_NU)
+/** FRAME_SIZE(PACKET_REALS) */
+#define UNICYCLE_PACKET_WIRE_SIZE 380u
+/** FRAME_SIZE(COMMAND_REALS) */
+#define UNICYCLE_COMMAND_WIRE_SIZE 76u
+/** FRAME_SIZE(0) */
+#define UNICYCLE_ANNOUNCE_WIRE_SIZE 44u
+/** frame of the wrong size */
+#define UNICYCLE_ERR_WIRE_LENGTH (-10)
+/** CRC-32 mismatch: corrupted on the way */
+#define UNICYCLE_ERR_WIRE_CRC (-11)
+/** not a frame of this kind: magic, kind, real size or count */
+#define UNICYCLE_ERR_WIRE_FORMAT (-12)
+/** another wire format version */
+#define UNICYCLE_ERR_WIRE_VERSION (-13)
+/** another model (hash prefix) */
+#define UNICYCLE_ERR_WIRE_MODEL (-14)
+/** keyed tag missing or wrong */
+#define UNICYCLE_ERR_WIRE_TAG (-15)
+/** unknown node id */
+#define UNICYCLE_ERR_WIRE_NODE (-16)
+/** that (node, step) was already received */
+#define UNICYCLE_ERR_WIRE_DUPLICATE (-17)
+/** older than the window (or than the master's start) */
+#define UNICYCLE_ERR_WIRE_OLD (-18)
+/** from a step the master has not reached */
+#define UNICYCLE_ERR_WIRE_FUTURE (-19)
+/** keyed: sequence number not above the last one */
+#define UNICYCLE_ERR_WIRE_REPLAY (-20)
+/** older than a packet already received from that node */
+#define UNICYCLE_ERR_WIRE_OUTDATED (-21)
+/** A packet's P or P_pred is not symmetric positive definite. */
+#define UNICYCLE_ERR_WIRE_COVARIANCE (-22)
+/** A packet's P exceeds its P_pred on the diagonal (difference rule: a negative gain). */
+#define UNICYCLE_ERR_WIRE_GAIN (-23)
+/** keyed: another epoch than the master's (a frame of an earlier boot, or a node not yet told) */
+#define UNICYCLE_ERR_WIRE_EPOCH (-24)
+
+typedef struct {
+    uint8_t kind;
+    uint16_t node;
+    uint32_t step;
+    uint32_t seq;
+    uint32_t epoch;
+} unicycle_frame_header;
+
+/** Rejected frames per cause. */
+typedef struct {
+    uint32_t length;
+    uint32_t crc;
+    uint32_t format;
+    uint32_t version;
+    uint32_t model;
+    uint32_t tag;
+    uint32_t node;
+    uint32_t duplicate;
+    uint32_t old;
+    uint32_t future;
+    uint32_t replay;
+    uint32_t outdated;
+    uint32_t nonfinite;
+    uint32_t covariance;
+    uint32_t gain;
+    uint32_t epoch;
+    uint32_t unfused; /* staged, but the fuse could not use it (dropped, the others fused) */
+    uint32_t other;
+} unicycle_wire_counters;
+
+/** The master's receive side: checked packets staged for the next fuse, per-node last step and
+ * sequence number, the deployment key, the master's epoch and what was rejected. `base` is the
+ * global step of the master's step 0 (a restarted master starts at the step it rejoins). */
+typedef struct {
+    unicycle_packet staged[UNICYCLE_NNODES];
+    uint8_t present[UNICYCLE_NNODES];
+    uint8_t seen[UNICYCLE_NNODES];
+    uint32_t last_step[UNICYCLE_NNODES];
+    uint32_t last_seq[UNICYCLE_NNODES];
+    uint32_t base;
+    uint32_t epoch;
+    uint32_t accepted;
+    uint8_t key[16];
+    uint8_t keyed;
+    unicycle_wire_counters rejected;
+} unicycle_inbox;
+
+/** A node's receive side for the master's commands and announcements: the master's epoch as
+ * last heard (the node's packets carry it) and the last sequence number in that epoch. */
+typedef struct {
+    uint32_t epoch;
+    uint32_t last_seq;
+    uint32_t accepted;
+    uint8_t seen;
+    uint8_t key[16];
+    uint8_t keyed;
+    unicycle_wire_counters rejected;
+} unicycle_command_rx;
+
+/** CRC-32 of len bytes (data NULL: 0, the CRC of none). */
+uint32_t unicycle_crc32(const uint8_t* data, size_t len);
+/** SipHash-2-4 of len bytes under key (key NULL, or data NULL with len > 0: 0). */
+uint64_t unicycle_siphash24(const uint8_t key[16], const uint8_t* data, size_t len);
+/** Any frame: header fields, `count` reals; key NULL = CRC only. buf holds FRAME_SIZE(count)
+ * bytes. */
+int unicycle_frame_encode(const unicycle_frame_header* header, const unicycle_real* values,
+                          uint16_t count, const uint8_t* key, uint8_t* buf, size_t cap);
+/** Checks size, CRC, magic/kind/count, version, model, tag (if key), finiteness; then fills
+ * values. */
+int unicycle_frame_decode(const uint8_t* buf, size_t len, const uint8_t* key, uint8_t kind,
+                          unicycle_real* values, uint16_t count, unicycle_frame_header* header);
+/** epoch: the master's, as the node last heard it (its command_rx's `epoch`). */
+int unicycle_packet_encode(const unicycle_packet* packet, uint16_t node, uint32_t seq,
+                           uint32_t epoch, const uint8_t* key,
+                           uint8_t buf[UNICYCLE_PACKET_WIRE_SIZE]);
+int unicycle_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key,
+                           unicycle_packet* packet, unicycle_frame_header* header);
+/** epoch: the master's (as given to inbox_init). */
+int unicycle_command_encode(uint32_t step, const unicycle_real v[UNICYCLE_NY],
+                            const unicycle_real u[UNICYCLE_NU], uint32_t seq, uint32_t epoch,
+                            const uint8_t* key, uint8_t buf[UNICYCLE_COMMAND_WIRE_SIZE]);
+/** The master's epoch without a command (a restarted master, before it can command). */
+int unicycle_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const uint8_t* key,
+                             uint8_t buf[UNICYCLE_ANNOUNCE_WIRE_SIZE]);
+int unicycle_command_decode(const uint8_t* buf, size_t len, const uint8_t* key,
+                            unicycle_real v[UNICYCLE_NY], unicycle_real u[UNICYCLE_NU],
+                            unicycle_frame_header* header);
+/** key NULL: CRC only; base: global step of the master's step 0; epoch: this boot's, chosen by the
+ * caller and never used before under this key (a boot counter kept in non-volatile memory,
+ * incremented at every boot: the nodes take a newer epoch, RFC 1982 order, and refuse older ones). */
+int unicycle_inbox_init(unicycle_inbox* inbox, const uint8_t key[16], uint32_t base,
+                        uint32_t epoch);
+/** A restarted master's first packet: the checks of master_receive that need no master state
+ * (integrity, node id, keyed: the epoch, covariances), counted per cause. OK: the
+ * packet (its step global) to initialise from; stage it afterwards with master_receive. */
+int unicycle_inbox_join(unicycle_inbox* inbox, const uint8_t* buf, size_t len,
+                        unicycle_packet* packet, unicycle_frame_header* header);
+/** Check a received frame (integrity, identity, window, duplicates, replay, then the packet's
+ * covariances as master_fuse needs them) and stage it for the next fuse; a rejected frame is
+ * counted per cause and changes nothing else (its node's packet for that step is still taken). */
+int unicycle_master_receive(const unicycle_master* master, unicycle_inbox* inbox,
+                            const uint8_t* buf, size_t len);
+/** Fuse the staged packets (master_fuse), then clear them. If that fails (ERR_SINGULAR or
+ * ERR_NONFINITE), the packets are added one by one in node order, each one whose addition
+ * cannot be fused is dropped (counted: unfused), and the rest are fused: one bad packet costs
+ * only its own node. */
+int unicycle_master_fuse_inbox(unicycle_master* master, unicycle_inbox* inbox);
+size_t unicycle_inbox_size(void);
+size_t unicycle_command_rx_size(void);
+/** The rejection counters of an inbox (or, with inbox NULL, of a command receiver). */
+int unicycle_wire_rejected(const unicycle_inbox* inbox, const unicycle_command_rx* rx,
+                           unicycle_wire_counters* out);
+/** epoch: the latest master epoch this node has heard, kept by the caller across the node's own
+ * restarts (0 if none): with a key, commands of an older epoch are refused. */
+int unicycle_command_rx_init(unicycle_command_rx* rx, const uint8_t key[16], uint32_t epoch);
+/** Check a command frame (integrity, from the master; keyed: an epoch not older than the last
+ * one heard, a newer one taken, and within it a fresh sequence number). */
+int unicycle_command_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t len,
+                             uint32_t* step, unicycle_real v[UNICYCLE_NY],
+                             unicycle_real u[UNICYCLE_NU]);
+/** Check an announcement (as command_receive) and take its epoch. */
+int unicycle_announce_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t len);
+
+/* ---- control ---------------------------------------------------------------------------- */
+/**
+ * Flatness-based control: v_j = y_d^(r) - sum_i k_(r-i) e_i on each chain (heads wrapped for
+ * angles), u = G(x)^-1 (v - F(x)). gains per chain [k_1 .. k_r] (see unicycle_gains).
+ * v may be NULL. ERR_SINGULAR when |det G(x)| < SINGULAR_RTOL * DET_NOMINAL (G at the nominal
+ * state). Declared input limits clamp u; *saturated (may be NULL) is incremented by the inputs
+ * clamped.
+ */
+int unicycle_control(const unicycle_real x[UNICYCLE_NX], const unicycle_real flags[UNICYCLE_NFLAGS],
+                     const unicycle_real gains[UNICYCLE_NX],
+                     const unicycle_real params[UNICYCLE_NP_SLOTS], unicycle_real u[UNICYCLE_NU],
+                     unicycle_real v[UNICYCLE_NY], uint32_t* saturated);
+/** Gains placing all poles of chain j at -lambda[j]:
+ * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
+int unicycle_gains(const unicycle_real lambda[UNICYCLE_NY], unicycle_real gains[UNICYCLE_NX]);
+
+/* ---- dynamic extension ------------------------------------------------------------------ */
+/** The controller's integrator states (v): the model as written
+ * has a singular decoupling matrix, so unicycle_control computes the extended system's inputs
+ * (v_d1, w). Initialise xi from the last UNICYCLE_NXI entries of
+ * Phi^-1 of the first estimate. */
+#define UNICYCLE_NXI 1
+/**
+ * One period of the controller's integrators: u_plant = the input to apply now, held over the
+ * period (the first state of each chain; an input without a chain passes u through), then xi
+ * advanced exactly under u held: xi_a += sum_b xi_b Ts^(b-a)/(b-a)! + u Ts^(r-a)/(r-a)!.
+ * On an error xi and u_plant are left alone.
+ */
+int unicycle_extension_step(unicycle_real xi[UNICYCLE_NXI], const unicycle_real u[UNICYCLE_NU],
+                            unicycle_real u_plant[UNICYCLE_NU]);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* UNICYCLE_H */

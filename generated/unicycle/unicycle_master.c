@@ -1,0 +1,347 @@
+/* DO NOT EDIT: unicycle module, generated from template master_difference.c.j2 by dfeif-codegen
+ * 0.1.0; regenerate with `codegen build unicycle`. */
+/* The master: predicts stale packets to the current step, fuses the nodes' estimates in
+ * information form (difference rule) and keeps its own prediction, following
+ * docs/algorithms.md. Computes into locals; writes the master only when nothing can fail.
+ * Finiteness is checked on the inputs, on the information gathered and on the results; the
+ * kernels' pivots after each factorisation. */
+#include <string.h>
+#include "unicycle_internal.h"
+
+#define NX UNICYCLE_NX
+#define NY UNICYCLE_NY
+#define NXX (UNICYCLE_NX * UNICYCLE_NX)
+/* a symmetric matrix's upper triangle, packed row by row */
+#define NXP ((UNICYCLE_NX * (UNICYCLE_NX + 1)) / 2)
+#define NNODES UNICYCLE_NNODES
+#define NMAX UNICYCLE_NMAX
+/* pivots of two factorisations per kernel */
+#define NPIV (2 * NX)
+
+size_t unicycle_master_size(void)
+{
+    return sizeof(unicycle_master);
+}
+
+/* Where step j's input starts in master->v. */
+static size_t input_at(uint32_t step)
+{
+    uint32_t slot = step % (uint32_t)NMAX;
+    return (size_t)slot * (size_t)NY;
+}
+
+/* One prediction of (x, P) with the input of one step (the heads relative to `centre`). */
+static int master_step(const real* x, const real* P, const real* v, const real* q,
+                       const real* centre, real* x1, real* P1)
+{
+    int rc = UNICYCLE_OK;
+    (void)centre; /* A maps the heads' centre to itself */
+    (void)unicycle_kern_predict(x, P, v, q, x1, P1);
+    if ((unicycle_finite(x1, NX) == 0) || (unicycle_finite(P1, NXX) == 0)) {
+        rc = UNICYCLE_ERR_NONFINITE;
+    }
+    return rc;
+}
+
+/* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
+static void master_recentre(unicycle_master* master)
+{
+    int j;
+    for (j = 0; j < NY; j++) {
+        real shift = unicycle_centre_shift(master->x[unicycle_heads[j]]);
+        master->centre[j] += shift;
+        master->x[unicycle_heads[j]] -= shift;
+        master->x_prior[unicycle_heads[j]] -= shift;
+    }
+}
+
+/* The stored inputs' effect on an estimate of step j at the master's step k: the sum over
+ * s = j .. k-1 of A^(k-1-s) B v(s), one step per input (from 0). */
+static void inputs_effect(const unicycle_master* master, uint32_t j, real effect[NX])
+{
+    real next[NX];
+    uint32_t s;
+    (void)memset(effect, 0, sizeof(real[NX]));
+    for (s = j; s < master->k; s++) {
+        (void)unicycle_kern_input_step(effect, &master->v[input_at(s)], next);
+        (void)memcpy(effect, next, sizeof(next));
+    }
+}
+
+/* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
+ * P_in itself when the packet is from this step, else brought forward in one step of length
+ * k - j (effect: the inputs' effect over those steps) into P_buf; *P_out says which. */
+static inline int bring(const unicycle_master* master, const unicycle_packet* pk, const real* x_in,
+                        const real* P_in, const real* effect, real* x, real* P_buf,
+                        const real** P_out)
+{
+    real x1[NX];
+    uint32_t age;
+    real steps;
+    int rc = UNICYCLE_OK;
+    /* the centres differ by whole steps */
+    unicycle_move_origin(x_in, pk->centre, master->centre, x);
+    if (pk->step < master->k) {
+        age = master->k - pk->step;
+        steps = (real)age;
+        (void)unicycle_kern_advance(&steps, x, P_in, effect, master->q, x1, P_buf);
+        (void)memcpy(x, x1, sizeof(x1));
+        if ((unicycle_finite(x, NX) == 0) || (unicycle_finite(P_buf, NXX) == 0)) {
+            rc = UNICYCLE_ERR_NONFINITE;
+        }
+        *P_out = P_buf;
+    } else {
+        *P_out = P_in;
+    }
+    return rc;
+}
+
+/* acc + sum of a[i] * 0: 0 while every value is finite, NaN once one is infinite or NaN
+ * (v * 0 is NaN for those, and a NaN stays in the sum). One test at the end instead of a
+ * branch per value. */
+static inline real zero_sum(const real* a, int n, real acc)
+{
+    real sum = acc;
+    int i;
+    for (i = 0; i < n; i++) {
+        sum += a[i] * (real)0;
+    }
+    return sum;
+}
+
+/* 1 if the probe of zero_sum is 0 (all values finite). */
+static inline int probe_ok(real probe)
+{
+    return (probe == (real)0) ? 1 : 0;
+}
+
+/* A packet's numbers are all finite (as zero_sum, two arrays per pass). */
+static inline int packet_finite(const unicycle_packet* pk)
+{
+    real probe = zero_sum(pk->centre, NY, (real)0);
+    int i;
+    for (i = 0; i < NXX; i++) {
+        probe += (pk->P[i] * (real)0) + (pk->P_pred[i] * (real)0);
+    }
+    for (i = 0; i < NX; i++) {
+        probe += (pk->x[i] * (real)0) + (pk->x_pred[i] * (real)0);
+    }
+    return probe_ok(probe);
+}
+
+/* Both arrays finite. */
+static inline int pair_finite(const real* a, int na, const real* b, int nb)
+{
+    return probe_ok(zero_sum(b, nb, zero_sum(a, na, (real)0)));
+}
+
+/* present[] holds 0 or 1 only. */
+static int present_ok(const uint8_t present[NNODES])
+{
+    int i;
+    int ok = 1;
+    for (i = 0; i < NNODES; i++) {
+        if (present[i] > 1u) {
+            ok = 0;
+        }
+    }
+    return ok;
+}
+
+int unicycle_packet_check(const unicycle_packet* pk)
+{
+    int rc = UNICYCLE_OK;
+    int i;
+    if ((unicycle_cov_ok(pk->P) == 0) || (unicycle_cov_ok(pk->P_pred) == 0)) {
+        rc = UNICYCLE_ERR_WIRE_COVARIANCE;
+    }
+    /* an update only shrinks P: P_ii <= P_pred_ii, to the rounding of the node's subtraction */
+    for (i = 0; (rc == UNICYCLE_OK) && (i < NX); i++) {
+        real d = pk->P_pred[(i * NX) + i];
+        real slack = d * 1.4210854715202004e-14;
+        if (pk->P[(i * NX) + i] > (d + slack)) {
+            rc = UNICYCLE_ERR_WIRE_GAIN;
+        }
+    }
+    return rc;
+}
+
+int unicycle_master_init(unicycle_master* master, const real x0[NX], const real P0[NXX],
+                         const real q[NY])
+{
+    int i;
+    int rc = UNICYCLE_OK;
+    if ((master == NULL) || (x0 == NULL) || (P0 == NULL) || (q == NULL)) {
+        rc = UNICYCLE_ERR_ARG;
+    } else if ((unicycle_finite(x0, NX) == 0) || (unicycle_finite(P0, NXX) == 0) ||
+               (unicycle_finite(q, NY) == 0)) {
+        rc = UNICYCLE_ERR_NONFINITE;
+    } else {
+        for (i = 0; i < NY; i++) {
+            if (q[i] < (real)0) {
+                rc = UNICYCLE_ERR_ARG;
+            }
+        }
+        /* P0 must be symmetric positive definite */
+        if ((rc == UNICYCLE_OK) && (unicycle_cov_ok(P0) == 0)) {
+            rc = UNICYCLE_ERR_ARG;
+        }
+    }
+    if (rc == UNICYCLE_OK) {
+        (void)memset(master, 0, sizeof(*master));
+        (void)memcpy(master->x, x0, sizeof(master->x));
+        (void)memcpy(master->P, P0, sizeof(master->P));
+        (void)memcpy(master->x_prior, x0, sizeof(master->x_prior));
+        (void)memcpy(master->P_prior, P0, sizeof(master->P_prior));
+        (void)memcpy(master->q, q, sizeof(master->q));
+        master_recentre(master);
+    }
+    return rc;
+}
+
+int unicycle_master_fuse(unicycle_master* master, const unicycle_packet packets[NNODES],
+                         const uint8_t present[NNODES])
+{
+    return unicycle_master_fuse_try(master, packets, present, 1);
+}
+
+int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet packets[NNODES],
+                             const uint8_t present[NNODES], int commit)
+{
+    real x[NX];
+    real P[NXX];
+    real Yacc[NXP];
+    real yacc[NX];
+    real piv[NPIV];
+    real effect[NX];
+    const real* Pk = P;
+    real xp[NX];
+    real Pp[NXX];
+    const real* Ppk = Pp;
+    real dY[NXP];
+    real dy[NX];
+    int d;
+    uint32_t used = 0u;
+    uint32_t stale = 0u;
+    uint32_t ignored = 0u;
+    int i;
+    int rc = UNICYCLE_OK;
+    if ((master == NULL) || (packets == NULL) || (present == NULL)) {
+        rc = UNICYCLE_ERR_ARG;
+    } else if (present_ok(present) == 0) { /* the master is changed only after the packets */
+        rc = UNICYCLE_ERR_ARG;
+    } else {
+        (void)memset(Yacc, 0, sizeof(Yacc));
+        (void)memset(yacc, 0, sizeof(yacc));
+    }
+    for (i = 0; (i < NNODES) && (rc == UNICYCLE_OK); i++) {
+        const unicycle_packet* pk = &packets[i];
+        if (present[i] == 0u) {
+            /* absent: left out */
+        } else if ((pk->step > master->k) || ((master->k - pk->step) > (uint32_t)NMAX)) {
+            ignored++;
+        } else if (packet_finite(pk) == 0) {
+            rc = UNICYCLE_ERR_NONFINITE;
+        } else if (unicycle_packet_check(pk) != UNICYCLE_OK) {
+            /* P or P_pred not SPD, or P above P_pred (difference rule) */
+            rc = UNICYCLE_ERR_SINGULAR;
+        } else {
+            if (pk->step < master->k) {
+                inputs_effect(master, pk->step, effect);
+            }
+            rc = bring(master, pk, pk->x, pk->P, effect, x, P, &Pk);
+            if (rc == UNICYCLE_OK) {
+                rc = bring(master, pk, pk->x_pred, pk->P_pred, effect, xp, Pp, &Ppk);
+            }
+            if (rc == UNICYCLE_OK) {
+                (void)unicycle_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
+                if (unicycle_positive(piv, NPIV) == 0) {
+                    rc = UNICYCLE_ERR_SINGULAR;
+                }
+            }
+            if (rc == UNICYCLE_OK) {
+                for (d = 0; d < NXP; d++) {
+                    Yacc[d] += dY[d];
+                }
+                for (d = 0; d < NX; d++) {
+                    yacc[d] += dy[d];
+                }
+            }
+            if (rc == UNICYCLE_OK) {
+                used++;
+                if (pk->step < master->k) {
+                    stale++;
+                }
+            }
+        }
+    }
+    if (rc != UNICYCLE_OK) {
+        /* refused: the master is left as it was */
+    } else if (used == 0u) {
+        (void)memcpy(x, master->x_prior, sizeof(x));
+        (void)memcpy(P, master->P_prior, sizeof(P));
+    } else {
+        if (pair_finite(Yacc, NXP, yacc, NX) == 0) {
+            rc = UNICYCLE_ERR_NONFINITE;
+        } else {
+            (void)unicycle_kern_fuse_finish(master->P_prior, Yacc, yacc, master->x_prior, x, P,
+                                            piv);
+        }
+        if ((rc == UNICYCLE_OK) && (unicycle_positive(piv, NPIV) == 0)) {
+            rc = UNICYCLE_ERR_SINGULAR;
+        }
+        if ((rc == UNICYCLE_OK) && (pair_finite(x, NX, P, NXX) == 0)) {
+            rc = UNICYCLE_ERR_NONFINITE;
+        }
+    }
+    if ((rc == UNICYCLE_OK) && (commit != 0)) {
+        (void)memcpy(master->x, x, sizeof(x));
+        (void)memcpy(master->P, P, sizeof(P));
+        master->health.fusions++;
+        master->health.packets_used += used;
+        master->health.packets_stale += stale;
+        master->health.packets_ignored += ignored;
+    }
+    return rc;
+}
+
+int unicycle_master_predict(unicycle_master* master, const real input[NY])
+{
+    const real* v = input;
+    real x1[NX];
+    real P1[NXX];
+    int rc = UNICYCLE_OK;
+    if ((master == NULL) || (v == NULL)) {
+        rc = UNICYCLE_ERR_ARG;
+    } else if (unicycle_finite(v, NY) == 0) {
+        rc = UNICYCLE_ERR_NONFINITE;
+    } else {
+        rc = master_step(master->x, master->P, v, master->q, master->centre, x1, P1);
+    }
+    if (rc == UNICYCLE_OK) {
+        (void)memcpy(&master->v[input_at(master->k)], v, sizeof(real[NY]));
+        master->k++;
+        (void)memcpy(master->x_prior, x1, sizeof(x1));
+        (void)memcpy(master->P_prior, P1, sizeof(P1));
+        (void)memcpy(master->x, x1, sizeof(x1));
+        (void)memcpy(master->P, P1, sizeof(P1));
+        master_recentre(master);
+    }
+    return rc;
+}
+
+int unicycle_master_estimate(const unicycle_master* master, real x[NX], real P[NXX])
+{
+    int rc = UNICYCLE_OK;
+    if (master == NULL) {
+        rc = UNICYCLE_ERR_ARG;
+    } else {
+        if (x != NULL) {
+            unicycle_move_origin(master->x, master->centre, NULL, x);
+        }
+        if (P != NULL) {
+            (void)memcpy(P, master->P, sizeof(master->P));
+        }
+    }
+    return rc;
+}
