@@ -150,6 +150,9 @@ class Config:
     # the plant's parameters against the model's (experiment/model_error.py); out of repr, so a
     # run without model error keeps its id in --results files (sweep.run_id adds it when set)
     plant_error: ParamError = field(default=EXACT_MODEL, repr=False)
+    # the chapter's filter's q where the comparison re-runs it on the recordings (--filters
+    # brunovsky; empty: q): its q covers what the held filter's model leaves out
+    q_brunovsky: tuple = field(default=(), repr=False)
 
 
 @dataclass
@@ -244,7 +247,8 @@ class FilterBank:
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
                              predictor=predictor)
         self.takes_v = predictor == "brunovsky"
-        self.control = FlatController(flat, gains=gains)
+        held = predictors.held_constants(flat, ts) if predictor == "held" else None
+        self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds
         self.max_lag = max_lag
         self.sent: list[dict[int, object]] = [{} for _ in self.nodes]
 

@@ -70,7 +70,7 @@ class Held:
 
     def __init__(self, flat, ts: float, q, dtype=np.float64):
         self.flat, self.ts, self.q, self.dtype = flat, float(ts), q, np.dtype(dtype)
-        self.H = _cached(("sampling", id(flat), self.ts), flat, lambda: sampling.held_sampling(flat, ts))
+        self.H = held_constants(flat, self.ts)
         self.Phi = self.H.E.astype(self.dtype)
         self.Q = self.H.Q(q).astype(self.dtype)
         self._step = _mean_function(flat, self.H)
@@ -98,6 +98,11 @@ class Held:
 
 
 _CACHE: dict[tuple, tuple] = {}
+
+
+def held_constants(flat, ts: float) -> sampling.HeldSampling:
+    """The held predictor's build-time constants, computed once per flat system and period."""
+    return _cached(("sampling", id(flat), float(ts)), flat, lambda: sampling.held_sampling(flat, ts))
 
 
 def _cached(key: tuple, flat, make_value):
