@@ -173,4 +173,4 @@ def test_every_task_of_the_full_command_is_a_valid_simulate_call(tmp_path):
 
         p = plan(task.model, scenario, 2, 0, None, 32, listed(o.get("oosm")), listed(o.get("fusion")),
                  listed(o.get("reference")), o.get("filters"), None)
-        assert p.runs == 2 and (task.q is None or p.sc.q[0] == task.q)
+        assert p.runs == 2 and (task.q is None or p.sc.q_for(task.options.get("predictor", "held"))[0] == task.q)
