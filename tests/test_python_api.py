@@ -13,6 +13,7 @@ import pytest
 
 import dfeif_codegen as dc
 from dfeif_codegen.errors import ModelError
+from dfeif_codegen.symbolic.sampling import held_sampling
 from dfeif_codegen.reference.control import FlatController, hurwitz_gains
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.node import NodeFilter
@@ -64,7 +65,7 @@ def test_readme_example_runs_as_written_and_matches_the_reference(in_tmp):
     node = NodeFilter(flat, ts, q, R, x0, P0, max_lag=32, oosm="replay", predictor="held")
     master = Master(flat, ts, q, x0, P0, n_nodes=2, rule="difference", max_lag=32, predictor="held")
     gains = hurwitz_gains(3, 5.0)
-    ctrl = FlatController(flat, gains=gains)
+    ctrl = FlatController(flat, gains=gains, held=held_sampling(flat, ts))   # the held build's law
     for k, z in enumerate(ns["frames"]):
         node.update(z, gamma=k != 1)
         if k == 2:
