@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import shutil
 import subprocess
@@ -25,16 +26,30 @@ def _have(name: str) -> bool:
     return shutil.which(name) is not None
 
 
+def missing(reason: str) -> None:
+    """Something a test needs is not installed: FAIL in CI (CI=true), SKIP elsewhere, saying what."""
+    if IN_CI:
+        pytest.fail(reason, pytrace=False)
+    pytest.skip(reason)
+
+
 def require_tool(name: str, package: str) -> str | None:
     """Path of tool `name`; if missing, FAIL in CI (CI=true) and SKIP elsewhere, naming the
     Debian package that provides it, so a user's `pytest` run stays green but says what it missed."""
     if _have(name):
         return shutil.which(name) or name
-    reason = f"{name} not found: install the Debian package {package} (apt-get install {package})"
-    if IN_CI:
-        pytest.fail(reason, pytrace=False)
-    _MISSING[name] = package
-    pytest.skip(reason)
+    if not IN_CI:
+        _MISSING[name] = package
+    missing(f"{name} not found: install the Debian package {package} (apt-get install {package})")
+    return None
+
+
+def require_module(name: str) -> None:
+    """A Python package of the test extras (mypy, vermin): missing, as `missing` says."""
+    try:
+        importlib.import_module(name)
+    except ImportError:
+        missing(f"{name} not installed: pip install -e '.[test]'")
 
 
 def pytest_terminal_summary(terminalreporter):

@@ -6,6 +6,7 @@ import numpy as np
 
 from conftest import require_tool
 from dfeif_codegen.check import bench_peers, harness
+from dfeif_codegen.check.bench_measure import measure
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import flatness, model as model_mod
 
@@ -30,8 +31,16 @@ def test_growth_fit_recovers_a_power_law():
     assert abs(bench_peers.growth(sizes, 7.0 * sizes ** 2.25) - 2.25) < 1e-12
 
 
+def test_chain_rows_give_each_n_its_ratio_to_the_previous_one():
+    """The scaling tables' shared rows (host and Cortex-M4F): n in order, thousands separated, the
+    ratio to the previous n to two decimals, then the table's own cells."""
+    ch = {8: {"step": 12345, "t": 7}, 2: {"step": 1000, "t": 3}, 4: {"step": 2500, "t": 5}}
+    assert bench_peers.chain_rows(ch, lambda c: (c["t"], "x")) == [
+        "| 2 | 1,000 | - | 3 | x |", "| 4 | 2,500 | 2.50 | 5 | x |", "| 8 | 12,345 | 4.94 | 7 | x |"]
+
+
 def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
-    """c_peers raises unless the dense-loop and the straight-line filters end where the generated
+    """The compare step (bench_peers.checked) raises unless the dense-loop and the straight-line filters end where the generated
     filter ends after 200 steps (1e-9), each with the generated filter's predictor (held: the
     ETD2RK mean calling the model function, E P E' + Q; brunovsky: the linear chain); the
     straight-line one exists for the 3-state motor only."""
@@ -39,12 +48,13 @@ def test_c_peers_give_the_generated_filters_estimate(host_cc, tmp_path):
     for pred in bench_peers.PREDICTORS:
         md = harness.build_model("dc_motor_link", tmp_path / f"b{pred}", **bench_peers.with_predictor(pred))
         assert md.options.get("predictor") == pred
-        out = bench_peers.c_peers("dc_motor_link", md, tmp_path / f"w{pred}")
+        out = bench_peers.checked(measure(bench_peers.peers("dc_motor_link", md, tmp_path / f"w{pred}")))
         assert set(out["instructions"]) == set(out["ns"]) == {"generated", "dense", "straight"}
         # the hand-written filter does strictly less work than the generated one, which checks its inputs
         assert 0 < out["instructions"]["straight"] < out["instructions"]["generated"] < out["instructions"]["dense"]
     arm = harness.build_model("two_link_arm", tmp_path / "a")
-    assert set(bench_peers.c_peers("two_link_arm", arm, tmp_path / "wa")["instructions"]) == {"generated", "dense"}
+    assert set(bench_peers.checked(measure(bench_peers.peers("two_link_arm", arm, tmp_path / "wa")))["instructions"]) \
+        == {"generated", "dense"}
 
 
 def test_kernel_text_splits_the_filter_object_by_kernel(tmp_path):
@@ -64,16 +74,16 @@ def test_kernel_text_splits_the_filter_object_by_kernel(tmp_path):
 
 
 def test_worst_case_counts_every_public_entry_point(host_cc, tmp_path):
-    """bench.worst_case measures each function the public header declares (read from the header,
+    """bench_stages.worst_case measures each function the public header declares (read from the header,
     not from the harness), and the costliest calls are the long paths: a frame back at lag
     N_max replays the window, packets N_max steps stale cost the master more than fresh ones."""
     import re
 
-    from dfeif_codegen.check import bench
+    from dfeif_codegen.check import bench_stages
 
     require_tool("valgrind", "valgrind")
     md = harness.build_model("dc_motor_link", tmp_path / "b")
-    worst = bench.worst_case(md, tmp_path / "w")
+    worst = measure(bench_stages.worst_case(md, tmp_path / "w"))
     header = (md.path / "dc_motor_link.h").read_text()
     declared = set(re.findall(r"^(?:int|size_t|uint32_t|uint64_t) dc_motor_link_(\w+)\(", header, re.M))
     assert set(worst) == declared

@@ -12,6 +12,7 @@ from dfeif_codegen import cli
 from dfeif_codegen.check import harness
 from dfeif_codegen.errors import CodegenError
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import divergence
 
 MOTOR = (resources.files("dfeif_codegen") / "models" / "dc_motor_link.toml").read_text()
 # the motor with its speed declared to stay within +-0.5 rad/s
@@ -42,7 +43,7 @@ def narrow(tmp_path):
 
 def test_leaving_the_domain_is_divergence_with_time_and_cause(narrow):
     cfg = ex.Config(model=str(narrow), duration=2.0, amplitude=(0.35,), p0_std=(0.01, 2.0, 1.0), metrics_from=0.5)
-    with pytest.raises(ex.Diverged, match=r"diverged at t = 0\.00 s: state omega = -0\.8632 left its domain \[-0\.5, 0\.5\]"):
+    with pytest.raises(divergence.Diverged, match=r"diverged at t = 0\.00 s: state omega = -0\.8632 left its domain \[-0\.5, 0\.5\]"):
         ex.run(cfg)
     # the same run on the undeclared model is fine: the domain, not the numbers, made it fail
     wide = ex.run(ex.Config(duration=0.5, amplitude=(0.35,), p0_std=(0.01, 2.0, 1.0), metrics_from=0.1))
@@ -83,12 +84,12 @@ def test_nees_watch_needs_fifty_high_steps_in_a_row():
     P, x = np.eye(3), np.zeros(3)
     high = np.array([200.0, 0.0, 0.0])       # NEES 4e4 > 1e4 n = 3e4
     low = np.array([1.0, 0.0, 0.0])          # NEES 1: a consistent filter's typical value
-    for k in range(ex.NEES_STEPS - 1):
+    for k in range(divergence.NEES_STEPS - 1):
         watch.step(k * 0.01, x, high, P)
     watch.step(0.49, x, low, P)              # one ordinary step resets the count
-    for k in range(ex.NEES_STEPS - 1):
+    for k in range(divergence.NEES_STEPS - 1):
         watch.step(0.5 + k * 0.01, x, high, P)
-    with pytest.raises(ex.Diverged, match=r"t = 0\.99 s: master NEES above 10000 n = 30000 for 50 steps \(now 4e\+04\)"):
+    with pytest.raises(divergence.Diverged, match=r"t = 0\.99 s: master NEES above 10000 n = 30000 for 50 steps \(now 4e\+04\)"):
         watch.step(0.99, x, high, P)
-    with pytest.raises(ex.Diverged, match="not finite"):
+    with pytest.raises(divergence.Diverged, match="not finite"):
         ex.DivergenceWatch(model.load("dc_motor_link")).step(0.0, np.array([np.nan, 0, 0]), low, P)

@@ -14,7 +14,7 @@ import pytest
 from dfeif_codegen import cli
 from dfeif_codegen.check import verify
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.net import run
+from dfeif_codegen.net import launch, run
 
 KEY = "00112233445566778899aabbccddeeff"
 # Every process and the launcher have deadlines; a run of 1-2 simulated seconds takes 10-30 s
@@ -92,7 +92,7 @@ def test_bit_flips_rejected_counted_and_rest_equal_reference(runs):
 
 
 def test_node_killed_and_restarted(runs):
-    out = runs("node-restart", duration=2.0, faults=(run.Fault(1, 60, 90),), step_timeout=0.05)
+    out = runs("node-restart", duration=2.0, faults=(launch.Fault(1, 60, 90),), step_timeout=0.05)
     assert out.returncodes == {name: 0 for name in out.returncodes}
     assert out.master["events"] == [(1, "silent", 59), (1, "rejoined", 90)]
     restarted = out.nodes[1]
@@ -108,7 +108,7 @@ def test_node_killed_and_restarted(runs):
 
 
 def test_master_restarted(runs):
-    out = runs("master-restart", duration=2.0, faults=(run.Fault("master", 60, 90),), command_timeout=0.1)
+    out = runs("master-restart", duration=2.0, faults=(launch.Fault("master", 60, 90),), command_timeout=0.1)
     assert out.returncodes == {name: 0 for name in out.returncodes}
     for node in out.nodes:     # the nodes kept filtering through the outage, predicting with the last v
         assert sorted(node["steps"]) == list(range(out.steps))
@@ -134,7 +134,7 @@ def test_network_api_refuses_bad_options_before_building(tmp_path, host_cc):
 def test_cli_network_passes_and_rejects_bad_input(capsys, host_cc):
     assert cli.main(["network", "--duration", "0.5", "--seed", "3"]) == 0
     text = capsys.readouterr().out
-    assert "PASS" in text and "packet 240 B" in text
+    assert "PASS" in text and "packet 244 B" in text
     assert cli.main(["network", "--row", "99"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--row 99" in err
@@ -147,14 +147,14 @@ def test_a_process_that_ended_early_is_named(tmp_path):
     import signal
     import time
 
-    dead = run._Proc("node1", ["sh", "-c", "echo 'node 1: nothing received in time, exiting' >&2; exit 3"], tmp_path)
-    killed = run._Proc("node0", ["sleep", "30"], tmp_path)
-    alive = run._Proc("master", ["sleep", "30"], tmp_path)
+    dead = launch._Proc("node1", ["sh", "-c", "echo 'node 1: nothing received in time, exiting' >&2; exit 3"], tmp_path)
+    killed = launch._Proc("node0", ["sleep", "30"], tmp_path)
+    alive = launch._Proc("master", ["sleep", "30"], tmp_path)
     killed.p.send_signal(signal.SIGKILL)
     time.sleep(0.5)
     early = {p.name: p.ended() for p in (dead, killed, alive)}
     assert early == {"node1": 3, "node0": -9, "master": None}
-    msg = run._who_ended(early, tmp_path)
+    msg = launch._who_ended(early, tmp_path)
     assert "node1 ended early (exit 3: node 1: nothing received in time, exiting)" in msg
     assert "node0 ended early (killed by signal 9)" in msg and "master" not in msg
     for p in (dead, killed, alive):
@@ -202,7 +202,7 @@ def test_forged_frames_rejected_by_cause_in_the_running_programs(runs, tmp_path_
         "length": good[:-1],
         "crc": good[:30] + bytes([good[30] ^ 0x40]) + good[31:],
         "format": enc(wire.KIND_PACKET, 0, k, fresh, packet(), patch=[(5, 9)]),
-        "version": enc(wire.KIND_PACKET, 0, k, fresh, packet(), patch=[(4, 2)]),
+        "version": enc(wire.KIND_PACKET, 0, k, fresh, packet(), patch=[(4, 1)]),
         "model": enc(wire.KIND_PACKET, 0, k, fresh, packet(), patch=[(8, good[8] ^ 1)]),
         "tag": enc(wire.KIND_PACKET, 0, k, fresh, packet(), keyed=bytes(16)),
         "nonfinite": enc(wire.KIND_PACKET, 0, k, fresh, nan_p),
@@ -214,6 +214,7 @@ def test_forged_frames_rejected_by_cause_in_the_running_programs(runs, tmp_path_
         "outdated": enc(wire.KIND_PACKET, 1, k - 2, fresh, packet()),
         "covariance": enc(wire.KIND_PACKET, 0, k, fresh, bad_p),
         "gain": enc(wire.KIND_PACKET, 0, k, fresh, packet(P_scale=3.0)),
+        "epoch": wire.encode(lay, wire.KIND_PACKET, 0, k, fresh, packet(), key, epoch=1),   # not the master's boot
     }
     tick = np.zeros(1 + lay.n + lay.m)
     node0 = [enc(wire.KIND_TICK, 0, k - 1, fresh, tick),                       # a replayed tick
@@ -233,6 +234,48 @@ def test_forged_frames_rejected_by_cause_in_the_running_programs(runs, tmp_path_
     assert node["R"]["tag"] == 1 and node["R"]["length"] == 1
     errors, _ = run.compare(out)
     assert all(e.ok for e in errors), verify.table(errors)
+
+
+def test_restarted_master_refuses_frames_recorded_before_it_restarted(runs, tmp_path_factory):
+    """Keyed; the master is killed before step 60 and restarted (-r, its epoch 1) before step 90.
+    Right after it starts, a replayer sends it node 0's and node 1's packets of steps 85-89 as
+    recorded before the kill (epoch 0, their genuine sequence numbers, the key's tag); at step 95
+    it sends node 0 a recorded command of epoch 0 with a sequence number above any the master
+    uses. Each is refused and counted under `epoch`; the nodes' own packets of step 90, sent
+    before they heard the new master, are refused alike. The master joins at step 91 from a
+    genuine packet of its epoch (the nodes took its announcement at 90) and tracks the truth.
+    Before: the restarted master initialised from the first replayed packet (joined at 85), and
+    the replayed command's sequence number made node 0 refuse every later real command."""
+    from dfeif_codegen.check import harness
+    from dfeif_codegen.net import wire
+
+    key = bytes.fromhex(KEY)
+    lay = wire.Layout.of_folder(harness.build_model("dc_motor_link", tmp_path_factory.mktemp("lay") / "gen").path)
+    n, m = lay.n, lay.m
+    old = np.concatenate([np.zeros(m), np.full(n, 3.0), (1e-8 * np.eye(n)).ravel(), np.full(n, 3.0),
+                          (1e-8 * np.eye(n)).ravel()])              # far from the truth, and sure of it
+    replays = [wire.encode(lay, wire.KIND_PACKET, i, k, k, old, key, epoch=0) for k in range(85, 90) for i in (0, 1)]
+    command = wire.encode(lay, wire.KIND_COMMAND, wire.MASTER_ID, 95, 1 << 30, np.full(2 * m, 5.0), key, epoch=0)
+
+    def inject(step):
+        return [("master", f) for f in replays] if step == 90 else [(0, command)]
+
+    out = runs("master-restart-replayed", duration=1.5, key=KEY, faults=(run.Fault("master", 60, 90),),
+               command_timeout=0.1, inject_at=(90, 95), inject=inject)
+    assert out.returncodes == {name: 0 for name in out.returncodes}
+    counts = out.master["counters"]["R"]
+    assert counts["epoch"] == len(replays) + out.setup.nodes, counts
+    assert sum(v for c, v in counts.items() if c not in ("accepted", "epoch")) == 0, counts
+    assert out.master["counters"]["joined"] == 91
+    assert sorted(out.master["steps"]) == list(range(91, out.steps))
+    master = {k: (None, r["x"], r["P"]) for k, r in out.master["steps"].items()}
+    assert z_scores(out, master).max() < 5
+    node0 = out.nodes[0]["counters"]
+    assert node0["R"]["epoch"] == 1 and node0["R"]["replay"] == 0
+    for node in out.nodes:     # held through the outage and the announcing step 90, then commanded again
+        assert node["counters"]["H"]["held"] == 31
+        assert z_scores(out, node["steps"]).max() < 5
+    assert int(out.plant["got"].sum()) == out.steps - 31
 
 
 def _bench_fig(cpus, load, median, p99, own):

@@ -14,20 +14,14 @@ from pathlib import Path
 import pytest
 
 import dfeif_codegen as dc
-from conftest import IN_CI
+from conftest import require_module
 from dfeif_codegen import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _mypy(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
-    try:
-        import mypy  # noqa: F401
-    except ImportError:
-        reason = "mypy not installed: pip install -e '.[test]'"
-        if IN_CI:
-            pytest.fail(reason, pytrace=False)
-        pytest.skip(reason)
+    require_module("mypy")
     # MYPYPATH: the package from this checkout (mypy cannot follow an editable install's import hook)
     env = {**os.environ, "MYPYPATH": str(ROOT)}
     return subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(ROOT / "pyproject.toml"), *args],

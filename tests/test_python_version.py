@@ -8,9 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
-from conftest import IN_CI
+from conftest import require_module
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -18,13 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_package_runs_on_the_oldest_python_claimed():
     claim = re.search(r'^requires-python = ">=(3\.\d+)"$', (ROOT / "pyproject.toml").read_text(), re.M)
     assert claim, "pyproject.toml: requires-python must be a lower bound '>=3.N'"
-    try:
-        import vermin  # noqa: F401
-    except ImportError:
-        reason = "vermin not installed: pip install -e '.[test]'"
-        if IN_CI:
-            pytest.fail(reason, pytrace=False)
-        pytest.skip(reason)
+    require_module("vermin")
     run_vermin = "import sys, vermin; sys.exit(vermin.main())"
     proc = subprocess.run([sys.executable, "-c", run_vermin, f"-t={claim.group(1)}-", "--no-tips", "--violations",
                            "dfeif_codegen"], cwd=ROOT, capture_output=True, text=True,

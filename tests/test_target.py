@@ -116,7 +116,7 @@ def test_harness_files_ship_in_the_wheel(tmp_path):
 from conftest import Case  # noqa: E402
 from conftest import require_tool  # noqa: E402
 from dfeif_codegen.check import verify  # noqa: E402
-from dfeif_codegen.check import harness
+from dfeif_codegen.check import driver_io, harness
 
 TARGET_RUNS = [(Case("dc_motor_link", "replay", "difference", "sinusoid", 1), "float"),
                (Case("two_link_arm", "retrodict", "paper", "seesaw", 1), "float"),      # Brunovsky
@@ -133,7 +133,7 @@ def test_recorded_scenario_on_cortex_m4f(store, run, tmp_path, cross_tools):
     model = store.library(case, precision).model
     rec = store.recording(case)
     result = target.run_scenario(model, rec, tmp_path, timeout=300)
-    assert result.status["status"] == 0, harness.failure(result.status)
+    assert result.status["status"] == 0, driver_io.failure(result.status)
     errors = verify.compare_run(result.outputs, rec, precision)
     print(f"\n{case} on Cortex-M4F\n{verify.table(errors)}\n{target.report(result)}")
     assert all(s.data == 0 and s.bss == 0 for s in result.sizes.values()), "no static mutable data"
@@ -172,11 +172,12 @@ def test_missing_cross_tool_is_a_setup_error(monkeypatch):
 def test_bench_measures_deterministically(store, run, tmp_path, cross_tools):
     """`codegen bench`'s figures for one build: instruction counts repeat exactly, every section
     is measured, struct sizes come from the target compiler."""
-    from dfeif_codegen.check import bench, harness
+    from dfeif_codegen.check import bench_stages as bench, harness
+    from dfeif_codegen.check.bench_measure import measure
 
     require_tool("valgrind", "valgrind")
     model = store.library(*run).model
-    first, again = bench.callgrind(model, tmp_path / "a"), bench.callgrind(model, tmp_path / "b")
+    first, again = measure(bench.callgrind(model, tmp_path / "a")), measure(bench.callgrind(model, tmp_path / "b"))
     assert first == again
     assert set(first) == {"node_update", "node_predict", "master_fuse", "master_fuse_distinct", "control",
                           "node_update_delayed_lag1", "node_update_delayed_lag8", "node_update_delayed_lag25",
@@ -186,8 +187,8 @@ def test_bench_measures_deterministically(store, run, tmp_path, cross_tools):
     # the CI search: identical nodes converge in its first step, distinct ones take more, and the
     # worst-case build (-D<MODEL>_CI_TOL=-1) runs every one of ci_iterations(2) steps
     ci = harness.build_model("dc_motor_link", tmp_path / "ci", "double", "replay", "ci", 2)
-    normal = bench.callgrind(ci, tmp_path / "ci-a")
-    every = bench.callgrind(ci, tmp_path / "ci-b", bench.ci_every_step(ci))
+    normal = measure(bench.callgrind(ci, tmp_path / "ci-a"))
+    every = measure(bench.callgrind(ci, tmp_path / "ci-b", bench.ci_every_step(ci)))
     assert normal["master_fuse"] < normal["master_fuse_distinct"] < every["master_fuse_distinct"]
     sizes = target.struct_sizes(model, tmp_path / "sizeof")
     assert sizes["packet"] == 4 + 4 * (1 + 2 * 3 + 2 * 9)  # step + centre, x, P, x_pred, P_pred in float

@@ -92,14 +92,15 @@ def test_stack_includes_newlib_frames(spin_elf):
 
 
 def test_peers_on_the_target_agree_and_rank(tmp_path):
-    """The peers program on the emulated Cortex-M4F (float, -Os): bench_target.peers raises unless
-    each peer ends where the generated filter does; the hand-written filter executes fewer
+    """The peers program on the emulated Cortex-M4F (float, -Os): bench_target.peer_counts raises
+    unless each peer ends where the generated filter does; the hand-written filter executes fewer
     instructions than the generated one, the dense loops more, and the cycle estimate brackets
     at least one cycle per instruction (every entry of the table is >= 1 but IT's low figure)."""
     require_tool("qemu-system-arm", "qemu-system-arm")
     from dfeif_codegen.check import bench_target
+    from dfeif_codegen.check.bench_measure import measure
 
-    out = bench_target.peers("dc_motor_link", tmp_path)
+    out = bench_target.peer_counts(measure(bench_target.compile_peers("dc_motor_link", tmp_path)))
     assert out["straight"]["instructions"] < out["generated"]["instructions"] < out["dense"]["instructions"]
     for peer in out.values():
         lo, hi = peer["cycles"]

@@ -82,19 +82,24 @@ def test_codec_c_equals_python(libs, model, precision, key):
         values = random_reals(rng, lay.packet_reals, lay.dtype.newbyteorder("="))
         rng.shuffle(values)
         step, node, seq = int(rng.integers(0, 2 ** 32)), int(rng.integers(0, 2)), int(rng.integers(0, 2 ** 32))
-        rc, c_bytes = lib.packet_encode(values, step, node, seq, key)
-        py_bytes = wire.encode(lay, wire.KIND_PACKET, node, step, seq, values, key)
+        epoch = int(rng.integers(0, 2 ** 32))
+        rc, c_bytes = lib.packet_encode(values, step, node, seq, key, epoch)
+        py_bytes = wire.encode(lay, wire.KIND_PACKET, node, step, seq, values, key, epoch)
         assert rc == 0 and c_bytes == py_bytes and len(py_bytes) == lay.size(lay.packet_reals)
         rc, h, back = lib.packet_decode(py_bytes, key)
-        assert rc == 0 and (h.step, h.node, h.seq) == (step, node, seq)
+        assert rc == 0 and (h.step, h.node, h.seq, h.epoch) == (step, node, seq, epoch)
         assert back.tobytes() == values.tobytes()          # bit for bit, -0.0 and subnormals included
         hd, vals = wire.decode(lay, c_bytes, wire.KIND_PACKET, key)
-        assert vals.tobytes() == values.tobytes() and (hd.step, hd.node, hd.seq) == (step, node, seq)
+        assert vals.tobytes() == values.tobytes() and (hd.step, hd.node, hd.seq, hd.epoch) == (step, node, seq, epoch)
         v, u = values[:lay.m], values[lay.m:2 * lay.m]
-        rc, c_cmd = lib.command_encode(step, v, u, seq, key)
-        assert rc == 0 and c_cmd == wire.encode(lay, wire.KIND_COMMAND, wire.MASTER_ID, step, seq, np.r_[v, u], key)
-    # the layout is the documented one: little-endian reals right after the 28-byte header
-    assert struct.unpack_from("<d" if precision == "double" else "<f", py_bytes, 28)[0] == values[0] or np.isnan(values[0])
+        rc, c_cmd = lib.command_encode(step, v, u, seq, key, epoch)
+        assert rc == 0 and c_cmd == wire.encode(lay, wire.KIND_COMMAND, wire.MASTER_ID, step, seq, np.r_[v, u], key, epoch)
+        rc, c_hello = lib.announce_encode(step, seq, epoch, key)
+        assert rc == 0 and c_hello == wire.encode(lay, wire.KIND_ANNOUNCE, wire.MASTER_ID, step, seq, [], key, epoch)
+        assert wire.decode(lay, c_hello, wire.KIND_ANNOUNCE, key)[0].epoch == epoch
+    # the layout is the documented one: the epoch at byte 28, little-endian reals after the 32-byte header
+    assert struct.unpack_from("<I", py_bytes, 28)[0] == epoch and len(c_hello) == 44
+    assert struct.unpack_from("<d" if precision == "double" else "<f", py_bytes, 32)[0] == values[0] or np.isnan(values[0])
     assert py_bytes[:4] == b"DFEW" and py_bytes[7] == lay.dtype.itemsize
 
 
@@ -103,7 +108,7 @@ def test_codec_c_equals_python(libs, model, precision, key):
 class Master:
     """A C master and inbox at step `k` (predicted with v = 0), fed frames."""
 
-    def __init__(self, lib: WireLib, k: int, key: bytes | None = None, nodes: int = 2):
+    def __init__(self, lib: WireLib, k: int, key: bytes | None = None, nodes: int = 2, epoch: int = 0):
         self.lib, self.key, lay = lib, key, lib.layout
         n = lay.n
         self.P0 = np.eye(n) * 0.01
@@ -112,7 +117,7 @@ class Master:
         assert lib.fn("master_init")(self.m, lib.reals(np.zeros(n)), lib.reals(self.P0), lib.reals(np.ones(lay.m))) == 0
         for _ in range(k):
             assert lib.fn("master_predict")(self.m, lib.reals(np.zeros(lay.m))) == 0
-        assert lib.fn("inbox_init")(self.inbox, lib.key(key), ctypes.c_uint32(0)) == 0
+        assert lib.fn("inbox_init")(self.inbox, lib.key(key), ctypes.c_uint32(0), ctypes.c_uint32(epoch)) == 0
 
     def receive(self, frame: bytes) -> int:
         return self.lib.fn("master_receive")(self.m, self.inbox, frame, ctypes.c_size_t(len(frame)))
@@ -131,8 +136,9 @@ def good_packet(lay, step: int, scale: float = 1.0) -> np.ndarray:
                            np.zeros(n), (0.01 * np.eye(n)).ravel()]).astype(lay.dtype.newbyteorder("="))
 
 
-def frame(lay, step, node=0, seq=1, key=None, values=None, **patch):
-    buf = bytearray(wire.encode(lay, wire.KIND_PACKET, node, step, seq, good_packet(lay, step) if values is None else values, key))
+def frame(lay, step, node=0, seq=1, key=None, values=None, epoch=0, **patch):
+    buf = bytearray(wire.encode(lay, wire.KIND_PACKET, node, step, seq, good_packet(lay, step) if values is None else values,
+                                key, epoch))
     for offset, value in patch.get("set", []):
         buf[offset] = value
     if patch.get("fix_crc", True):
@@ -152,7 +158,7 @@ def test_every_rejection_cause_counted_and_state_kept(libs, precision):
         "length": frame(lay, k)[:-1],
         "crc": frame(lay, k, set=[(30, 0x55)], fix_crc=False),
         "format": frame(lay, k, set=[(0, ord("X"))]),
-        "version": frame(lay, k, set=[(4, 2)]),
+        "version": frame(lay, k, set=[(4, 1)]),   # the format before epochs
         "model": frame(lay, k, set=[(9, 0)]) if frame(lay, k)[9] != 0 else frame(lay, k, set=[(9, 1)]),
         "node": frame(lay, k, node=7),
         "future": frame(lay, k + 1),
@@ -222,7 +228,7 @@ def test_command_receive_checks(libs):
     lib = libs("dc_motor_link", "float")
     lay = lib.layout
     rx = lib.buffer("command_rx")
-    assert lib.fn("command_rx_init")(rx, lib.key(DEPLOY)) == 0
+    assert lib.fn("command_rx_init")(rx, lib.key(DEPLOY), ctypes.c_uint32(0)) == 0
     step, v, u = ctypes.c_uint32(), lib.reals([0.0]), lib.reals([0.0])
 
     def recv(buf):
@@ -352,3 +358,74 @@ def test_null_arguments_and_sequence_wrap(libs):
     assert ms.receive(frame(lay, 39, node=0, seq=0, key=DEPLOY)) == 0
     assert ms.receive(frame(lay, 40, node=0, seq=0xFFFFFFFF, key=DEPLOY)) == wire.ERRORS["replay"]
     assert ms.receive(frame(lay, 40, node=0, seq=1, key=DEPLOY)) == 0
+
+
+# --- epochs: replay protection across a master's restart (docs/wire.md, "Epochs") ----------------
+
+def test_restarted_master_refuses_frames_of_an_earlier_boot(libs):
+    """A keyed master in its epoch 7 (its boot counter) refuses a packet of epoch 6 (recorded
+    before it restarted: a genuine tag, a sequence number it has never seen, a step in its
+    window) as ERR_WIRE_EPOCH, counted, its state unchanged; inbox_join (a restarted master's
+    first packet, what it initialises from) refuses it alike. Before, a restarted master had no
+    memory of sequence numbers and took such a frame, or initialised from it."""
+    lib = libs("dc_motor_link", "double")
+    lay = lib.layout
+    ms = Master(lib, 20, key=DEPLOY, epoch=7)
+    old = frame(lay, 19, node=0, seq=5, key=DEPLOY, epoch=6)
+    before = ms.m.raw
+    assert ms.receive(old) == wire.ERRORS["epoch"] and ms.m.raw == before
+    assert ms.receive(frame(lay, 19, node=0, seq=5, key=DEPLOY, epoch=8)) == wire.ERRORS["epoch"]
+    pk, h = lib.Packet(), lib.Header()
+    join = lib.fn("inbox_join")
+    assert join(ms.inbox, old, ctypes.c_size_t(len(old)), ctypes.byref(pk), ctypes.byref(h)) == wire.ERRORS["epoch"]
+    assert lib.rejected(inbox=ms.inbox)["epoch"] == 3
+    new = frame(lay, 20, node=0, seq=2, key=DEPLOY, epoch=7)
+    assert join(ms.inbox, new, ctypes.c_size_t(len(new)), ctypes.byref(pk), ctypes.byref(h)) == 0
+    assert (h.step, h.epoch, pk.step) == (20, 7, 20)
+    assert np.array_equal(lib.packet_values(pk), good_packet(lay, 20))
+    assert ms.receive(new) == 0                        # join staged nothing: receive takes it
+    assert ms.receive(frame(lay, 20, node=0, seq=2, key=DEPLOY, epoch=7)) == wire.ERRORS["replay"]
+    # the Python codec carries the epoch the C reads
+    assert wire.decode(lay, old, wire.KIND_PACKET, DEPLOY)[0].epoch == 6
+    # without a key nothing is authentic, so nothing is refused for its epoch (as for sequence numbers)
+    plain = Master(lib, 20, epoch=7)
+    assert plain.receive(frame(lay, 19, node=1, epoch=6)) == 0
+
+
+def test_node_follows_the_masters_epoch_and_refuses_older_ones(libs):
+    """A node that last heard epoch 5 (kept across its own restart) refuses a recorded command of
+    epoch 4; takes epoch 5's commands with fresh sequence numbers; takes the restarted master's
+    announcement of epoch 6 (its sequence numbers start again) and from then refuses epoch 5's
+    frames, whatever their sequence number: a replayed broadcast of an earlier boot changes
+    nothing. Epochs are ordered as RFC 1982 serial numbers, so 0 follows 0xFFFFFFFF."""
+    lib = libs("dc_motor_link", "float")
+    lay = lib.layout
+    rx = lib.buffer("command_rx")
+    assert lib.fn("command_rx_init")(rx, lib.key(DEPLOY), ctypes.c_uint32(5)) == 0
+    step, v, u = ctypes.c_uint32(), lib.reals([0.0]), lib.reals([0.0])
+
+    def cmd(epoch, seq, k=3, value=0.5):
+        buf = wire.encode(lay, wire.KIND_COMMAND, wire.MASTER_ID, k, seq, [value, value], DEPLOY, epoch)
+        return lib.fn("command_receive")(rx, buf, ctypes.c_size_t(len(buf)), ctypes.byref(step), v, u)
+
+    def hello(epoch, seq):
+        buf = wire.encode(lay, wire.KIND_ANNOUNCE, wire.MASTER_ID, 9, seq, [], DEPLOY, epoch)
+        return lib.fn("announce_receive")(rx, buf, ctypes.c_size_t(len(buf)))
+
+    def epoch_now():
+        return int.from_bytes(rx.raw[:4], "little")     # the first field: the epoch the packets carry
+
+    assert cmd(4, 1000) == wire.ERRORS["epoch"] and epoch_now() == 5
+    assert cmd(5, 10, value=0.25) == 0 and v[0] == 0.25
+    assert cmd(5, 10, value=9.0) == wire.ERRORS["replay"] and v[0] == 0.25
+    assert hello(6, 0) == 0 and epoch_now() == 6
+    assert cmd(5, 11, value=9.0) == wire.ERRORS["epoch"] and v[0] == 0.25
+    assert hello(5, 99) == wire.ERRORS["epoch"] and epoch_now() == 6
+    assert cmd(6, 1, value=-1.0) == 0 and v[0] == -1.0
+    assert hello(6, 1) == wire.ERRORS["replay"]
+    counts = lib.rejected(rx=rx)
+    assert (counts["epoch"], counts["replay"], lib.rejected(rx=rx)["other"]) == (3, 2, 0)
+    wrap = lib.buffer("command_rx")
+    assert lib.fn("command_rx_init")(wrap, lib.key(DEPLOY), ctypes.c_uint32(0xFFFFFFFF)) == 0
+    buf = wire.encode(lay, wire.KIND_ANNOUNCE, wire.MASTER_ID, 0, 0, [], DEPLOY, 0)
+    assert lib.fn("announce_receive")(wrap, buf, ctypes.c_size_t(len(buf))) == 0

@@ -1,5 +1,6 @@
-"""`codegen bench`'s comparisons: peers side by side, scaling with fitted growth, closed-loop
-Monte Carlo throughput.
+"""`codegen bench`'s comparisons: peers side by side and scaling with fitted growth, what each
+compiles (the run step measures it, check/bench_measure.py) and how its figures are checked and
+shaped (the compare step).
 
 Peers of one node step (update with an on-time frame, then predict), each as a ratio to the
 generated code: the numpy reference (`reference.node.NodeFilter`), FilterPy's `KalmanFilter`
@@ -13,19 +14,14 @@ is the least-squares slope of log(cost) against log(size).
 
 from __future__ import annotations
 
-import json
 import re
-import resource
-import statistics
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 from dfeif_codegen import __version__
-from dfeif_codegen.check import harness, target
+from dfeif_codegen.check import bench_programs, harness, target
+from dfeif_codegen.check.bench_measure import Measure
 from dfeif_codegen.codegen import render
 from dfeif_codegen.errors import SetupError
 
@@ -52,6 +48,17 @@ WINDOWS = (8, 16, 32, 64, 128)
 def growth(sizes, costs) -> float:
     """Exponent b of cost ~ a size^b (least squares in log-log)."""
     return float(np.polyfit(np.log(np.asarray(sizes, float)), np.log(np.asarray(costs, float)), 1)[0])
+
+
+def chain_rows(ch: dict, cells) -> list[str]:
+    """The scaling tables' rows, one per chain length n: n, the node step's instructions, their
+    ratio to the previous n, then the cells `cells(ch[n])` of the table at hand."""
+    ns = sorted(ch)
+    rows = []
+    for a, n in enumerate(ns):
+        prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
+        rows.append(f"| {n} | {ch[n]['step']:,.0f} | {prev} | " + " | ".join(str(c) for c in cells(ch[n])) + " |")
+    return rows
 
 
 def chain_model(n: int) -> str:
@@ -109,30 +116,9 @@ def _model_function(flat, precision: str) -> tuple[str, int]:
     return text, int(re.search(r"real w\[(\d+)\]", text).group(1))
 
 
-def _peers_program(spec: str, md: harness.ModelDir, work: Path) -> Path:
-    src = render_peers(spec, md, work)
-    return harness.compile_program([*md.sources(), src], work / "peers", [md.path], [harness.BIND_NOW])
-
-
-def c_peers(spec: str, md: harness.ModelDir, work: Path) -> dict:
-    """Instructions and wall ns per step of the generated filter and the C peers."""
-    work.mkdir(parents=True, exist_ok=True)
-    exe = _peers_program(spec, md, work)
-    counts, finals = _callgrind(exe, work)
-    ref = np.array(finals["generated"])
-    for name, x in finals.items():
-        if not np.allclose(x, ref, rtol=1e-9, atol=1e-12):
-            raise SetupError(f"bench peer '{name}' disagrees with the generated filter: {x} vs {ref}")
-    proc = subprocess.run([str(exe), "time"], capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SetupError(f"peers timing failed:\n{proc.stderr[-2000:]}")
-    ns = {line.split()[0]: float(line.split()[1]) for line in proc.stdout.splitlines() if line.strip()}
-    return {"instructions": counts, "ns": ns}
-
-
-def _callgrind(exe: Path, work: Path) -> tuple[dict, dict]:
-    counts, stdout = harness.callgrind(exe, work)
-    return counts, finals(stdout)
+def peers(spec: str, md: harness.ModelDir, work: Path) -> Measure:
+    """The peers program (the generated filter and the C peers) compiled for the host."""
+    return Measure("c-peers", (bench_programs.host(md, render_peers(spec, md, work), work),), work)
 
 
 def finals(stdout: str) -> dict[str, list[float]]:
@@ -141,137 +127,77 @@ def finals(stdout: str) -> dict[str, list[float]]:
             for m in re.finditer(r"^final (\w+) (.*)$", stdout, re.M)}
 
 
-def python_peers(model: str, steps: int = 2000, repeat: int = 5) -> dict:
-    """Wall ns per step (median of `repeat`) of the numpy reference and FilterPy's KalmanFilter."""
-    from dfeif_codegen.reference.node import NodeFilter
-    from dfeif_codegen.symbolic import flatness, model as model_mod
+def check_finals(stdout: str, rtol: float, atol: float, where: str = "") -> None:
+    """Raise unless every peer ends where the generated filter ends."""
+    got = finals(stdout)
+    ref = np.array(got["generated"])
+    for name, x in got.items():
+        if not np.allclose(x, ref, rtol=rtol, atol=atol):
+            raise SetupError(f"bench peer '{name}'{where} disagrees with the generated filter: {x} vs {ref}")
 
-    flat = flatness.derive(model_mod.load(model))
-    ts, n, m = flat.model.ts, flat.n, flat.m
-    A, B, C = flat.discrete(ts)
-    Q, R = flat.process_noise(ts, np.ones(m)), 1e-4 * np.eye(m)
-    x0, P0, v = 0.1 * np.arange(1, n + 1), 0.01 * np.eye(n), 0.5 * np.ones(m)
-    zs = [0.1 + 1e-3 * (k & 7) * np.ones(m) for k in range(steps)]
-    out = {}
 
-    def timed(make, step) -> float:
-        runs = []
-        for _ in range(repeat):
-            f = make()
-            t0 = time.perf_counter()
-            for z in zs:
-                step(f, z)
-            runs.append((time.perf_counter() - t0) / steps * 1e9)
-        return statistics.median(runs)
-
-    def ref_step(f, z):
-        f.update(z, True)
-        f.predict(v)
-
-    out["numpy reference"] = timed(lambda: NodeFilter(flat, ts, np.ones(m), R, x0, P0), ref_step)
-    try:
-        from filterpy.kalman import KalmanFilter
-    except ImportError:
-        out["FilterPy KalmanFilter"] = None
-    else:
-        def make():
-            kf = KalmanFilter(dim_x=n, dim_z=m, dim_u=m)
-            kf.x, kf.P, kf.F, kf.B, kf.H, kf.Q, kf.R = x0.copy(), P0.copy(), A, B, C, Q, R
-            return kf
-
-        def fp_step(kf, z):
-            kf.update(z)
-            kf.predict(v)
-
-        out["FilterPy KalmanFilter"] = timed(make, fp_step)
-    return out
+def checked(ran: dict) -> dict:
+    """Host peers' figures once their estimates agree (double: 1e-9 relative, round-off of 200 steps)."""
+    check_finals(ran["stdout"], 1e-9, 1e-12)
+    return {"instructions": ran["instructions"], "ns": ran["ns"]}
 
 
 # --- scaling ------------------------------------------------------------------------------------------
 
-def scaling(work: Path, callgrind) -> dict:
-    """Instruction counts and code size over chains n, nodes M and windows N_max."""
+def chain_spec(n: int, work: Path) -> str:
+    """chain_model(n) written to a file in `work`."""
+    spec = work / f"chain{n}.toml"
+    spec.parent.mkdir(parents=True, exist_ok=True)
+    spec.write_text(chain_model(n))
+    return str(spec)
+
+
+def _callgrind(md: harness.ModelDir, work: Path, defines: tuple[str, ...] = ()) -> Measure:
+    return Measure("callgrind", (bench_programs.host_template(md, "bench", work, defines),), work)
+
+
+def compile_scaling(work: Path) -> dict:
+    """The host programs and target objects over chains n, nodes M and windows N_max."""
     out: dict = {"chains": {}, "nodes": {}, "windows": {}}
     for n in CHAINS:
-        spec = work / f"chain{n}.toml"
-        spec.parent.mkdir(parents=True, exist_ok=True)
-        spec.write_text(chain_model(n))
-        md = harness.build_model(str(spec), work / f"chain{n}-double")
-        c = callgrind(md, work / f"cg-chain{n}")
-        mf = harness.build_model(str(spec), work / f"chain{n}-float", "float")
-        objs = target.compile_objects(mf.sources(), work / f"obj-chain{n}", [mf.path], opt="-Os")
-        text = {name: z.text for name, z in target.sizes(objs).items()}
-        out["chains"][n] = {"step": c["node_update"] + c["node_predict"],
-                            "kernel_text": text[f"chain{n}_kernels_filter.o"],
-                            "filter_text": text[f"chain{n}_kernels_filter.o"] + text[f"chain{n}_node.o"],
-                            "fusion_text": text[f"chain{n}_kernels_fusion.o"]}
+        spec = chain_spec(n, work)
+        md = harness.build_model(spec, work / f"chain{n}-double")
+        mf = harness.build_model(spec, work / f"chain{n}-float", "float")
+        out["chains"][n] = {"counts": _callgrind(md, work / f"cg-chain{n}"),
+                            "sizes": Measure("sizes", (bench_programs.objects(mf, work / f"obj-chain{n}"),))}
     for M in NODES:
         row = {}
         for fusion in ("difference", "ci"):
             md = harness.build_model("dc_motor_link", work / f"nodes{M}-{fusion}", "double", "replay", fusion, M)
-            counts = callgrind(md, work / f"cg-nodes{M}-{fusion}")
-            row[fusion] = counts["master_fuse"]
-            row[f"{fusion}_distinct"] = counts["master_fuse_distinct"]
-        every = callgrind(md, work / f"cg-nodes{M}-ci-all", (f"{md.name.upper()}_CI_TOL=-1",))
-        row["ci_every_step"] = every["master_fuse_distinct"]
+            row[fusion] = _callgrind(md, work / f"cg-nodes{M}-{fusion}")
+        row["ci_every_step"] = _callgrind(md, work / f"cg-nodes{M}-ci-all", (f"{md.name.upper()}_CI_TOL=-1",))
         out["nodes"][M] = row
     for N in WINDOWS:
         row = {}
         for oosm in ("replay", "retrodict"):
             md = harness.build_model("dc_motor_link", work / f"win{N}-{oosm}", "double", oosm, "difference", 2, N)
-            row[oosm] = callgrind(md, work / f"cg-win{N}-{oosm}")[f"node_update_delayed_lag{N}"]
+            row[oosm] = _callgrind(md, work / f"cg-win{N}-{oosm}")
         mf = harness.build_model("dc_motor_link", work / f"win{N}-sizeof", "double", "replay", "difference", 2, N)
-        row["node_bytes"] = target.struct_sizes(mf, work / f"win{N}-probe")["node"]
+        row["node_bytes"] = Measure("sizeof", (target.sizeof_probe(mf, work / f"win{N}-probe"),))
         out["windows"][N] = row
     return out
 
 
-# --- closed-loop Monte Carlo -----------------------------------------------------------------------
-
-def monte_carlo(work: Path, seeds_c: int = 2, seeds_ref: int = 1) -> dict:
-    """Runs per second of `codegen simulate` (compilation and start-up excluded: the command's own
-    elapsed time of the runs) for each engine and way of running, and the 100-seed paper table's
-    wall time as a user runs it (start-up and compilation included)."""
-    work.mkdir(parents=True, exist_ok=True)
-    cases = [("c", "1 process", seeds_c, ["--workers", "1"]), ("c", "2 processes", seeds_c, ["--workers", "2"]),
-             ("reference", "1 process", seeds_ref, ["--workers", "1"]),
-             ("reference", "2 processes", seeds_ref, ["--workers", "2"])]
-    results = []
-    cluster = None
-    try:
-        from dask.distributed import LocalCluster
-        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
-        cases.append(("c", "LocalCluster, 2 workers", seeds_c, ["--scheduler", cluster.scheduler_address]))
-    except ImportError:
-        pass
-    try:
-        for engine, how, seeds, extra in cases:
-            doc = _simulate(work, ["--engine", engine, "--runs", str(seeds), *extra])
-            s = doc["settings"]
-            results.append({"engine": engine, "how": how, "runs": s["distinct_runs"], "seconds": s["elapsed_s"],
-                            "per_s": s["distinct_runs"] / s["elapsed_s"]})
-    finally:
-        if cluster is not None:
-            cluster.close()
-    t0, cpu0 = time.perf_counter(), _children_cpu()
-    doc = _simulate(work, ["--runs", "100"])
-    table = {"wall_s": time.perf_counter() - t0, "cpu_s": _children_cpu() - cpu0, "runs": doc["settings"]["distinct_runs"],
-             "loop_s": doc["settings"]["elapsed_s"], "workers": doc["settings"]["workers"],
-             "longest_task_s": doc["settings"]["longest_bound_cpu_s"]}
-    return {"rates": results, "paper100": table}
-
-
-def _children_cpu() -> float:
-    """User + system CPU seconds of every finished child process (and theirs): the command's
-    CPU time, which other load on the machine does not inflate the way it inflates wall time."""
-    use = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return use.ru_utime + use.ru_stime
-
-
-def _simulate(work: Path, extra: list[str]) -> dict:
-    out = work / "mc.json"
-    cmd = [sys.executable, "-m", "dfeif_codegen.cli", "simulate", "--quiet", "--json", str(out), *extra]
-    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=work)
-    if proc.returncode != 0:
-        raise SetupError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
-    return json.loads(out.read_text())
+def scaling_rows(ran: dict) -> dict:
+    """The scaling figures the report shows, from what compile_scaling's programs measured."""
+    out: dict = {"chains": {}, "nodes": {}, "windows": {}}
+    for n, r in ran["chains"].items():
+        c, text = r["counts"], {name: z.text for name, z in r["sizes"].items()}
+        out["chains"][n] = {"step": c["node_update"] + c["node_predict"],
+                            "kernel_text": text[f"chain{n}_kernels_filter.o"],
+                            "filter_text": text[f"chain{n}_kernels_filter.o"] + text[f"chain{n}_node.o"],
+                            "fusion_text": text[f"chain{n}_kernels_fusion.o"]}
+    for M, r in ran["nodes"].items():
+        out["nodes"][M] = {"difference": r["difference"]["master_fuse"],
+                           "difference_distinct": r["difference"]["master_fuse_distinct"],
+                           "ci": r["ci"]["master_fuse"], "ci_distinct": r["ci"]["master_fuse_distinct"],
+                           "ci_every_step": r["ci_every_step"]["master_fuse_distinct"]}
+    for N, r in ran["windows"].items():
+        out["windows"][N] = {oosm: r[oosm][f"node_update_delayed_lag{N}"] for oosm in ("replay", "retrodict")}
+        out["windows"][N]["node_bytes"] = r["node_bytes"]["node"]
+    return out

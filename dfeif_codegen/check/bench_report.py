@@ -220,10 +220,7 @@ def _scaling(sc: dict) -> list[str]:
             "Synthetic flat chains: one output, relative degree n (`n` integrators).", "",
             "| n | node step instructions | x previous n | filter kernels .text [B] | kernels + node .text [B] "
             "| fusion kernels .text [B] |", "|---:|---:|---:|---:|---:|---:|"]
-    for a, n in enumerate(ns):
-        prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
-        out.append(f"| {n} | {_fmt(ch[n]['step'])} | {prev} | {ch[n]['kernel_text']} | {ch[n]['filter_text']} "
-                   f"| {ch[n]['fusion_text']} |")
+    out += bench_peers.chain_rows(ch, lambda c: (c["kernel_text"], c["filter_text"], c["fusion_text"]))
     out += ["", f"Fitted growth over n = {ns[0]}..{ns[-1]}: node step ~ n^"
             f"{bench_peers.growth(ns, [ch[n]['step'] for n in ns]):.2f}, filter kernel .text ~ n^"
             f"{bench_peers.growth(ns, [ch[n]['kernel_text'] for n in ns]):.2f}, fusion kernel .text ~ n^"

@@ -1,75 +1,64 @@
 """`codegen bench` on the Cortex-M4F: the same benchmark programs as on the host (bench.c.j2,
-worst.c.j2, peers.c.j2), cross-compiled (float, -Os) and run under QEMU mps2-an386, each executed
-instruction counted and costed (check/target_count.py); stack per entry point with the newlib
-and libgcc code it calls, read from the linked program.
+worst.c.j2, peers.c.j2), cross-compiled (float, -Os, check/bench_programs.py) and run under QEMU
+mps2-an386, each executed instruction counted and costed (check/target_count.py); stack per entry
+point with the newlib and libgcc code it calls, read from the linked program. What each figure
+compiles, how its measurements are shaped, and its tables in the report.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
+from dfeif_codegen.check import bench_peers, bench_programs, harness
+from dfeif_codegen.check.bench_measure import Measure
+from dfeif_codegen.check.bench_programs import CALLS, OPT
 
-from dfeif_codegen import __version__
-from dfeif_codegen.check import bench_peers, harness, target_count
-from dfeif_codegen.codegen import render
-from dfeif_codegen.errors import SetupError
-
-CALLS = 20    # calls averaged per section (the host's 200 would take ten times the emulation)
-OPT = "-Os"
 # (oosm, fusion, defines, label) of the worst-case runs; the first is the reference configuration
 WORST = (("replay", "difference", (), "replay, difference"), ("retrodict", "difference", (), "retrodict, difference"),
          ("replay", "ci", ("CI_TOL=-1",), "replay, ci (every Newton step)"))
 
 
-def _render(md: harness.ModelDir, template: str, work: Path) -> Path:
-    work.mkdir(parents=True, exist_ok=True)
-    src = work / f"{md.name}_{template}.c"
-    src.write_text(render.environment(md.precision).get_template(f"harness/{template}.c.j2").render(
-        p=md.name, P=md.name.upper(), banner=render.banner(f"harness/{template}.c.j2", md.name, __version__)))
-    return src
+def _qemu(md: harness.ModelDir, template: str, work: Path, defines=(), how: str = "qemu") -> Measure:
+    elf = bench_programs.elf_template(md, template, work, defines)
+    return Measure(how, (elf, md.name) if how == "qemu-stack" else (elf,), elf.parent)
 
 
-def _run(md: harness.ModelDir, src: Path, work: Path, defines=()) -> tuple[dict, str, Path]:
-    elf = target_count.program(md.sources(), src, [md.path], work,
-                               [f"CALLS={CALLS}", *(f"{md.name.upper()}_{d}" if d.startswith("CI_") else d
-                                                    for d in defines)], OPT)
-    counts, stdout = target_count.count(elf, work)
-    return counts, stdout, elf
-
-
-def model(name: str, work: Path) -> dict:
+def compile_model(name: str, work: Path) -> dict:
     """Typical counts per call (bench.c.j2), the worst call per entry point for each WORST build
-    (worst.c.j2) and the stack per entry point with library calls (replay and retrodict)."""
+    (worst.c.j2) and, for the difference builds, the stack per entry point with library calls."""
     md = harness.build_model(name, work / "replay-difference", "float")
-    typical, _, _ = _run(md, _render(md, "bench", work / "bench-src"), work / "bench")
-    worst, stack = {}, {}
+    out: dict = {"typical": _qemu(md, "bench", work / "bench"), "worst": {}}
     for oosm, fusion, defines, label in WORST:
         md = harness.build_model(name, work / f"{oosm}-{fusion}", "float", oosm, fusion)
-        counts, _, elf = _run(md, _render(md, "worst", work / f"worst-src-{oosm}-{fusion}"),
-                              work / f"worst-{oosm}-{fusion}", defines)
-        worst[label] = {k[len("worst/"):]: v for k, v in counts.items() if k.startswith("worst/")}
-        if fusion == "difference":
-            roots = [f"{name}_{fn}" for fn in worst[label]]
-            stack[oosm] = {fn[len(name) + 1:]: use for fn, use in
-                           target_count.stack_with_library(elf, roots).items()}
-    return {"typical": typical, "worst": worst, "stack": stack}
+        out["worst"][label] = _qemu(md, "worst", work / f"worst-{oosm}-{fusion}", defines,
+                                    "qemu-stack" if fusion == "difference" else "qemu")
+    return out
 
 
-def peers(spec: str, work: Path, predictor: str | None = None) -> dict:
-    """The peers of one node step (peers.c.j2) on the target, float: instructions and cycles per
-    step, after checking each peer ends where the generated filter does (float: 1e-3 relative,
-    200 steps of a filter whose covariance settles, far above single precision's 6e-8 but far
-    below a wrong filter's error)."""
+def model_rows(ran: dict) -> dict:
+    """compile_model's measurements as the report reads them: typical, worst per label, stack per oosm."""
+    worst, stack = {}, {}
+    for oosm, _, _, label in WORST:
+        got = ran["worst"][label]
+        worst[label] = {k[len("worst/"):]: v for k, v in got["counts"].items() if k.startswith("worst/")}
+        if "stack" in got:
+            stack[oosm] = got["stack"]
+    return {"typical": ran["typical"]["counts"], "worst": worst, "stack": stack}
+
+
+def compile_peers(spec: str, work: Path, predictor: str | None = None) -> Measure:
+    """The peers of one node step (peers.c.j2) for the target, float."""
     md = harness.build_model(spec, work / "float", "float", **bench_peers.with_predictor(predictor))
-    src = bench_peers.render_peers(spec, md, work / "src")
-    counts, stdout, _ = _run(md, src, work / "peers")
-    finals = bench_peers.finals(stdout)
-    ref = np.array(finals["generated"])
-    for peer, x in finals.items():
-        if not np.allclose(x, ref, rtol=1e-3, atol=1e-5):
-            raise SetupError(f"bench peer '{peer}' on the target disagrees with the generated filter: {x} vs {ref}")
-    return counts
+    elf = bench_programs.elf(md, bench_peers.render_peers(spec, md, work / "src"), work / "peers")
+    return Measure("qemu", (elf,), elf.parent)
+
+
+def peer_counts(ran: dict) -> dict:
+    """The target peers' counts, after checking each peer ends where the generated filter does
+    (float: 1e-3 relative, 200 steps of a filter whose covariance settles, far above single
+    precision's 6e-8 but far below a wrong filter's error)."""
+    bench_peers.check_finals(ran["stdout"], 1e-3, 1e-5, " on the target")
+    return ran["counts"]
 
 
 def _fmt(n: float) -> str:
@@ -141,39 +130,37 @@ def peers_markdown(rows: list[tuple[str, str, dict, dict | None]]) -> list[str]:
     return out + [""]
 
 
-def _chain_spec(n: int, work: Path) -> str:
-    spec = work / f"chain{n}.toml"
-    spec.parent.mkdir(parents=True, exist_ok=True)
-    spec.write_text(bench_peers.chain_model(n))
-    return str(spec)
-
-
-def scaling(work: Path, chains=None, nodes=None) -> dict:
+def compile_scaling(work: Path, chains=None, nodes=None) -> dict:
     """On the target: the node step (update + predict) and the kernels' .text over the synthetic
     chains, and the CI fuse with every Newton step over nodes M, typical (fresh packets) and
     worst (worst.c.j2: packets N_max steps stale too)."""
-    from dfeif_codegen.check import target
-
     out: dict = {"chains": {}, "nodes": {}}
     for n in chains or bench_peers.CHAINS:
-        md = harness.build_model(_chain_spec(n, work), work / f"chain{n}", "float")
-        counts, _, _ = _run(md, _render(md, "bench", work / f"chain{n}-src"), work / f"chain{n}-bench",
-                            ("BENCH_SKIP_LAGS", "BENCH_SKIP_FUSE"))
-        text = {k: z.text for k, z in target.sizes(sorted((work / f"chain{n}-bench" / "lib").glob("*.o"))).items()}
+        md = harness.build_model(bench_peers.chain_spec(n, work), work / f"chain{n}", "float")
+        step = _qemu(md, "bench", work / f"chain{n}-bench", ("BENCH_SKIP_LAGS", "BENCH_SKIP_FUSE"))
+        out["chains"][n] = {"counts": step, "sizes": Measure("sizes", (sorted((step.work / "lib").glob("*.o")),))}
+    for M in nodes or bench_peers.NODES:
+        md = harness.build_model("dc_motor_link", work / f"nodes{M}", "float", "replay", "ci", M)
+        out["nodes"][M] = {"fresh": _qemu(md, "bench", work / f"nodes{M}-bench",
+                                          ("BENCH_SKIP_NODE", "BENCH_SKIP_LAGS", "CI_TOL=-1")),
+                           "worst": _qemu(md, "worst", work / f"nodes{M}-worst", ("CI_TOL=-1",))}
+    return out
+
+
+def scaling_rows(ran: dict) -> dict:
+    """compile_scaling's measurements as the report reads them."""
+    out: dict = {"chains": {}, "nodes": {}}
+    for n, r in ran["chains"].items():
+        counts, text = r["counts"]["counts"], {k: z.text for k, z in r["sizes"].items()}
         out["chains"][n] = {"step": counts["node_update"]["instructions"] + counts["node_predict"]["instructions"],
                             "cycles": tuple(counts["node_update"]["cycles"][i] + counts["node_predict"]["cycles"][i]
                                             for i in (0, 1)),
                             "filter_text": text[f"chain{n}_kernels_filter.o"],
                             "fusion_text": text[f"chain{n}_kernels_fusion.o"]}
-    for M in nodes or bench_peers.NODES:
-        md = harness.build_model("dc_motor_link", work / f"nodes{M}", "float", "replay", "ci", M)
-        fresh, _, _ = _run(md, _render(md, "bench", work / f"nodes{M}-src"), work / f"nodes{M}-bench",
-                           ("BENCH_SKIP_NODE", "BENCH_SKIP_LAGS", "CI_TOL=-1"))
-        worst, _, _ = _run(md, _render(md, "worst", work / f"nodes{M}-wsrc"), work / f"nodes{M}-worst",
-                           ("CI_TOL=-1",))
-        out["nodes"][M] = {"fresh": fresh["master_fuse_distinct"]["instructions"],
-                           "worst": worst["worst/master_fuse"]["max"],
-                           "worst_cycles": worst["worst/master_fuse"]["max_cycles"]}
+    for M, r in ran["nodes"].items():
+        worst = r["worst"]["counts"]["worst/master_fuse"]
+        out["nodes"][M] = {"fresh": r["fresh"]["counts"]["master_fuse_distinct"]["instructions"],
+                           "worst": worst["max"], "worst_cycles": worst["max_cycles"]}
     return out
 
 
@@ -183,10 +170,7 @@ def scaling_markdown(sc: dict) -> list[str]:
     out = [f"### Scaling on the Cortex-M4F (float, {OPT})", "",
            "| n | node step instructions | x previous n | cycles (estimate) | filter kernels .text [B] "
            "| fusion kernels .text [B] |", "|---:|---:|---:|---:|---:|---:|"]
-    for a, n in enumerate(ns):
-        prev = f"{ch[n]['step'] / ch[ns[a - 1]]['step']:.2f}" if a else "-"
-        out.append(f"| {n} | {_fmt(ch[n]['step'])} | {prev} | {_cyc(ch[n]['cycles'])} | {ch[n]['filter_text']} "
-                   f"| {ch[n]['fusion_text']} |")
+    out += bench_peers.chain_rows(ch, lambda c: (_cyc(c["cycles"]), c["filter_text"], c["fusion_text"]))
     g = bench_peers.growth
     out += ["", f"Fitted growth over n = {ns[0]}..{ns[-1]}: node step ~ n^{g(ns, [ch[n]['step'] for n in ns]):.2f}, "
             f"filter kernels .text ~ n^{g(ns, [ch[n]['filter_text'] for n in ns]):.2f}, fusion kernels .text ~ "

@@ -26,8 +26,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from dfeif_codegen.check import harness, loader
+from dfeif_codegen.check import driver_io, harness, loader
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import derivation, divergence
 from dfeif_codegen.experiment.plant import Camera, Plant, _fixed, parametric_step
 from dfeif_codegen.symbolic import numeric
 
@@ -136,7 +137,7 @@ def compiled(key: tuple) -> Compiled:
     for as long as the toolkit, the model file and the compiler stay the same: a library is a
     pure function of those, and building one takes a derivation and two compiler runs (~2 s)."""
     spec = key[0]
-    text = ex.MODEL_TEXT.get(spec) or (Path(spec).read_text(encoding="utf-8") if Path(spec).is_file() else "")
+    text = derivation.MODEL_TEXT.get(spec) or (Path(spec).read_text(encoding="utf-8") if Path(spec).is_file() else "")
     digest = hashlib.sha256(_toolkit_digest())
     for part in [repr(key), text, harness.host_compiler(), *harness.HOST_CFLAGS]:
         digest.update(part.encode() + b"\0")
@@ -239,15 +240,15 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     if err != 0:
         step, call = res.out.failed_step, res.out.failed_call
         if call == FAILED_PLANT or err == ERR_NONFINITE:   # where numpy's loop sees the plant diverge
-            ex.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"], steps=step)  # an earlier cause
-            raise ex.Diverged(f"diverged at t = {s.t[step]:.2f} s: the state is not finite")
-        raise CEngineError(harness.failure({"failed_step": step, "failed_call": call, "status": err}))
+            divergence.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"], steps=step)  # an earlier cause
+            raise divergence.Diverged(f"diverged at t = {s.t[step]:.2f} s: the state is not finite")
+        raise CEngineError(driver_io.failure({"failed_step": step, "failed_call": call, "status": err}))
     counters = []
     health = (ctypes.c_uint32 * 4)()
     for i in range(M):
         getattr(lib, f"{p}_node_health")(ctypes.c_void_p(ctypes.addressof(state) + i * loop.node_size), health)
         counters.append(dict(zip(("updates", "drops", "late_applied", "late_rejected"), map(int, health))))
-    ex.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"])
+    divergence.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"])
     return ex.finish(s, out["x_true"], out["zeta"], out["frames"], out["node_x"], out["node_P"], out["x"],
                      out["P"], out["u"], out["v"], out["late_applied"].astype(bool), counters)
 

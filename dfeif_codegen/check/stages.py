@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from dfeif_codegen.check import harness
+from dfeif_codegen.check import driver_io, harness
 from dfeif_codegen.check import target as targets
 from dfeif_codegen.errors import MismatchError
 
@@ -47,7 +47,7 @@ def run(compiled: Compiled, rec, inputs: str) -> Ran:
     if compiled.kind == "cortex-m4f":
         result = targets.run_app(compiled.artifact, rec, inputs=inputs)   # type: ignore[arg-type]
         if result.status["status"] != 0:
-            raise MismatchError(harness.failure(result.status))
+            raise MismatchError(driver_io.failure(result.status))
         return Ran(result.outputs, targets.report(result))
     if compiled.kind == "program":
         return Ran(harness.run_compiled_program(compiled.artifact, compiled.model, rec, compiled.work,  # type: ignore[arg-type]

@@ -102,21 +102,32 @@ def run(elf: Path, cwd: Path, timeout: float = 300.0) -> subprocess.CompletedPro
         raise SetupError(f"qemu-system-arm did not finish {elf.name} within {timeout:.0f} s") from exc
 
 
-def struct_sizes(model, work: Path) -> dict[str, int]:
-    """sizeof the state structs of a built model (check/harness.py ModelDir) as arm-none-eabi-gcc
-    lays them out (read from its assembly)."""
+STRUCTS = ("node", "master", "packet")
+
+
+def sizeof_probe(model, work: Path) -> Path:
+    """The assembly of a probe holding sizeof the state structs of a built model (check/harness.py
+    ModelDir) as arm-none-eabi-gcc lays them out (`read_struct_sizes` reads it)."""
     work.mkdir(parents=True, exist_ok=True)
     src = work / "sizeof.c"
-    kinds = ("node", "master", "packet")
     src.write_text(f'#include "{model.name}.h"\nconst unsigned sizes[] = {{'
-                   + ", ".join(f"sizeof({model.name}_{k})" for k in kinds) + "};\n")
+                   + ", ".join(f"sizeof({model.name}_{k})" for k in STRUCTS) + "};\n")
     gcc = require("arm-none-eabi-gcc")
-    proc = subprocess.run([gcc, *CPU_FLAGS, "-O2", f"-I{model.path}", "-S", "-o", "-", str(src)],
+    proc = subprocess.run([gcc, *CPU_FLAGS, "-O2", f"-I{model.path}", "-S", "-o", str(work / "sizeof.s"), str(src)],
                           capture_output=True, text=True)
     if proc.returncode != 0:
         raise SetupError(f"sizeof probe failed:\n{proc.stderr[-2000:]}")
-    words = [int(w) for w in re.findall(r"\.word\s+(\d+)", proc.stdout)]
-    return dict(zip(kinds, words))
+    return work / "sizeof.s"
+
+
+def read_struct_sizes(asm: Path) -> dict[str, int]:
+    words = [int(w) for w in re.findall(r"\.word\s+(\d+)", asm.read_text())]
+    return dict(zip(STRUCTS, words))
+
+
+def struct_sizes(model, work: Path) -> dict[str, int]:
+    """sizeof the state structs of a built model on the Cortex-M4F."""
+    return read_struct_sizes(sizeof_probe(model, work))
 
 
 @dataclass(frozen=True)
@@ -239,10 +250,10 @@ def run_app(app: App, rec, timeout: float = 600.0, inputs: str = "recorded") -> 
     """Replay the recording under QEMU, read the results back through semihosting files."""
     import time
 
-    from dfeif_codegen.check import harness
+    from dfeif_codegen.check import driver_io
 
     model, work = app.model, app.work
-    harness.write_scenario(rec, model, work / "scenario.bin", inputs)
+    driver_io.write_scenario(rec, model, work / "scenario.bin", inputs)
     results = work / "results.bin"
     results.unlink(missing_ok=True)
     start = time.perf_counter()
@@ -251,7 +262,7 @@ def run_app(app: App, rec, timeout: float = 600.0, inputs: str = "recorded") -> 
     if not results.is_file():
         raise SetupError(f"the target program wrote no results (QEMU exit {proc.returncode}): "
                          f"{(proc.stdout + proc.stderr).strip()[-2000:]}")
-    status, outputs = harness.read_results(rec, model, results)
+    status, outputs = driver_io.read_results(rec, model, results)
     stack = stack_usage(o.with_suffix(".ci") for o in app.lib_objs)
     return TargetRun(status, outputs, sizes(app.lib_objs), public_functions(model.name, stack), seconds)
 

@@ -249,9 +249,8 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     import tempfile
     from pathlib import Path
 
-    from dfeif_codegen.check import harness, stages, target as targets
-    from dfeif_codegen.experiment import scenario as scenarios
-    from dfeif_codegen.experiment import closed_loop as experiment
+    from dfeif_codegen.check import driver_io, harness, stages, target as targets
+    from dfeif_codegen.experiment import derivation, scenario as scenarios
 
     from dfeif_codegen.codegen.options import Options
     from dfeif_codegen.symbolic.sampling import for_method
@@ -261,9 +260,9 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor)   # bad combinations: exit 2 now
     if target not in ("host", "cortex-m4f"):
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
-    harness.recorded_inputs(inputs)
+    driver_io.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
-    sc.check_model(experiment.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
+    sc.check_model(derivation.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
     scenarios.check_window(sc, max_lag, nodes)
     precision = precision or ("float" if target == "cortex-m4f" else "double")

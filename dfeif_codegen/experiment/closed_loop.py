@@ -16,73 +16,22 @@ step's update as if taken now (when the step has no on-time frame; one frame per
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 
 from dfeif_codegen.symbolic import flatness
-from dfeif_codegen.symbolic import model as model_mod
 from dfeif_codegen.reference.control import FlatController
-from dfeif_codegen.reference.fusion import Master
-from dfeif_codegen.reference.linalg import wrap
+from dfeif_codegen.experiment.derivation import _flat
+from dfeif_codegen.experiment.divergence import DivergenceWatch
+from dfeif_codegen.experiment.metrics import _errors, _per_chain, metrics, state_of_flags, tracking_bound, tracking_errors
 from dfeif_codegen.experiment.model_error import NONE as EXACT_MODEL, ParamError
 from dfeif_codegen.experiment.network import Link, Network
-from dfeif_codegen.reference.node import NodeFilter
+from dfeif_codegen.experiment.recording import FilterBank, Recording, _Outputs
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.experiment.plant import Camera, Plant
 from dfeif_codegen.experiment.trajectory import Reference, flags
-
-# A run has diverged when the true state leaves its declared domain, or when the master's NEES
-# stays above NEES_DIVERGED * n for NEES_STEPS steps in a row. This is not the consistency test
-# (the tables do that against the chi-square band); it detects a filter that has lost the state:
-# NEES = 1e4 n means errors 100 times the standard deviations P claims. A consistent filter's NEES
-# is chi-square with n degrees of freedom (mean n), so P(NEES > 1e4 n) is below 1e-1000, and a
-# merely inconsistent baseline (as-current, NEES of a few hundred) is not called diverged.
-NEES_DIVERGED = 1e4
-NEES_STEPS = 50
-
-
-class Diverged(FloatingPointError):
-    """The closed loop went wrong: the message says when and why."""
-
-
-class DivergenceWatch:
-    """Raises Diverged when the true state leaves its declared domain, a flat output strays from
-    its reference by more than its tracking bound (the run stopped tracking), or the master's NEES
-    has stayed above NEES_DIVERGED * n for NEES_STEPS steps in a row."""
-
-    def __init__(self, model, nees: bool = True, bound=None):
-        self.nees = nees
-        self.names = [v.name for v in model.states]
-        self.outputs = [o.name for o in model.outputs]
-        self.lo = np.array([-np.inf if v.min is None else v.min for v in model.states])
-        self.hi = np.array([np.inf if v.max is None else v.max for v in model.states])
-        self.bound = np.full(len(self.outputs), np.inf) if bound is None else np.asarray(bound, dtype=float)
-        self.high = 0
-
-    def step(self, t: float, x, err, P, track=None) -> None:
-        if track is not None and np.any(np.abs(track) > self.bound):
-            j = int(np.argmax(np.abs(track) > self.bound))
-            raise Diverged(f"stopped tracking at t = {t:.2f} s: output {self.outputs[j]} is {track[j]:.4g} from its "
-                           f"reference, beyond the tracking bound {self.bound[j]:.4g} (default twice the "
-                           "reference's amplitude; [reference] tracking_bound)")
-        if not np.all(np.isfinite(x)):
-            raise Diverged(f"diverged at t = {t:.2f} s: the state is not finite")
-        outside = np.nonzero((x < self.lo) | (x > self.hi))[0]
-        if outside.size:
-            i = int(outside[0])
-            raise Diverged(f"diverged at t = {t:.2f} s: state {self.names[i]} = {x[i]:.4g} left its domain "
-                           f"[{self.lo[i]:g}, {self.hi[i]:g}]")
-        if not self.nees:
-            return
-        n = len(err)
-        with np.errstate(all="ignore"):
-            nees = float(err @ np.linalg.solve(P, err)) if np.all(np.isfinite(P)) else np.inf
-        self.high = self.high + 1 if not nees <= NEES_DIVERGED * n else 0
-        if self.high >= NEES_STEPS:
-            raise Diverged(f"diverged at t = {t:.2f} s: master NEES above {NEES_DIVERGED:g} n = "
-                           f"{NEES_DIVERGED * n:g} for {NEES_STEPS} steps (now {nees:.3g})")
 
 
 class UndefinedReference(ArithmeticError):
@@ -156,72 +105,6 @@ class Config:
 
 
 @dataclass
-class Recording:
-    """Every input the filters saw and every output they gave, as numpy arrays (`np.savez`).
-
-    Meta: model spec, sizes, methods, ts, q (m), R (M, m, m), initial x0/P0 of the nodes
-    (M, n), (M, n, n) and master, controller gains (n, chain by chain k_1..k_r), params, seed.
-    Per step k: z (M, K, m) and gamma (M, K) of each node's `update` (z is 0 where gamma is 0),
-    ref (K, n + m). Late events in the order applied: late_step, late_node, late_lag, late_z
-    (E, m). Packets fused by the master: pkt_step (master step), pkt_node, pkt_src (source step).
-    Outputs: late_applied (E), node_x (M, K, n) and node_P after the step's updates, master x, P
-    after fuse, u, v.
-    """
-
-    model: str
-    n: int
-    m: int
-    nodes: int
-    max_lag: int
-    method: str           # replay | retrodict | discard | as-current
-    oosm: str             # what the node filters were built with
-    fusion: str
-    predictor: str        # held | brunovsky: the filters predict with u or with v
-    ts: float
-    q: np.ndarray
-    R: np.ndarray
-    node_x0: np.ndarray
-    node_P0: np.ndarray
-    master_x0: np.ndarray
-    master_P0: np.ndarray
-    gains: np.ndarray
-    params: np.ndarray
-    seed: int
-    z: np.ndarray
-    gamma: np.ndarray
-    ref: np.ndarray
-    late_step: np.ndarray
-    late_node: np.ndarray
-    late_lag: np.ndarray
-    late_z: np.ndarray
-    pkt_step: np.ndarray
-    pkt_node: np.ndarray
-    pkt_src: np.ndarray
-    late_applied: np.ndarray
-    node_x: np.ndarray
-    node_P: np.ndarray
-    x: np.ndarray
-    P: np.ndarray
-    u: np.ndarray
-    v: np.ndarray
-
-    def save(self, path) -> None:
-        np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
-
-    @classmethod
-    def load(cls, path) -> "Recording":
-        with np.load(path) as data:
-            values = {f.name: data[f.name] for f in fields(cls) if f.name in data}
-        values.setdefault("predictor", np.asarray("brunovsky"))   # recorded before the held predictor
-        for name in ("model", "method", "oosm", "fusion", "predictor"):
-            values[name] = str(values[name])
-        for name in ("n", "m", "nodes", "max_lag", "seed"):
-            values[name] = int(values[name])
-        values["ts"] = float(values["ts"])
-        return cls(**values)
-
-
-@dataclass
 class Result:
     """One run: the recording, the true canonical state, time series for figures, metrics."""
 
@@ -235,58 +118,7 @@ class Result:
     metrics: dict = field(default_factory=dict)
 
 
-# --- the filter side, shared by the closed loop and the replay ----------------------------------
-
-class FilterBank:
-    """Nodes, master and controller, stepped exactly as the protocol says."""
-
-    def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                 node_dtype=np.float64, predictor: str = predictors.DEFAULT):
-        self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
-                                 dtype=node_dtype, predictor=predictor) for i in range(len(R))]
-        self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
-                             predictor=predictor)
-        self.takes_v = predictor == "brunovsky"
-        held = predictors.held_constants(flat, ts) if predictor == "held" else None
-        self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds
-        self.max_lag = max_lag
-        self.sent: list[dict[int, object]] = [{} for _ in self.nodes]
-
-    def step(self, k, z, gamma, late, sources, ref):
-        """`late`: (node, lag, z) in arrival order; `sources[i]`: source step of node i's packet
-        fused now (-1: none). Returns (late applied flags, node x, node P, x, P, u, v)."""
-        for node, zi, gi in zip(self.nodes, z, gamma):
-            node.update(zi if gi else None, bool(gi))
-        applied = [self.nodes[i].update_delayed(zl, lag) for i, lag, zl in late]
-        for node, sent in zip(self.nodes, self.sent):
-            sent[k] = node.packet()
-            sent.pop(k - self.max_lag - 1, None)
-        self.master.fuse([sent.get(s) if s >= 0 else None for sent, s in zip(self.sent, sources)])
-        u, v = self.control(self.master.x, ref)
-        out = (applied, [nd.x.copy() for nd in self.nodes], [nd.P.copy() for nd in self.nodes],
-               self.master.x.copy(), self.master.P.copy(), u, v)
-        w = v if self.takes_v else u      # what the master broadcasts for the nodes' prediction
-        for node in self.nodes:
-            node.predict(w)
-        self.master.predict(w)
-        return out
-
-
-class _Outputs:
-    """Collects what FilterBank.step returns into the recording's arrays."""
-
-    def __init__(self, M, K, n, m):
-        self.node_x, self.node_P = np.zeros((M, K, n)), np.zeros((M, K, n, n))
-        self.x, self.P = np.zeros((K, n)), np.zeros((K, n, n))
-        self.u, self.v = np.zeros((K, m)), np.zeros((K, m))
-        self.applied: list[bool] = []
-
-    def put(self, k, out):
-        applied, nx, nP, x, P, u, v = out
-        self.applied += applied
-        self.node_x[:, k], self.node_P[:, k] = nx, nP
-        self.x[k], self.P[k], self.u[k], self.v[k] = x, P, u, v
-
+# --- the replay ------------------------------------------------------------------------------------
 
 def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndarray]:
     """Re-run only the filters and the controller from a recording (no plant, no network) and
@@ -309,32 +141,6 @@ def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndar
 
 # --- the closed loop ------------------------------------------------------------------------------
 
-# model files' text by spec, set on workers that may not see the caller's files (sweep.py)
-MODEL_TEXT: dict[str, str] = {}
-# derivations by spec: this process's, or the caller's shipped to a worker (sweep.py), which then
-# spends no second of sympy per process
-FLATS: dict = {}
-
-
-def _flat(spec: str):
-    if spec not in FLATS:
-        text = MODEL_TEXT.get(spec)
-        FLATS[spec] = flatness.derive(model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec))
-    return FLATS[spec]
-
-
-def derive(spec: str, max_seconds: float | None = None, max_memory: float | None = None):
-    """The derivation `_flat` returns, made now under the budget (CPU seconds, GB; None: the
-    process's default, see budget.configure): a command calls this before its runs start."""
-    from dfeif_codegen import budget
-    budget.configure(max_seconds, max_memory)
-    if spec not in FLATS:
-        text = MODEL_TEXT.get(spec)
-        mdl = model_mod.loads_toml(text, spec) if text is not None else model_mod.load(spec)
-        FLATS[spec] = budget.bounded(flatness.derive, (mdl,), None, None, f"deriving {mdl.source}")
-    return FLATS[spec]
-
-
 @lru_cache(maxsize=64)
 def _plant(spec: str, ts: float, substeps: int, params: tuple | None = None) -> Plant:
     """The plant, with the model's parameters or (model error) the given vector."""
@@ -344,10 +150,6 @@ def _plant(spec: str, ts: float, substeps: int, params: tuple | None = None) -> 
 @lru_cache(maxsize=None)
 def _camera(spec: str, scale: float, std) -> Camera:
     return Camera(_flat(spec).model, std=std, scale=scale)
-
-
-def _per_chain(values, m) -> np.ndarray:
-    return np.broadcast_to(np.asarray(values, dtype=float), (m,)).copy()
 
 
 def initial_covariance(flat, p0_std) -> np.ndarray:
@@ -379,13 +181,6 @@ def references(cfg: Config, m: int) -> list[Reference]:
     cycles = _per_chain(cfg.cycles, m)
     return [Reference(cfg.reference, amp[j], cfg.period, off[j], cfg.harmonics, phase[j], int(cycles[j]))
             for j in range(m)]
-
-
-def state_of_flags(flat, ref_flags) -> np.ndarray:
-    """The canonical state the reference flags describe (drop each chain's top derivative);
-    `ref_flags` may hold one step per row."""
-    idx = np.concatenate([np.arange(c.offset + j, c.offset + j + c.degree) for j, c in enumerate(flat.chains)])
-    return np.asarray(ref_flags)[..., idx]
 
 
 @dataclass
@@ -491,53 +286,6 @@ def run(cfg: Config) -> Result:
                   np.array(out.applied, dtype=bool), [dict(nd.counters) for nd in bank.nodes])
 
 
-def check_divergence(s: "Setup", x_true, zeta, x, P, steps: int | None = None) -> None:
-    """The divergence watch over a run's arrays (an engine that ran the loop elsewhere), over its
-    first `steps` steps (default all): the state after step k is the next step's x_true, so the
-    last step's successor goes unchecked. Vectorized over the steps to find the first one that
-    trips a criterion; the step-by-step watch then runs over the steps leading to it, so the
-    message is the one the numpy engine's watch gives."""
-    K = min(s.K, s.K if steps is None else steps + 1) - 1
-    if K <= 0:
-        return
-    watch = DivergenceWatch(s.flat.model, s.cfg.watch_nees, tracking_bound(s.cfg, s.flat.m))
-    xs = np.asarray(x_true[1:K + 1], dtype=float)
-    track = tracking_errors(s.flat, np.asarray(zeta[:K], dtype=float), s.ref[:K])
-    with np.errstate(invalid="ignore"):
-        bad = ~np.all(np.isfinite(xs), axis=1) | np.any((xs < watch.lo) | (xs > watch.hi), axis=1) \
-            | np.any(np.abs(track) > watch.bound, axis=1)
-    first = int(np.argmax(bad)) if bad.any() else K
-    if watch.nees:
-        high = ~(_batch_nees(_errors(s.flat, np.array(x[:K], dtype=float), zeta[:K]), P[:K])
-                 <= NEES_DIVERGED * s.flat.n)
-        steps_k = np.arange(K)
-        run = steps_k - np.maximum.accumulate(np.where(high, -1, steps_k))   # highs in a row up to k
-        tripped = run >= NEES_STEPS
-        if tripped.any():
-            first = min(first, int(np.argmax(tripped)))
-    if first == K:
-        return
-    for k in range(max(0, first - NEES_STEPS + 1), first + 1):   # raises at `first`
-        watch.step(s.t[k], x_true[k + 1], _errors(s.flat, x[k], zeta[k]), P[k], track[k])
-
-
-def _batch_nees(err, P) -> np.ndarray:
-    """NEES per step; inf where P is not finite or singular (the watch's `not nees <= limit`)."""
-    out = np.full(len(err), np.inf)
-    ok = np.all(np.isfinite(P), axis=(1, 2)) & np.all(np.isfinite(err), axis=1)
-    if ok.any():
-        with np.errstate(all="ignore"):
-            try:
-                out[ok] = _nees(err[ok], P[ok])
-            except np.linalg.LinAlgError:   # a singular P somewhere: step by step
-                for k in np.nonzero(ok)[0]:
-                    try:
-                        out[k] = float(err[k] @ np.linalg.solve(P[k], err[k]))
-                    except np.linalg.LinAlgError:
-                        out[k] = np.inf
-    return out
-
-
 def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, counters) -> Result:
     """The recording, the result and its metrics from one run's loop outputs (any engine)."""
     cfg, flat = s.cfg, s.flat
@@ -559,78 +307,3 @@ def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, 
     result = Result(cfg, s.t, zeta, x_true, s.net.lag.copy(), rec, counters)
     result.metrics = metrics(result)
     return result
-
-
-# --- metrics ----------------------------------------------------------------------------------------
-
-def tracking_errors(flat, zeta, ref) -> np.ndarray:
-    """y - y_d per flat output (angles wrapped): zeta (..., n) true canonical states, ref
-    (..., n + m) reference flags of the same steps."""
-    e = zeta[..., flat.heads] - ref[..., [c.offset + j for j, c in enumerate(flat.chains)]]
-    for j, c in enumerate(flat.chains):
-        if c.angle:
-            e[..., j] = wrap(e[..., j], True)
-    return e
-
-
-def tracking_bound(cfg: "Config", m: int) -> np.ndarray:
-    """Per flat output: the scenario's tracking_bound, else twice the reference's amplitude (a
-    run whose output strays by more than the reference's whole swing has stopped tracking); no
-    bound for a constant reference."""
-    if cfg.tracking_bound:
-        return _per_chain(cfg.tracking_bound, m)
-    amp = np.abs(_per_chain(cfg.amplitude, m))
-    return np.where(amp > 0, 2 * amp, np.inf)
-
-
-def _errors(flat, est, zeta) -> np.ndarray:
-    err = est - zeta
-    for c in flat.chains:
-        if c.angle:
-            err[..., c.offset] = wrap(err[..., c.offset], True)
-    return err
-
-
-def _nees(err, P) -> np.ndarray:
-    return np.einsum("...i,...i->...", err, np.linalg.solve(P, err[..., None])[..., 0])
-
-
-def metrics(res: Result) -> dict:
-    """Per run, from `metrics_from` on: estimation RMSE per canonical state (nodes, master),
-    mean tr P, NEES per step (averaged later over runs), tracking RMSE of the true plant and of
-    the estimates (x_hat - x_d per node and master, what the chapter's tables report)."""
-    flat = _flat(res.config.model)
-    rec = res.recording
-    k0 = min(int(round(res.config.metrics_from / rec.ts)), len(res.t) - 1)
-    zeta = res.zeta[k0:]
-    node_err = _errors(flat, rec.node_x[:, k0:], zeta[None])
-    err = _errors(flat, rec.x[k0:], zeta)
-    desired = state_of_flags(flat, rec.ref[k0:])
-    track = _errors(flat, zeta, desired)
-    return {
-        "rmse_nodes": np.sqrt(np.mean(node_err ** 2, axis=1)),
-        "rmse_master": np.sqrt(np.mean(err ** 2, axis=0)),
-        "trace_nodes": np.trace(rec.node_P[:, k0:], axis1=2, axis2=3).mean(axis=1),
-        "trace_master": np.trace(rec.P[k0:], axis1=1, axis2=2).mean(),
-        "nees_nodes": _nees(node_err, rec.node_P[:, k0:]),
-        "nees_master": _nees(err, rec.P[k0:]),
-        "rmse_tracking": np.sqrt(np.mean(track ** 2, axis=0)),
-        # the chapter's literal quantity (Tables II-IV): the *estimated* tracking error x_hat - x_d
-        "rmse_est_tracking_nodes": np.sqrt(np.mean(_errors(flat, rec.node_x[:, k0:], desired[None]) ** 2, axis=1)),
-        "rmse_est_tracking_master": np.sqrt(np.mean(_errors(flat, rec.x[k0:], desired) ** 2, axis=0)),
-        "late_applied": sum(c["late_applied"] for c in res.counters),
-        "late_rejected": sum(c["late_rejected"] for c in res.counters),
-        "saturated_steps": saturated_steps(flat, rec.u),
-    }
-
-
-def saturated_steps(flat, u: np.ndarray) -> int:
-    """Steps (whole run) whose input the controller clamped to a declared limit: a clamped input
-    equals its limit, up to single precision's rounding of the limit (1e-6 relative) in a float build."""
-    inputs = flat.model.inputs
-    lo = np.array([-np.inf if w.min is None else w.min for w in inputs])
-    hi = np.array([np.inf if w.max is None else w.max for w in inputs])
-    tol = 1e-6 * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    tol_hi = 1e-6 * np.maximum(1.0, np.abs(np.where(np.isfinite(hi), hi, 0.0)))
-    at = (u[:, :len(inputs)] <= lo + tol) | (u[:, :len(inputs)] >= hi - tol_hi)
-    return int(np.count_nonzero(at.any(axis=1)))

@@ -31,6 +31,7 @@ import casadi as ca
 import numpy as np
 
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import divergence
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.physical import PhysicalMaster, PhysicalModel, ReplayNode
@@ -162,11 +163,11 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
     with np.errstate(all="ignore"):       # a diverged filter's NEES is inf or nan: judged below
         m = ex.metrics(dataclasses.replace(res, recording=mine, counters=counters))
     m["us_per_step"] = 1e6 * out["seconds"] / len(res.t)
-    high = ~(np.asarray(m["nees_master"]) <= ex.NEES_DIVERGED * rec.n)
+    high = ~(np.asarray(m["nees_master"]) <= divergence.NEES_DIVERGED * rec.n)
     ends = np.flatnonzero(np.diff(np.concatenate([[0], high.astype(int), [0]])))
     longest = int(np.max(ends[1::2] - ends[::2])) if ends.size else 0
-    if not np.all(np.isfinite(m["rmse_master"])) or longest >= ex.NEES_STEPS:
-        return {"failed": f"{kind}: diverged (master NEES above {ex.NEES_DIVERGED:g} n for {longest} steps "
+    if not np.all(np.isfinite(m["rmse_master"])) or longest >= divergence.NEES_STEPS:
+        return {"failed": f"{kind}: diverged (master NEES above {divergence.NEES_DIVERGED:g} n for {longest} steps "
                           f"in a row; mean {float(np.mean(m['nees_master'])):.3g})"}
     return m
 

@@ -88,6 +88,14 @@ def _grid(plt, panels, height=2.3):
     return fig, axes.flat
 
 
+def _save(plt, fig, title, path) -> None:
+    """Title, layout, the PNG at 110 dpi, and the figure closed (pyplot keeps open ones alive)."""
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def states_figure(path, title, flat, t, est, truth, ref, u, who="estimate"):
     plt = pyplot()
     labels, ulabels = state_labels(flat), input_labels(flat.model)
@@ -107,10 +115,7 @@ def states_figure(path, title, flat, t, est, truth, ref, u, who="estimate"):
         _legend(ax)
     for ax in axes:
         ax.set_xlabel("time [s]")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, title, path)
 
 
 def error_figure(path, title, flat, t, est, truth, var, metrics_from=1.0):
@@ -136,10 +141,7 @@ def error_figure(path, title, flat, t, est, truth, var, metrics_from=1.0):
         ax.set_ylabel("error of " + label)
         _legend(ax, 2)
         ax.set_xlabel("time [s]")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, title, path)
 
 
 def delay_figure(path, title, t, delays, ts):
@@ -163,10 +165,7 @@ def delay_figure(path, title, t, delays, ts):
         sec = ax.secondary_yaxis("right", functions=(lambda s: s * ts * 1000, lambda ms: ms / (ts * 1000)))
         sec.set_ylabel("[ms]")
     axes.flat[-1].set_xlabel("time the frame was taken [s]")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, title, path)
 
 
 def comparison_figure(path, title, flat, row_labels, series):
@@ -186,10 +185,7 @@ def comparison_figure(path, title, flat, row_labels, series):
         ax.set_ylabel("master RMSE of\n" + label)
         _legend(ax, len(series))
         ax.set_xlabel("delay row (d1, d2, p)")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, title, path)
 
 
 def simulation_figures(directory: str, figures: dict, flat) -> list[str]:

@@ -13,6 +13,7 @@ import numpy as np
 
 from dfeif_codegen.experiment import bounds
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import metrics as run_metrics
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.node import NodeFilter
 
@@ -70,7 +71,7 @@ def metrics(cfg: ex.Config, out: dict) -> dict:
     node_err = ex._errors(flat, out["node_x"][:, k0:], zeta[None])
     return {"mse_master": (err ** 2).mean(axis=0), "mse_nodes": (node_err ** 2).mean(axis=1),
             "var_master": np.diagonal(out["P"][k0:], axis1=1, axis2=2).mean(axis=0),
-            "nees_master": ex._nees(err, out["P"][k0:])}
+            "nees_master": run_metrics._nees(err, out["P"][k0:])}
 
 
 def centralized_covariances(cfg: ex.Config, steps: int) -> np.ndarray:

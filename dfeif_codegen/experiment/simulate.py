@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment import model_error, pairing, sweep
+from dfeif_codegen.experiment import derivation, model_error, pairing, sweep
 from dfeif_codegen.experiment.execute import Outcome, execute
 from dfeif_codegen.experiment.plan import FILTERS, Plan, _pick, check_outputs, configurations, make_config, plan
 from dfeif_codegen.experiment.report import SimulationResult, Table, row_label
@@ -86,7 +86,7 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
     `predictor`: the filters' prediction, "held" (u held) or "brunovsky" (the chapter's); None:
     the default, and brunovsky for retrodiction (the only one it can use)."""
     check_outputs(json_path, plot, csv, results)
-    ex.derive(model, max_seconds, max_memory)
+    derivation.derive(model, max_seconds, max_memory)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, param_error,
              predictor)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)

@@ -38,6 +38,7 @@ import numpy as np
 
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.experiment import shapes
 from dfeif_codegen.experiment.trajectory import flags
@@ -303,7 +304,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         from dfeif_codegen.paths import writable_file
         writable_file(path, "--out")
-    flat = ex.derive(model, max_seconds, max_memory)
+    flat = derivation.derive(model, max_seconds, max_memory)
     ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
     try:
         text, _ = starting_scenario(model, ref)

@@ -32,6 +32,7 @@ import numpy as np
 
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment import derivation
 
 _CODES: dict = {}          # compiled loops of this worker process (set by the pool's initializer)
 
@@ -100,8 +101,8 @@ def batch(items: list, engine: Engine, shipped: dict | None = None) -> list:
 
 
 def _init_worker(shipped: dict) -> None:
-    ex.MODEL_TEXT.update(shipped["models"])
-    ex.FLATS.update(shipped["flats"])
+    derivation.MODEL_TEXT.update(shipped["models"])
+    derivation.FLATS.update(shipped["flats"])
     _CODES.update(shipped["codes"])
 
 

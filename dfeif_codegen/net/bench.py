@@ -25,7 +25,7 @@ import numpy as np
 
 from dfeif_codegen.check import harness
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.net import programs, run, wire
+from dfeif_codegen.net import launch, programs, run, wire
 
 MODELS = ("dc_motor_link", "two_link_arm")
 MARK = "<!-- codegen network --bench -->"
@@ -53,11 +53,11 @@ def master_throughput(model: str, work: Path, steps: int = 20000, window: int = 
     gains = np.ones(n)
     conf = work / "master.cfg"
     conf.write_text(" ".join(repr(float(v)) for v in np.r_[np.zeros(n), np.eye(n).ravel() * 0.01, np.ones(m), gains]))
-    mport, bport = run.free_ports(2)
+    mport, bport = launch.free_ports(2)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
-    sock.bind((run.HOST, bport))
-    proc = subprocess.Popen([str(progs.master), "-l", f"{run.HOST}:{mport}", "-p", f"{run.HOST}:{bport}", "-c", str(conf),
+    sock.bind((launch.HOST, bport))
+    proc = subprocess.Popen([str(progs.master), "-l", f"{launch.HOST}:{mport}", "-p", f"{launch.HOST}:{bport}", "-c", str(conf),
                              "-o", str(work / "master.log"), "-t", "5000", *(["-k", key] if key else [])],
                             stderr=subprocess.DEVNULL)
     try:
@@ -65,7 +65,7 @@ def master_throughput(model: str, work: Path, steps: int = 20000, window: int = 
                   [wire.encode(lay, wire.KIND_TICK, wire.MASTER_ID, k, k, np.zeros(lay.tick_reals), kb)]
                   for k in range(steps)]
         time.sleep(0.3)
-        to = (run.HOST, mport)
+        to = (launch.HOST, mport)
 
         def stream(first: int, count: int, win: int) -> tuple[float, list[float]]:
             sock.settimeout(5.0)
@@ -134,7 +134,7 @@ def measure(work: Path) -> dict:
         (seeds / name).write_bytes(data)
     res = fuzz.run(fuzz.build(md, work / "fuzz"), corpus if corpus.is_dir() else seeds, work / "fuzz-work", 60)
     out["fuzz"] = {"executions": res.executions, "seconds": res.seconds, "findings": len(res.findings)}
-    res = run.launch(run.Options(duration=5.0), work / "net")
+    res = launch.launch(launch.Options(duration=5.0), work / "net")
     errors, _ = run.compare(res)
     out["network"] = {**run.figures(res), "equal": all(e.ok for e in errors)}
     return out
@@ -143,7 +143,7 @@ def measure(work: Path) -> dict:
 def markdown(fig: dict) -> str:
     lines = [MARK, "## Network (`codegen network --bench`)", "",
              f"Measured on this machine ({machine(fig)}; loopback UDP, 127.0.0.1 only).", "",
-             "### Wire sizes (bytes per frame: 28-byte header, reals, 8-byte tag field, CRC-32)", "",
+             f"### Wire sizes (bytes per frame: {wire.HEADER.size}-byte header, reals, 8-byte tag field, CRC-32)", "",
              "| model | precision | packet | command | camera | tick |", "|---|---|---:|---:|---:|---:|"]
     lines += [f"| {r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]} | {r[5]} |" for r in fig["sizes"]]
     lines += ["", "### Master throughput (Python sender, so a lower bound; target >= 20,000 packets/s)", "",

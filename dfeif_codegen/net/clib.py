@@ -29,7 +29,7 @@ class WireLib:
 
         class Header(ctypes.Structure):
             _fields_ = [("kind", ctypes.c_uint8), ("node", ctypes.c_uint16), ("step", ctypes.c_uint32),
-                        ("seq", ctypes.c_uint32)]
+                        ("seq", ctypes.c_uint32), ("epoch", ctypes.c_uint32)]
 
         self.Packet, self.Header = Packet, Header
         assert ctypes.sizeof(Packet) == self.fn("packet_size", ctypes.c_size_t)()
@@ -69,12 +69,13 @@ class WireLib:
         return np.concatenate([np.array(getattr(pk, f)[:], dtype=self.layout.dtype.newbyteorder("="))
                                for f in ("centre", "x", "P", "x_pred", "P_pred")])
 
-    def packet_encode(self, values, step: int, node: int, seq: int, key: bytes | None = None) -> tuple[int, bytes]:
+    def packet_encode(self, values, step: int, node: int, seq: int, key: bytes | None = None,
+                      epoch: int = 0) -> tuple[int, bytes]:
         size = self.layout.size(self.layout.packet_reals)
         buf = ctypes.create_string_buffer(size)
         pk = self.packet(values, step)
         rc = self.fn("packet_encode")(ctypes.byref(pk), ctypes.c_uint16(node), ctypes.c_uint32(seq),
-                                      self.key(key), buf)
+                                      ctypes.c_uint32(epoch), self.key(key), buf)
         return rc, buf.raw
 
     def packet_decode(self, frame: bytes, key: bytes | None = None):
@@ -83,10 +84,17 @@ class WireLib:
                                       ctypes.byref(h))
         return rc, h, self.packet_values(pk)
 
-    def command_encode(self, step: int, v, u, seq: int, key: bytes | None = None) -> tuple[int, bytes]:
+    def command_encode(self, step: int, v, u, seq: int, key: bytes | None = None,
+                       epoch: int = 0) -> tuple[int, bytes]:
         buf = ctypes.create_string_buffer(self.layout.size(self.layout.command_reals))
         rc = self.fn("command_encode")(ctypes.c_uint32(step), self.reals(v), self.reals(u), ctypes.c_uint32(seq),
-                                       self.key(key), buf)
+                                       ctypes.c_uint32(epoch), self.key(key), buf)
+        return rc, buf.raw
+
+    def announce_encode(self, step: int, seq: int, epoch: int, key: bytes | None = None) -> tuple[int, bytes]:
+        buf = ctypes.create_string_buffer(self.layout.size(0))
+        rc = self.fn("announce_encode")(ctypes.c_uint32(step), ctypes.c_uint32(seq), ctypes.c_uint32(epoch),
+                                        self.key(key), buf)
         return rc, buf.raw
 
     def rejected(self, inbox=None, rx=None) -> dict:

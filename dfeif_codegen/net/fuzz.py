@@ -76,6 +76,9 @@ def seed_corpus(layout: wire.Layout, max_lag: int) -> dict[str, bytes]:
         "master-plain": bytes([0]) + frame(2, plain) + bytes([1]) + frame(2, plain),
         "master-keyed": bytes([1]) + frame(2, keyed) + bytes([1, 0]) + reals([0.1] * m) + frame(3, keyed),
         "master-predict": bytes([0]) + b"".join(bytes([0]) + reals([0.5] * m) for _ in range(3)) + frame(2, plain),
+        # a keyed packet of another boot (epoch 1; the master's is 0), then one of its own
+        "master-epoch": bytes([1]) + frame(2, wire.encode(layout, wire.KIND_PACKET, 1, 0, 5, pkt, key, 1)) +
+        frame(2, keyed),
     }
     ops = bytearray([2])
     for k in range(4):

@@ -28,7 +28,7 @@ HOST = "127.0.0.1"
 
 def main(argv: list[str]) -> int:
     cfg = json.loads(Path(argv[0]).read_text())
-    from dfeif_codegen.net.run import Options, make_config
+    from dfeif_codegen.net.launch import Options, make_config
 
     run_cfg = make_config(Options(**cfg["options"]))
     s = session.setup(run_cfg)

@@ -1,7 +1,7 @@
 """The wire format in Python, byte for byte the generated C's (`templates/wire.c.j2`, docs/wire.md).
 
 Used by the plant-and-camera process and the relay of `codegen network`, and by the tests that
-check the C against it. A frame: 28-byte header, `count` little-endian IEEE-754 reals, an 8-byte
+check the C against it. A frame: 32-byte header, `count` little-endian IEEE-754 reals, an 8-byte
 SipHash-2-4 tag (zero without a key), a CRC-32 trailer equal to `zlib.crc32` of the bytes before it.
 """
 
@@ -19,20 +19,20 @@ import numpy as np
 from dfeif_codegen.net.siphash import siphash24
 
 MAGIC = b"DFEW"
-VERSION = 1
-HEADER = struct.Struct("<4sBBBB8sHHII")   # magic version kind flags real_size model node count step seq
-KIND_PACKET, KIND_COMMAND, KIND_CAMERA, KIND_TICK = 1, 2, 3, 4
+VERSION = 2
+HEADER = struct.Struct("<4sBBBB8sHHIII")   # magic version kind flags real_size model node count step seq epoch
+KIND_PACKET, KIND_COMMAND, KIND_CAMERA, KIND_TICK, KIND_ANNOUNCE = 1, 2, 3, 4, 5
 MASTER_ID = 0xFFFF
 
 # decode failures, named as the C's return codes (P_ERR_WIRE_* and P_ERR_NONFINITE)
 ERRORS = {"length": -10, "crc": -11, "format": -12, "version": -13, "model": -14, "tag": -15,
           "node": -16, "duplicate": -17, "old": -18, "future": -19, "replay": -20, "outdated": -21,
-          "nonfinite": -3, "covariance": -22, "gain": -23}
+          "nonfinite": -3, "covariance": -22, "gain": -23, "epoch": -24}
 
 
 # the C's wire_counters fields, in order
 COUNTERS = ("length", "crc", "format", "version", "model", "tag", "node", "duplicate", "old", "future", "replay",
-            "outdated", "nonfinite", "covariance", "gain", "unfused", "other")
+            "outdated", "nonfinite", "covariance", "gain", "epoch", "unfused", "other")
 
 
 class WireError(ValueError):
@@ -83,7 +83,7 @@ class Layout:
 
     def reals(self, kind: int) -> int:
         return {KIND_PACKET: self.packet_reals, KIND_COMMAND: self.command_reals, KIND_CAMERA: self.m,
-                KIND_TICK: self.tick_reals}[kind]
+                KIND_TICK: self.tick_reals, KIND_ANNOUNCE: 0}[kind]
 
 
 @dataclass(frozen=True)
@@ -93,12 +93,16 @@ class Header:
     step: int
     seq: int
     keyed: bool = False
+    epoch: int = 0
 
 
-def encode(layout: Layout, kind: int, node: int, step: int, seq: int, values, key: bytes | None = None) -> bytes:
+def encode(layout: Layout, kind: int, node: int, step: int, seq: int, values, key: bytes | None = None,
+           epoch: int = 0) -> bytes:
+    """A frame; `epoch` is the master's boot as the sender knows it (docs/wire.md, "Epochs")."""
     vals = np.asarray(values, dtype=layout.dtype).ravel()
     head = HEADER.pack(MAGIC, VERSION, kind, 1 if key else 0, layout.dtype.itemsize,
-                       bytes.fromhex(layout.model_hash[:16]), node, vals.size, step & 0xFFFFFFFF, seq & 0xFFFFFFFF)
+                       bytes.fromhex(layout.model_hash[:16]), node, vals.size, step & 0xFFFFFFFF, seq & 0xFFFFFFFF,
+                       epoch & 0xFFFFFFFF)
     body = head + vals.tobytes()
     body += struct.pack("<Q", siphash24(key, body) if key else 0)
     return body + struct.pack("<I", zlib.crc32(body))
@@ -108,8 +112,8 @@ def peek(buf: bytes) -> Header | None:
     """The header fields of a frame with a valid CRC (the relay routes on them), else None."""
     if len(buf) < HEADER.size + 12 or zlib.crc32(buf[:-4]) != struct.unpack_from("<I", buf, len(buf) - 4)[0]:
         return None
-    _, _, kind, flags, _, _, node, _, step, seq = HEADER.unpack_from(buf)
-    return Header(kind, node, step, seq, bool(flags & 1))
+    _, _, kind, flags, _, _, node, _, step, seq, epoch = HEADER.unpack_from(buf)
+    return Header(kind, node, step, seq, bool(flags & 1), epoch)
 
 
 def decode(layout: Layout, buf: bytes, kind: int, key: bytes | None = None) -> tuple[Header, np.ndarray]:
@@ -120,7 +124,7 @@ def decode(layout: Layout, buf: bytes, kind: int, key: bytes | None = None) -> t
         raise WireError("length")
     if zlib.crc32(buf[:body + 8]) != struct.unpack_from("<I", buf, body + 8)[0]:
         raise WireError("crc")
-    magic, version, k, flags, rs, model, node, cnt, step, seq = HEADER.unpack_from(buf)
+    magic, version, k, flags, rs, model, node, cnt, step, seq, epoch = HEADER.unpack_from(buf)
     tag = struct.unpack_from("<Q", buf, body)[0]
     if magic != MAGIC or k != kind or rs != layout.dtype.itemsize or cnt != count or flags & ~1 or (not flags & 1 and tag):
         raise WireError("format")
@@ -133,7 +137,7 @@ def decode(layout: Layout, buf: bytes, kind: int, key: bytes | None = None) -> t
     values = np.frombuffer(buf, dtype=layout.dtype, count=count, offset=HEADER.size).astype(layout.dtype.newbyteorder("="))
     if not np.all(np.isfinite(values)):
         raise WireError("nonfinite")
-    return Header(kind, node, step, seq, bool(flags & 1)), values
+    return Header(kind, node, step, seq, bool(flags & 1), epoch), values
 
 
 def packet_values(layout: Layout, step_packet: dict) -> np.ndarray:

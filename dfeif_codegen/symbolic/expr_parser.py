@@ -72,6 +72,48 @@ class _Tok(NamedTuple):
     pos: int  # 0-based offset into the text
 
 
+def _tokenize(t: str, fail: Callable[[int, str], NoReturn]) -> list[_Tok]:
+    """Every token of `t`, the end marker last; `fail(pos, problem)` raises."""
+    toks: list[_Tok] = []
+    i, n = 0, len(t)
+    while i < n:
+        ch = t[i]
+        if ch in " \t\r\n":
+            i += 1
+            continue
+        if len(toks) >= MAX_TOKENS:
+            fail(i, f"expression has more than {MAX_TOKENS} tokens")
+        if ch in _DIGITS or (ch == "." and t[i + 1:i + 2] in _DIGITS):
+            end = _NUMBER.match(t, i).end()
+            if end < n and (t[end].isalnum() or t[end] in "._"):
+                fail(i, f"malformed number {t[i:end + 1]!r}")
+            if end - i > MAX_NUMBER_CHARS:
+                fail(i, f"number longer than {MAX_NUMBER_CHARS} characters")
+            exp_part = t[i:end].lower().partition("e")[2]
+            if exp_part and abs(int(exp_part)) > MAX_LITERAL_EXP:
+                fail(i, f"number exponent beyond +-{MAX_LITERAL_EXP}")
+            toks.append(_Tok("num", t[i:end], i))
+            i = end
+        elif ch.isascii() and (ch.isalpha() or ch == "_"):
+            end = _NAME.match(t, i).end()
+            toks.append(_Tok("name", t[i:end], i))
+            i = end
+        elif t.startswith("**", i):
+            toks.append(_Tok("op", "**", i))
+            i += 2
+        elif t.startswith("//", i):
+            fail(i, _REFUSED["//"])
+        elif ch in "+-*/(),":
+            toks.append(_Tok("op", ch, i))
+            i += 1
+        elif not ch.isascii():
+            fail(i, f"non-ASCII character {ch!r} (names must be ASCII)")
+        else:
+            fail(i, _REFUSED.get(ch, f"character {ch!r} is not allowed"))
+    toks.append(_Tok("end", "", n))
+    return toks
+
+
 class _Parser:
     """One parse: tokenize everything first, then recursive descent with a depth counter."""
 
@@ -87,44 +129,6 @@ class _Parser:
         if "\n" in self.text:
             loc = f"line {self.text.count(chr(10), 0, pos) + 1}, {loc}"
         raise ModelError(f"{self.where}: {loc}: {problem}")
-
-    def tokenize(self) -> None:
-        t, i, n = self.text, 0, len(self.text)
-        while i < n:
-            ch = t[i]
-            if ch in " \t\r\n":
-                i += 1
-                continue
-            if len(self.toks) >= MAX_TOKENS:
-                self.fail(i, f"expression has more than {MAX_TOKENS} tokens")
-            if ch in _DIGITS or (ch == "." and t[i + 1:i + 2] in _DIGITS):
-                end = _NUMBER.match(t, i).end()
-                if end < n and (t[end].isalnum() or t[end] in "._"):
-                    self.fail(i, f"malformed number {t[i:end + 1]!r}")
-                if end - i > MAX_NUMBER_CHARS:
-                    self.fail(i, f"number longer than {MAX_NUMBER_CHARS} characters")
-                exp_part = t[i:end].lower().partition("e")[2]
-                if exp_part and abs(int(exp_part)) > MAX_LITERAL_EXP:
-                    self.fail(i, f"number exponent beyond +-{MAX_LITERAL_EXP}")
-                self.toks.append(_Tok("num", t[i:end], i))
-                i = end
-            elif ch.isascii() and (ch.isalpha() or ch == "_"):
-                end = _NAME.match(t, i).end()
-                self.toks.append(_Tok("name", t[i:end], i))
-                i = end
-            elif t.startswith("**", i):
-                self.toks.append(_Tok("op", "**", i))
-                i += 2
-            elif t.startswith("//", i):
-                self.fail(i, _REFUSED["//"])
-            elif ch in "+-*/(),":
-                self.toks.append(_Tok("op", ch, i))
-                i += 1
-            elif not ch.isascii():
-                self.fail(i, f"non-ASCII character {ch!r} (names must be ASCII)")
-            else:
-                self.fail(i, _REFUSED.get(ch, f"character {ch!r} is not allowed"))
-        self.toks.append(_Tok("end", "", n))
 
     def peek(self) -> _Tok:
         return self.toks[self.i]
@@ -165,7 +169,7 @@ class _Parser:
     def parse(self) -> sympy.Expr:
         if len(self.text) > MAX_CHARS:
             self.fail(MAX_CHARS, f"expression longer than {MAX_CHARS} characters")
-        self.tokenize()
+        self.toks = _tokenize(self.text, self.fail)
         if self.peek().kind == "end":
             self.fail(0, "empty expression")
         out = self.expr()

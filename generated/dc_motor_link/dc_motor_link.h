@@ -291,17 +291,21 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
                                   dc_motor_link_real P[DC_MOTOR_LINK_NXX]);
 
 /* ---- wire (docs/wire.md) ------------------------------------------------------------------- */
-/* Fixed-size little-endian frames: a 28-byte header (magic "DFEW", version, kind, flags, bytes per
- * real, model hash prefix, node id, reals in the payload, step, sequence number), the payload, a
- * SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes before it). */
-#define DC_MOTOR_LINK_WIRE_VERSION 1u
-#define DC_MOTOR_LINK_WIRE_HEADER 28u
+/* Fixed-size little-endian frames: a 32-byte header (magic "DFEW", version, kind, flags, bytes per
+ * real, model hash prefix, node id, reals in the payload, step, sequence number, epoch), the
+ * payload, a SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes
+ * before it). The epoch is the master's boot: its commands and announcements carry it, the
+ * nodes' packets echo the last one they heard, and a keyed master takes only its own. */
+#define DC_MOTOR_LINK_WIRE_VERSION 2u
+#define DC_MOTOR_LINK_WIRE_HEADER 32u
 /** bytes of a frame of n reals: header, n reals of 8 bytes, tag (8) and CRC (4) */
-#define DC_MOTOR_LINK_FRAME_SIZE(n) (40u + (8u * (size_t)(n)))
+#define DC_MOTOR_LINK_FRAME_SIZE(n) (44u + (8u * (size_t)(n)))
 /** node -> master: a dc_motor_link_packet */
 #define DC_MOTOR_LINK_KIND_PACKET 1u
 /** master -> nodes and actuator: (k, v, u) */
 #define DC_MOTOR_LINK_KIND_COMMAND 2u
+/** master -> nodes: its epoch, no reals (a master that cannot command yet: restarted) */
+#define DC_MOTOR_LINK_KIND_ANNOUNCE 5u
 /** node id field of the master's frames */
 #define DC_MOTOR_LINK_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
@@ -309,9 +313,11 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
 /** reals in a command: v, u */
 #define DC_MOTOR_LINK_COMMAND_REALS (DC_MOTOR_LINK_NY + DC_MOTOR_LINK_NU)
 /** FRAME_SIZE(PACKET_REALS) */
-#define DC_MOTOR_LINK_PACKET_WIRE_SIZE 240u
+#define DC_MOTOR_LINK_PACKET_WIRE_SIZE 244u
 /** FRAME_SIZE(COMMAND_REALS) */
-#define DC_MOTOR_LINK_COMMAND_WIRE_SIZE 56u
+#define DC_MOTOR_LINK_COMMAND_WIRE_SIZE 60u
+/** FRAME_SIZE(0) */
+#define DC_MOTOR_LINK_ANNOUNCE_WIRE_SIZE 44u
 /** frame of the wrong size */
 #define DC_MOTOR_LINK_ERR_WIRE_LENGTH (-10)
 /** CRC-32 mismatch: corrupted on the way */
@@ -340,12 +346,15 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
 #define DC_MOTOR_LINK_ERR_WIRE_COVARIANCE (-22)
 /** A packet's P exceeds its P_pred on the diagonal (difference rule: a negative gain). */
 #define DC_MOTOR_LINK_ERR_WIRE_GAIN (-23)
+/** keyed: another epoch than the master's (a frame of an earlier boot, or a node not yet told) */
+#define DC_MOTOR_LINK_ERR_WIRE_EPOCH (-24)
 
 typedef struct {
     uint8_t kind;
     uint16_t node;
     uint32_t step;
     uint32_t seq;
+    uint32_t epoch;
 } dc_motor_link_frame_header;
 
 /** Rejected frames per cause. */
@@ -365,13 +374,14 @@ typedef struct {
     uint32_t nonfinite;
     uint32_t covariance;
     uint32_t gain;
+    uint32_t epoch;
     uint32_t unfused; /* staged, but the fuse could not use it (dropped, the others fused) */
     uint32_t other;
 } dc_motor_link_wire_counters;
 
 /** The master's receive side: checked packets staged for the next fuse, per-node last step and
- * sequence number, the deployment key, and what was rejected. `base` is the global step of the
- * master's step 0 (a restarted master starts at the step it rejoins). */
+ * sequence number, the deployment key, the master's epoch and what was rejected. `base` is the
+ * global step of the master's step 0 (a restarted master starts at the step it rejoins). */
 typedef struct {
     dc_motor_link_packet staged[DC_MOTOR_LINK_NNODES];
     uint8_t present[DC_MOTOR_LINK_NNODES];
@@ -379,14 +389,17 @@ typedef struct {
     uint32_t last_step[DC_MOTOR_LINK_NNODES];
     uint32_t last_seq[DC_MOTOR_LINK_NNODES];
     uint32_t base;
+    uint32_t epoch;
     uint32_t accepted;
     uint8_t key[16];
     uint8_t keyed;
     dc_motor_link_wire_counters rejected;
 } dc_motor_link_inbox;
 
-/** A node's receive side for the master's commands. */
+/** A node's receive side for the master's commands and announcements: the master's epoch as
+ * last heard (the node's packets carry it) and the last sequence number in that epoch. */
 typedef struct {
+    uint32_t epoch;
     uint32_t last_seq;
     uint32_t accepted;
     uint8_t seen;
@@ -409,19 +422,34 @@ int dc_motor_link_frame_encode(const dc_motor_link_frame_header* header,
 int dc_motor_link_frame_decode(const uint8_t* buf, size_t len, const uint8_t* key, uint8_t kind,
                                dc_motor_link_real* values, uint16_t count,
                                dc_motor_link_frame_header* header);
+/** epoch: the master's, as the node last heard it (its command_rx's `epoch`). */
 int dc_motor_link_packet_encode(const dc_motor_link_packet* packet, uint16_t node, uint32_t seq,
-                                const uint8_t* key, uint8_t buf[DC_MOTOR_LINK_PACKET_WIRE_SIZE]);
+                                uint32_t epoch, const uint8_t* key,
+                                uint8_t buf[DC_MOTOR_LINK_PACKET_WIRE_SIZE]);
 int dc_motor_link_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key,
                                 dc_motor_link_packet* packet, dc_motor_link_frame_header* header);
+/** epoch: the master's (as given to inbox_init). */
 int dc_motor_link_command_encode(uint32_t step, const dc_motor_link_real v[DC_MOTOR_LINK_NY],
                                  const dc_motor_link_real u[DC_MOTOR_LINK_NU], uint32_t seq,
-                                 const uint8_t* key, uint8_t buf[DC_MOTOR_LINK_COMMAND_WIRE_SIZE]);
+                                 uint32_t epoch, const uint8_t* key,
+                                 uint8_t buf[DC_MOTOR_LINK_COMMAND_WIRE_SIZE]);
+/** The master's epoch without a command (a restarted master, before it can command). */
+int dc_motor_link_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const uint8_t* key,
+                                  uint8_t buf[DC_MOTOR_LINK_ANNOUNCE_WIRE_SIZE]);
 int dc_motor_link_command_decode(const uint8_t* buf, size_t len, const uint8_t* key,
                                  dc_motor_link_real v[DC_MOTOR_LINK_NY],
                                  dc_motor_link_real u[DC_MOTOR_LINK_NU],
                                  dc_motor_link_frame_header* header);
-/** key NULL: CRC only; base: global step of the master's step 0. */
-int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], uint32_t base);
+/** key NULL: CRC only; base: global step of the master's step 0; epoch: this boot's, chosen by the
+ * caller and never used before under this key (a boot counter kept in non-volatile memory,
+ * incremented at every boot: the nodes take a newer epoch, RFC 1982 order, and refuse older ones). */
+int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], uint32_t base,
+                             uint32_t epoch);
+/** A restarted master's first packet: the checks of master_receive that need no master state
+ * (integrity, node id, keyed: the epoch, covariances), counted per cause. OK: the
+ * packet (its step global) to initialise from; stage it afterwards with master_receive. */
+int dc_motor_link_inbox_join(dc_motor_link_inbox* inbox, const uint8_t* buf, size_t len,
+                             dc_motor_link_packet* packet, dc_motor_link_frame_header* header);
 /** Check a received frame (integrity, identity, window, duplicates, replay, then the packet's
  * covariances as master_fuse needs them) and stage it for the next fuse; a rejected frame is
  * counted per cause and changes nothing else (its node's packet for that step is still taken). */
@@ -438,12 +466,17 @@ size_t dc_motor_link_command_rx_size(void);
 int dc_motor_link_wire_rejected(const dc_motor_link_inbox* inbox,
                                 const dc_motor_link_command_rx* rx,
                                 dc_motor_link_wire_counters* out);
-int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t key[16]);
-/** Check a command frame (as master_receive, plus: from the master, keyed: fresh sequence
- * number). */
+/** epoch: the latest master epoch this node has heard, kept by the caller across the node's own
+ * restarts (0 if none): with a key, commands of an older epoch are refused. */
+int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t key[16],
+                                  uint32_t epoch);
+/** Check a command frame (integrity, from the master; keyed: an epoch not older than the last
+ * one heard, a newer one taken, and within it a fresh sequence number). */
 int dc_motor_link_command_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len,
                                   uint32_t* step, dc_motor_link_real v[DC_MOTOR_LINK_NY],
                                   dc_motor_link_real u[DC_MOTOR_LINK_NU]);
+/** Check an announcement (as command_receive) and take its epoch. */
+int dc_motor_link_announce_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len);
 
 /* ---- control ---------------------------------------------------------------------------- */
 /**

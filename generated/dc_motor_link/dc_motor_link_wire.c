@@ -6,7 +6,7 @@
  * little-endian master agree. Layout (docs/wire.md):
  *   0 magic "DFEW" | 4 version | 5 kind | 6 flags (bit 0 keyed) | 7 bytes per real
  *   8 model hash prefix (8 bytes) | 16 node id u16 | 18 reals in the payload u16
- *   20 step u32 | 24 sequence number u32 | 28 payload (reals)
+ *   20 step u32 | 24 sequence number u32 | 28 epoch u32 | 32 payload (reals)
  *   then a SipHash-2-4 tag (8 bytes, zero without a key) over everything before it,
  *   then CRC-32 (IEEE, reflected 0xEDB88320, = zlib.crc32) over everything before it. */
 #include <string.h>
@@ -23,6 +23,7 @@
 #define PACKET_SIZE DC_MOTOR_LINK_PACKET_WIRE_SIZE
 #define COMMAND_REALS DC_MOTOR_LINK_COMMAND_REALS
 #define COMMAND_SIZE DC_MOTOR_LINK_COMMAND_WIRE_SIZE
+#define ANNOUNCE_SIZE DC_MOTOR_LINK_ANNOUNCE_WIRE_SIZE
 
 /* The model's SHA-256 (hex), and its first 8 bytes: the frames' model field. */
 const char dc_motor_link_model_hash[65] = DC_MOTOR_LINK_MODEL_HASH;
@@ -215,6 +216,7 @@ int dc_motor_link_frame_encode(const dc_motor_link_frame_header* header, const r
         put16(&buf[18], count);
         put32(&buf[20], header->step);
         put32(&buf[24], header->seq);
+        put32(&buf[28], header->epoch);
         for (i = 0; i < count; i++) {
             put_real(&buf[HDR + (RS * i)], values[i]);
         }
@@ -276,13 +278,15 @@ int dc_motor_link_frame_decode(const uint8_t* buf, size_t len, const uint8_t* ke
         header->node = get16(&buf[16]);
         header->step = get32(&buf[20]);
         header->seq = get32(&buf[24]);
+        header->epoch = get32(&buf[28]);
     }
     return rc;
 }
 
 /* The packet's reals in wire order: centre, x, P, x_pred, P_pred. */
 int dc_motor_link_packet_encode(const dc_motor_link_packet* packet, uint16_t node, uint32_t seq,
-                                const uint8_t* key, uint8_t buf[DC_MOTOR_LINK_PACKET_WIRE_SIZE])
+                                uint32_t epoch, const uint8_t* key,
+                                uint8_t buf[DC_MOTOR_LINK_PACKET_WIRE_SIZE])
 {
     real values[DC_MOTOR_LINK_PACKET_REALS];
     dc_motor_link_frame_header h;
@@ -297,6 +301,7 @@ int dc_motor_link_packet_encode(const dc_motor_link_packet* packet, uint16_t nod
         h.node = node;
         h.step = packet->step;
         h.seq = seq;
+        h.epoch = epoch;
         rc = dc_motor_link_frame_encode(&h, values, PACKET_REALS, key, buf, PACKET_SIZE);
     }
     return rc;
@@ -329,7 +334,7 @@ int dc_motor_link_packet_decode(const uint8_t* buf, size_t len, const uint8_t* k
 }
 
 int dc_motor_link_command_encode(uint32_t step, const real v[NY], const real u[DC_MOTOR_LINK_NU],
-                                 uint32_t seq, const uint8_t* key,
+                                 uint32_t seq, uint32_t epoch, const uint8_t* key,
                                  uint8_t buf[DC_MOTOR_LINK_COMMAND_WIRE_SIZE])
 {
     real values[DC_MOTOR_LINK_COMMAND_REALS];
@@ -342,9 +347,22 @@ int dc_motor_link_command_encode(uint32_t step, const real v[NY], const real u[D
         h.node = DC_MOTOR_LINK_MASTER_ID;
         h.step = step;
         h.seq = seq;
+        h.epoch = epoch;
         rc = dc_motor_link_frame_encode(&h, values, COMMAND_REALS, key, buf, COMMAND_SIZE);
     }
     return rc;
+}
+
+int dc_motor_link_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const uint8_t* key,
+                                  uint8_t buf[DC_MOTOR_LINK_ANNOUNCE_WIRE_SIZE])
+{
+    dc_motor_link_frame_header h;
+    h.kind = DC_MOTOR_LINK_KIND_ANNOUNCE;
+    h.node = DC_MOTOR_LINK_MASTER_ID;
+    h.step = step;
+    h.seq = seq;
+    h.epoch = epoch;
+    return dc_motor_link_frame_encode(&h, NULL, 0u, key, buf, ANNOUNCE_SIZE);
 }
 
 static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
@@ -441,13 +459,17 @@ static void count_reject(dc_motor_link_wire_counters* c, int rc)
     case DC_MOTOR_LINK_ERR_WIRE_GAIN:
         c->gain++;
         break;
+    case DC_MOTOR_LINK_ERR_WIRE_EPOCH:
+        c->epoch++;
+        break;
     default:
         c->other++;
         break;
     }
 }
 
-int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], uint32_t base)
+int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], uint32_t base,
+                             uint32_t epoch)
 {
     int rc = DC_MOTOR_LINK_ERR_ARG;
     if (inbox != NULL) {
@@ -457,6 +479,7 @@ int dc_motor_link_inbox_init(dc_motor_link_inbox* inbox, const uint8_t key[16], 
             inbox->keyed = 1;
         }
         inbox->base = base;
+        inbox->epoch = epoch;
         rc = DC_MOTOR_LINK_OK;
     }
     return rc;
@@ -470,20 +493,37 @@ static int seq_fresh(uint32_t seq, uint32_t last)
     return ((ahead != 0u) && (ahead < 0x80000000u)) ? 1 : 0;
 }
 
-static int check_packet(const dc_motor_link_master* master, const dc_motor_link_inbox* inbox,
-                        const uint8_t* buf, size_t len, dc_motor_link_packet* pk,
-                        dc_motor_link_frame_header* h)
+/* The checks that need no master state: integrity, node id, and with a key the master's epoch
+ * (a frame of an earlier boot is refused: replay protection across restarts) and a fresh
+ * sequence number within it. */
+static int check_origin(const dc_motor_link_inbox* inbox, const uint8_t* buf, size_t len,
+                        dc_motor_link_packet* pk, dc_motor_link_frame_header* h)
 {
     const uint8_t* key = (inbox->keyed != 0u) ? inbox->key : NULL;
-    uint32_t now = inbox->base + master->k;
     int rc = packet_decode(buf, len, key, pk, h);
     if (rc == DC_MOTOR_LINK_OK) {
         if (h->node >= (uint16_t)NNODES) {
             rc = DC_MOTOR_LINK_ERR_WIRE_NODE;
+        } else if ((inbox->keyed != 0u) && (h->epoch != inbox->epoch)) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_EPOCH;
         } else if ((inbox->keyed != 0u) && (inbox->seen[h->node] != 0u) &&
                    (seq_fresh(h->seq, inbox->last_seq[h->node]) == 0)) {
             rc = DC_MOTOR_LINK_ERR_WIRE_REPLAY;
-        } else if (h->step > now) {
+        } else {
+            rc = DC_MOTOR_LINK_OK;
+        }
+    }
+    return rc;
+}
+
+static int check_packet(const dc_motor_link_master* master, const dc_motor_link_inbox* inbox,
+                        const uint8_t* buf, size_t len, dc_motor_link_packet* pk,
+                        dc_motor_link_frame_header* h)
+{
+    uint32_t now = inbox->base + master->k;
+    int rc = check_origin(inbox, buf, len, pk, h);
+    if (rc == DC_MOTOR_LINK_OK) {
+        if (h->step > now) {
             rc = DC_MOTOR_LINK_ERR_WIRE_FUTURE;
         } else if ((h->step < inbox->base) || ((now - h->step) > (uint32_t)NMAX)) {
             rc = DC_MOTOR_LINK_ERR_WIRE_OLD;
@@ -494,6 +534,27 @@ static int check_packet(const dc_motor_link_master* master, const dc_motor_link_
         } else {
             /* last: a packet refused here leaves its node's step open for the real one */
             rc = dc_motor_link_packet_check(pk);
+        }
+    }
+    return rc;
+}
+
+int dc_motor_link_inbox_join(dc_motor_link_inbox* inbox, const uint8_t* buf, size_t len,
+                             dc_motor_link_packet* packet, dc_motor_link_frame_header* header)
+{
+    dc_motor_link_packet pk;
+    dc_motor_link_frame_header h;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if ((inbox != NULL) && (buf != NULL) && (packet != NULL) && (header != NULL)) {
+        rc = check_origin(inbox, buf, len, &pk, &h);
+        if (rc == DC_MOTOR_LINK_OK) {
+            rc = dc_motor_link_packet_check(&pk);
+        }
+        if (rc != DC_MOTOR_LINK_OK) {
+            count_reject(&inbox->rejected, rc);
+        } else {
+            *packet = pk;
+            *header = h;
         }
     }
     return rc;
@@ -560,7 +621,8 @@ int dc_motor_link_master_fuse_inbox(dc_motor_link_master* master, dc_motor_link_
     return rc;
 }
 
-int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t key[16])
+int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t key[16],
+                                  uint32_t epoch)
 {
     int rc = DC_MOTOR_LINK_ERR_ARG;
     if (rx != NULL) {
@@ -569,7 +631,39 @@ int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t ke
             (void)memcpy(rx->key, key, sizeof(rx->key));
             rx->keyed = 1;
         }
+        rx->epoch = epoch;
         rc = DC_MOTOR_LINK_OK;
+    }
+    return rc;
+}
+
+/* A master frame's origin and freshness (keyed): an epoch older than the last one heard (RFC 1982
+ * order) is refused, a newer one is taken (the master restarted), and within an epoch the sequence
+ * number must be fresh. Taken frames set the node's epoch: its packets carry it. */
+static int master_frame_taken(dc_motor_link_command_rx* rx, int decoded,
+                              const dc_motor_link_frame_header* h)
+{
+    int rc = decoded;
+    if ((rc == DC_MOTOR_LINK_OK) && (h->node != DC_MOTOR_LINK_MASTER_ID)) {
+        rc = DC_MOTOR_LINK_ERR_WIRE_NODE;
+    }
+    if ((rc == DC_MOTOR_LINK_OK) && (rx->keyed != 0u)) {
+        uint32_t ahead = h->epoch - rx->epoch; /* (decoded: h is filled) */
+        if (ahead >= 0x80000000u) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_EPOCH;
+        } else if ((ahead == 0u) && (rx->seen != 0u) && (seq_fresh(h->seq, rx->last_seq) == 0)) {
+            rc = DC_MOTOR_LINK_ERR_WIRE_REPLAY;
+        } else {
+            rc = DC_MOTOR_LINK_OK;
+        }
+    }
+    if (rc != DC_MOTOR_LINK_OK) {
+        count_reject(&rx->rejected, rc);
+    } else {
+        rx->epoch = h->epoch;
+        rx->seen = 1;
+        rx->last_seq = h->seq;
+        rx->accepted++;
     }
     return rc;
 }
@@ -582,24 +676,28 @@ int dc_motor_link_command_receive(dc_motor_link_command_rx* rx, const uint8_t* b
     real u1[DC_MOTOR_LINK_NU];
     int rc = DC_MOTOR_LINK_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
-        rc = command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h);
-        if ((rc == DC_MOTOR_LINK_OK) && (h.node != DC_MOTOR_LINK_MASTER_ID)) {
-            rc = DC_MOTOR_LINK_ERR_WIRE_NODE;
-        }
-        if ((rc == DC_MOTOR_LINK_OK) && (rx->keyed != 0u) && (rx->seen != 0u) &&
-            (seq_fresh(h.seq, rx->last_seq) == 0)) {
-            rc = DC_MOTOR_LINK_ERR_WIRE_REPLAY;
-        }
-        if (rc != DC_MOTOR_LINK_OK) {
-            count_reject(&rx->rejected, rc);
-        } else {
-            rx->seen = 1;
-            rx->last_seq = h.seq;
-            rx->accepted++;
+        (void)memset(v1, 0, sizeof(v1)); /* (set by a decode that succeeds; compilers cannot tell) */
+        (void)memset(u1, 0, sizeof(u1));
+        rc = master_frame_taken(rx,
+                                command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h),
+                                &h);
+        if (rc == DC_MOTOR_LINK_OK) {
             *step = h.step;
             (void)memcpy(v, v1, sizeof(v1));
             (void)memcpy(u, u1, sizeof(u1));
         }
+    }
+    return rc;
+}
+
+int dc_motor_link_announce_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len)
+{
+    dc_motor_link_frame_header h;
+    int rc = DC_MOTOR_LINK_ERR_ARG;
+    if ((rx != NULL) && (buf != NULL)) {
+        rc = dc_motor_link_frame_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL,
+                                        DC_MOTOR_LINK_KIND_ANNOUNCE, NULL, 0u, &h);
+        rc = master_frame_taken(rx, rc, &h);
     }
     return rc;
 }

@@ -1,0 +1,131 @@
+"""The filter side of a closed-loop run: the nodes, the master and the controller stepped as the
+protocol says (`FilterBank`), shared by the closed loop and the replay, and everything they saw
+and gave (`Recording`: the scenario format the C harness consumes)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from dfeif_codegen.reference import predictor as predictors
+from dfeif_codegen.reference.control import FlatController
+from dfeif_codegen.reference.fusion import Master
+from dfeif_codegen.reference.node import NodeFilter
+
+
+@dataclass
+class Recording:
+    """Every input the filters saw and every output they gave, as numpy arrays (`np.savez`).
+
+    Meta: model spec, sizes, methods, ts, q (m), R (M, m, m), initial x0/P0 of the nodes
+    (M, n), (M, n, n) and master, controller gains (n, chain by chain k_1..k_r), params, seed.
+    Per step k: z (M, K, m) and gamma (M, K) of each node's `update` (z is 0 where gamma is 0),
+    ref (K, n + m). Late events in the order applied: late_step, late_node, late_lag, late_z
+    (E, m). Packets fused by the master: pkt_step (master step), pkt_node, pkt_src (source step).
+    Outputs: late_applied (E), node_x (M, K, n) and node_P after the step's updates, master x, P
+    after fuse, u, v.
+    """
+
+    model: str
+    n: int
+    m: int
+    nodes: int
+    max_lag: int
+    method: str           # replay | retrodict | discard | as-current
+    oosm: str             # what the node filters were built with
+    fusion: str
+    predictor: str        # held | brunovsky: the filters predict with u or with v
+    ts: float
+    q: np.ndarray
+    R: np.ndarray
+    node_x0: np.ndarray
+    node_P0: np.ndarray
+    master_x0: np.ndarray
+    master_P0: np.ndarray
+    gains: np.ndarray
+    params: np.ndarray
+    seed: int
+    z: np.ndarray
+    gamma: np.ndarray
+    ref: np.ndarray
+    late_step: np.ndarray
+    late_node: np.ndarray
+    late_lag: np.ndarray
+    late_z: np.ndarray
+    pkt_step: np.ndarray
+    pkt_node: np.ndarray
+    pkt_src: np.ndarray
+    late_applied: np.ndarray
+    node_x: np.ndarray
+    node_P: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+
+    def save(self, path) -> None:
+        np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
+
+    @classmethod
+    def load(cls, path) -> "Recording":
+        with np.load(path) as data:
+            values = {f.name: data[f.name] for f in fields(cls) if f.name in data}
+        values.setdefault("predictor", np.asarray("brunovsky"))   # recorded before the held predictor
+        for name in ("model", "method", "oosm", "fusion", "predictor"):
+            values[name] = str(values[name])
+        for name in ("n", "m", "nodes", "max_lag", "seed"):
+            values[name] = int(values[name])
+        values["ts"] = float(values["ts"])
+        return cls(**values)
+
+
+class FilterBank:
+    """Nodes, master and controller, stepped exactly as the protocol says."""
+
+    def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
+                 node_dtype=np.float64, predictor: str = predictors.DEFAULT):
+        self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
+                                 dtype=node_dtype, predictor=predictor) for i in range(len(R))]
+        self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
+                             predictor=predictor)
+        self.takes_v = predictor == "brunovsky"
+        held = predictors.held_constants(flat, ts) if predictor == "held" else None
+        self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds
+        self.max_lag = max_lag
+        self.sent: list[dict[int, object]] = [{} for _ in self.nodes]
+
+    def step(self, k, z, gamma, late, sources, ref):
+        """`late`: (node, lag, z) in arrival order; `sources[i]`: source step of node i's packet
+        fused now (-1: none). Returns (late applied flags, node x, node P, x, P, u, v)."""
+        for node, zi, gi in zip(self.nodes, z, gamma):
+            node.update(zi if gi else None, bool(gi))
+        applied = [self.nodes[i].update_delayed(zl, lag) for i, lag, zl in late]
+        for node, sent in zip(self.nodes, self.sent):
+            sent[k] = node.packet()
+            sent.pop(k - self.max_lag - 1, None)
+        self.master.fuse([sent.get(s) if s >= 0 else None for sent, s in zip(self.sent, sources)])
+        u, v = self.control(self.master.x, ref)
+        out = (applied, [nd.x.copy() for nd in self.nodes], [nd.P.copy() for nd in self.nodes],
+               self.master.x.copy(), self.master.P.copy(), u, v)
+        w = v if self.takes_v else u      # what the master broadcasts for the nodes' prediction
+        for node in self.nodes:
+            node.predict(w)
+        self.master.predict(w)
+        return out
+
+
+class _Outputs:
+    """Collects what FilterBank.step returns into the recording's arrays."""
+
+    def __init__(self, M, K, n, m):
+        self.node_x, self.node_P = np.zeros((M, K, n)), np.zeros((M, K, n, n))
+        self.x, self.P = np.zeros((K, n)), np.zeros((K, n, n))
+        self.u, self.v = np.zeros((K, m)), np.zeros((K, m))
+        self.applied: list[bool] = []
+
+    def put(self, k, out):
+        applied, nx, nP, x, P, u, v = out
+        self.applied += applied
+        self.node_x[:, k], self.node_P[:, k] = nx, nP
+        self.x[k], self.P[k], self.u[k], self.v[k] = x, P, u, v
