@@ -194,6 +194,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--offset", metavar="C[,C...]", help="per flat output (default: its nominal value)")
     p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
     p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
+    p.add_argument("--disturbance", metavar="KIND", default=None,
+                   help="random_walk or gauss_markov: add disturbance states and calibrate their densities")
+    p.add_argument("--tau", type=float, default=None, metavar="S", help="the Gauss-Markov time constant [s]")
+    p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
+                   help="calibrate against a plant with that model error (as simulate's), and write it")
     _budget_options(p)
 
     p = add("inspect")
@@ -315,7 +320,9 @@ def scenario(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import starter
 
     text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
-                            offset=args.offset, phase=args.phase, period=args.period, **_budget(args))
+                            offset=args.offset, phase=args.phase, period=args.period,
+                            disturbance=args.disturbance, tau=args.tau, param_error=args.param_error,
+                            **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 

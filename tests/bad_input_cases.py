@@ -101,6 +101,25 @@ def generated() -> dict:
     c["verify scenario missing"] = ("scenario file", ["verify", "--scenario", "{d}/in/none.toml"], {}, ["none.toml"])
     c |= _opt("output path", "scenario", "--out", ["/proc/x.toml", "{d}/nodir/x.toml", "{d}/user",
                                                    "{d}/user/notes.txt"])
+    # --- disturbance states: their densities and time constant, in a scenario or as options ----
+    for label, table, words in [("negative density", 'kind = "random_walk"\nq = -1.0', ["disturbance.q", ">= 0"]),
+                                ("tau 0", 'kind = "gauss_markov"\nq = 1.0\ntau = 0', ["disturbance.tau", "> 0"]),
+                                ("tau < 0", 'kind = "gauss_markov"\nq = 1.0\ntau = -2.0', ["disturbance.tau"]),
+                                ("no kind", "q = 1.0", ["disturbance.kind"])]:
+        c[f"scenario disturbance {label}"] = ("scenario field", ["simulate", *S, "--engine", "reference"],
+                                              {"s.toml": SMALL + f"\n[disturbance]\n{table}\n"}, words)
+    c["disturbance with the Brunovsky predictor"] = (
+        "scenario field", ["simulate", *S, "--engine", "reference", "--predictor", "brunovsky"],
+        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--predictor held"])
+    c["disturbance in the C engine"] = (
+        "scenario field", ["simulate", *S, "--predictor", "held"],
+        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--engine reference"])
+    for cmd in ("verify", "network"):
+        c[f"{cmd} with disturbance states"] = (
+            "scenario field", [cmd, *S], {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'},
+            ["disturbance", f"codegen {cmd}", "--engine reference"])
+    c |= _opt("option: not a choice", "scenario", "--disturbance", ["walk", ""])
+    c |= _opt("option: out of range", "scenario", "--tau", ["0", "-1", "nan"], extra=("--disturbance", "gauss_markov"))
     c |= _opt("option: not a number", "bench", "--repeat", INT_BAD)
     c |= _opt("option: out of range", "bench", "--repeat", ["-1", "100000"])
     c |= _opt("output path", "bench", "--out", ["/proc/B.md", "{d}/nodir/B.md", "{d}/user"])

@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from dfeif_codegen.check import driver_io, harness, loader
+from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation, divergence
 from dfeif_codegen.experiment.plant import Camera, Plant, _fixed, parametric_step
@@ -259,6 +260,9 @@ class CEngine:
     name = "c"
 
     def key(self, cfg: ex.Config) -> tuple:
+        if cfg.disturbance is not None:   # checked while the runs are listed, before any compile
+            raise ScenarioError("[disturbance]: disturbance states are in the reference filters only, not yet in "
+                                "the generated C that --engine c runs; use --engine reference")
         return build_key(cfg)
 
     def compile(self, keys: list) -> dict:

@@ -262,6 +262,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     driver_io.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
+    sc.without_disturbance("codegen verify")
     sc.check_model(derivation.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row = verify_row(sc)
     scenarios.check_window(sc, max_lag, nodes)

@@ -102,6 +102,8 @@ class Config:
     # the chapter's filter's q where the comparison re-runs it on the recordings (--filters
     # brunovsky; empty: q): its q covers what the held filter's model leaves out
     q_brunovsky: tuple = field(default=(), repr=False)
+    # the filters' disturbance states (symbolic/disturbance.py), None: none; out of repr as above
+    disturbance: object = field(default=None, repr=False)
 
 
 @dataclass
@@ -216,7 +218,8 @@ class Setup:
 
     def bank(self) -> "FilterBank":
         return FilterBank(self.flat, self.ts, self.q, self.R, self.node_x0, self.node_P0, self.x_hat0, self.P0,
-                          self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion, predictor=self.cfg.predictor)
+                          self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion, predictor=self.cfg.predictor,
+                          disturbance=self.cfg.disturbance)
 
 
 def prepare(cfg: Config) -> Setup:
@@ -244,7 +247,7 @@ def prepare(cfg: Config) -> Setup:
     q, gains = _per_chain(cfg.q, m), FlatController(flat, poles=_per_chain(cfg.poles, m)).gains
     R = np.array([c.R for c in cams])
     oosm = cfg.method if cfg.method in OOSM else "replay"
-    predictors.check(cfg.predictor, oosm)
+    predictors.check(cfg.predictor, oosm, cfg.disturbance)
     # which frame each update takes, and the late frames applied: fixed by the network alone
     upd = np.where(net.lag == 0, 0, -1)
     if cfg.method == "as-current":   # a step without its frame takes the freshest late one arriving

@@ -36,6 +36,7 @@ from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.physical import PhysicalMaster, PhysicalModel, ReplayNode
 from dfeif_codegen.reference.ukf import UKF
+from dfeif_codegen.symbolic.disturbance import augment
 
 FILTERS = {"ekf": EKF, "ukf": UKF}
 # filters on the canonical model, fed the controller's v: "df" is the project's derivative-free
@@ -51,10 +52,13 @@ class CanonicalModel:
     call path as the EKF and UKF: their costs per step are then measured alike. Phi (the
     flatness map) is the identity here."""
 
-    def __init__(self, flat, ts: float, q, predictor: str = predictors.DEFAULT):
-        pred = predictors.make(predictor, flat, ts, q)
-        C = flat.discrete(ts)[2]
-        self.n, self.m, self.ts = flat.n, flat.m, float(ts)
+    def __init__(self, flat, ts: float, q, predictor: str = predictors.DEFAULT, disturbance=None):
+        """`disturbance`: the held filter's state extended by one disturbance state per chain
+        (symbolic/disturbance.py); `phi` then reports the canonical part."""
+        pred = predictors.make(predictor, flat, ts, q, disturbance=disturbance)
+        self.disturbance, self.canonical_n = disturbance, flat.n
+        C = np.hstack([flat.discrete(ts)[2], np.zeros((flat.m, len(pred.Phi) - flat.n))])
+        self.n, self.m, self.ts = len(pred.Phi), flat.m, float(ts)
         self.angle_out = np.array([c.angle for c in flat.chains])
         self.Qd, self.transition = pred.Q, pred.Phi
         x, w = ca.SX.sym("x", self.n), ca.SX.sym("w", self.m)
@@ -68,9 +72,15 @@ class CanonicalModel:
         self.wrap_sx = PhysicalModel.wrap_sx.__get__(self)
 
     def phi(self, x):
-        return np.asarray(x, float), np.eye(self.n)
+        x = np.asarray(x, float)
+        return x[:self.canonical_n], np.eye(self.n)[:self.canonical_n]
 
-    phi_inv = phi
+    def phi_inv(self, x):
+        return np.asarray(x, float), np.eye(self.canonical_n)
+
+    def start(self, x0, P0):
+        """The filter's initial (x, P) from the canonical ones (disturbances at 0, their spread)."""
+        return augment(x0, P0, self.disturbance, self.m)
 
 
 class DerivativeFree(EKF):
@@ -84,19 +94,20 @@ class DerivativeFree(EKF):
 
 @lru_cache(maxsize=None)
 def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled: bool = False,
-              predictor: str = predictors.DEFAULT):
+              predictor: str = predictors.DEFAULT, disturbance=None):
     """The filter `kind` ("df", "ekf", "ukf") of one model, built once per process (building its
     CasADi functions costs far more than a run); `compiled`: its predict and update as compiled C
     (physical.compiled_function: the same results, and CPU time per step then measures compiled
     arithmetic rather than CasADi's interpreter); `predictor`: the derivative-free filter's."""
     flat = ex._flat(spec)
     if kind in CANONICAL:   # "brunovsky" is the chapter's filter whatever the recording's predictor
-        return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky"),
-                              compiled)
+        return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky",
+                                             disturbance if kind == "df" else None), compiled)
     return FILTERS[kind](PhysicalModel(flat, ts, np.array(q), substeps), compiled)
 
 
-def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled: bool = False, q=None) -> dict:
+def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled: bool = False,
+                     disturbance=None, q=None) -> dict:
     """Nodes and master of `kind` over a recording: node and master estimates and covariances in
     canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and the CPU seconds of the
     filter loop alone (process time; the maps to canonical coordinates after it are not counted).
@@ -104,15 +115,17 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     the filter's process-noise densities when not the recording's (the chapter's filter's own)."""
     q = tuple(np.asarray(rec.q if q is None or len(q) == 0 else ex._per_chain(q, rec.m), float))
     filt = filter_of(rec.model, float(rec.ts), q, substeps, kind, compiled,
-                     rec.predictor)
+                     rec.predictor, disturbance)
     pm = filt.model
     brunovsky = kind == "brunovsky" or (kind == "df" and rec.predictor == "brunovsky")
     inputs = rec.v if brunovsky else rec.u
     x0, J0 = pm.phi_inv(rec.master_x0)
     P0 = J0 @ rec.master_P0 @ J0.T
+    if hasattr(pm, "start"):
+        x0, P0 = pm.start(x0, P0)
     nodes = [ReplayNode(filt, rec.R[i], x0, P0, rec.max_lag) for i in range(rec.nodes)]
     master = PhysicalMaster(filt, x0, P0)
-    K, n = rec.ref.shape[0], rec.n
+    K, n = rec.ref.shape[0], pm.n
     late_at = np.searchsorted(rec.late_step, np.arange(K + 1))
     fused = np.zeros((K, rec.nodes), dtype=bool)
     fused[rec.pkt_step, rec.pkt_node] = rec.pkt_src == rec.pkt_step      # stale packets: not handled
@@ -139,15 +152,17 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
            "applied": sum(nd.applied for nd in nodes)}
     for xk, Pk in (("node_x", "node_P"), ("x", "P")):
         xs, Ps = phys[xk].reshape(-1, n), phys[Pk].reshape(-1, n, n)
-        zs, Pz = np.zeros_like(xs), np.zeros_like(Ps)
+        nc = rec.n           # the canonical state's (a filter's own may be longer: disturbances)
+        zs, Pz = np.zeros((xs.shape[0], nc)), np.zeros((xs.shape[0], nc, nc))
         for j in range(xs.shape[0]):
             zs[j], J = pm.phi(xs[j])
             Pz[j] = J @ Ps[j] @ J.T
-        out[xk], out[Pk] = zs.reshape(phys[xk].shape), Pz.reshape(phys[Pk].shape)
+        out[xk] = zs.reshape(*phys[xk].shape[:-1], nc)
+        out[Pk] = Pz.reshape(*phys[Pk].shape[:-2], nc, nc)
     return out
 
 
-def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
+def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None) -> dict:
     """closed_loop.metrics of `kind`'s estimates on `res`'s recording (the plant's tracking error
     is the run's own), plus `us_per_step`, the CPU microseconds per step of the filter loop; a
     run whose filter fails or diverges gives {"failed": reason}."""
@@ -155,7 +170,7 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
     try:
         with np.errstate(all="raise"):
             q = res.config.q_brunovsky if kind == "brunovsky" else None
-            out = run_on_recording(rec, kind, res.config.substeps, compiled, q)
+            out = run_on_recording(rec, kind, res.config.substeps, compiled, disturbance, q)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return {"failed": f"{kind}: {type(exc).__name__}: {exc}"}
     mine = dataclasses.replace(rec, node_x=out["node_x"], node_P=out["node_P"], x=out["x"], P=out["P"])
@@ -173,10 +188,11 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False) -> dict:
 
 
 def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTERS),
-               predictor: str = predictors.DEFAULT) -> dict:
+               predictor: str = predictors.DEFAULT, disturbance=None) -> dict:
     """Elementary operations of one predict and one update of each filter (CasADi's instruction
     count of the SX functions after common-subexpression elimination): a machine-independent
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
-    return {kind: filter_of(spec, float(ts), q, substeps, kind, predictor=predictor).operations()
+    return {kind: filter_of(spec, float(ts), q, substeps, kind, predictor=predictor,
+                            disturbance=disturbance if kind == "df" else None).operations()
             for kind in kinds}

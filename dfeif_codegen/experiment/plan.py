@@ -41,7 +41,7 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
-        predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")))
+        predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")), disturbance=sc.disturbance)
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:
@@ -168,6 +168,10 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
             predictors.check(predictors.for_method(predictor, oosm_of), oosm_of)
         except ValueError as exc:
             raise ScenarioError(str(exc) if oosm else f"{sc.where('oosm')}: {exc}") from None
+        try:
+            predictors.check(predictors.for_method(predictor, oosm_of), oosm_of, sc.disturbance)
+        except ValueError as exc:
+            raise ScenarioError(f"{sc.where('disturbance')}: {exc}") from None
     rows = [scenario_mod.Row([_pick(r.d, i) for i in range(nodes)], r.p, r.p_drop) for r in sc.grid]
     p = Plan(sc, flat, model, nodes, max_lag, runs, seed, refs, configs, kinds, rows, {}, set(), predictor)
     _list_runs(p)

@@ -12,6 +12,7 @@ from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.control import FlatController
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.node import NodeFilter
+from dfeif_codegen.symbolic.disturbance import augment
 
 
 @dataclass
@@ -84,11 +85,18 @@ class FilterBank:
     """Nodes, master and controller, stepped exactly as the protocol says."""
 
     def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                 node_dtype=np.float64, predictor: str = predictors.DEFAULT):
+                 node_dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
+        """`disturbance`: the filters' states are extended by one per chain (their x0, P0 here
+        are the canonical ones; the disturbances start at 0 with their initial spread); what
+        `step` returns stays the canonical part, what the controller and the metrics read."""
+        m, self.n = flat.m, flat.n
+        node_x0, node_P0 = zip(*[augment(x, P, disturbance, m) for x, P in zip(node_x0, node_P0)])
+        master_x0, master_P0 = augment(master_x0, master_P0, disturbance, m)
         self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
-                                 dtype=node_dtype, predictor=predictor) for i in range(len(R))]
+                                 dtype=node_dtype, predictor=predictor, disturbance=disturbance)
+                      for i in range(len(R))]
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
-                             predictor=predictor)
+                             predictor=predictor, disturbance=disturbance)
         self.takes_v = predictor == "brunovsky"
         held = predictors.held_constants(flat, ts) if predictor == "held" else None
         self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds
@@ -105,9 +113,10 @@ class FilterBank:
             sent[k] = node.packet()
             sent.pop(k - self.max_lag - 1, None)
         self.master.fuse([sent.get(s) if s >= 0 else None for sent, s in zip(self.sent, sources)])
-        u, v = self.control(self.master.x, ref)
-        out = (applied, [nd.x.copy() for nd in self.nodes], [nd.P.copy() for nd in self.nodes],
-               self.master.x.copy(), self.master.P.copy(), u, v)
+        n = self.n
+        u, v = self.control(self.master.x[:n], ref)
+        out = (applied, [nd.x[:n].copy() for nd in self.nodes], [nd.P[:n, :n].copy() for nd in self.nodes],
+               self.master.x[:n].copy(), self.master.P[:n, :n].copy(), u, v)
         w = v if self.takes_v else u      # what the master broadcasts for the nodes' prediction
         for node in self.nodes:
             node.predict(w)

@@ -20,6 +20,7 @@ from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.experiment import model_error
 from dfeif_codegen.experiment.trajectory import KINDS
+from dfeif_codegen.symbolic import disturbance as disturbances
 
 BUILTIN = ("paper", "unicycle", "pvtol")
 
@@ -33,6 +34,7 @@ _ALLOWED = {
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
     "model_error": model_error.KEYS,
+    "disturbance": disturbances.KEYS,
 }
 
 
@@ -83,6 +85,7 @@ class Scenario:
     uplink: Link = field(default_factory=Link)
     grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
     model_error: model_error.ParamError = model_error.NONE    # the plant's parameters against the model's
+    disturbance: disturbances.Disturbance | None = None        # the filters' disturbance states, if any
     _lines: dict = field(default_factory=dict, repr=False)
 
     def q_for(self, predictor: str) -> list[float]:
@@ -100,6 +103,13 @@ class Scenario:
             or (min(inside) if inside else None)
         shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
+
+    def without_disturbance(self, command: str) -> None:
+        """The commands that run the generated C: disturbance states are in the reference only."""
+        if self.disturbance is not None:
+            raise ScenarioError(f"{self.where('disturbance')}: disturbance states are in the reference filters only, "
+                                f"not yet in the generated C that {command} runs; use codegen simulate --engine "
+                                "reference")
 
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
@@ -336,4 +346,6 @@ def loads(text: str, source: str = "<string>") -> Scenario:
     _read_network(r, data)
     if "model_error" in data:
         r.sc.model_error = model_error.from_table(data["model_error"], r.fail)
+    if "disturbance" in data:
+        r.sc.disturbance = disturbances.from_table(data["disturbance"], r.fail)
     return r.sc

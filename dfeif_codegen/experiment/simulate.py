@@ -46,7 +46,8 @@ def _settings(p: Plan, o: Outcome) -> dict:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
         out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
-                                               out["filters"], predictors.for_method(p.predictor, "replay"))
+                                               out["filters"], predictors.for_method(p.predictor, "replay"),
+                                               sc.disturbance)
     return out
 
 

@@ -24,12 +24,16 @@ What a user would otherwise guess, derived from the model:
   along the reference) turns by more than 0.3 rad per period: the flat controller holds u over
   Ts and cannot cancel such a mode, whatever q (the comment says which Ts would do).
 
+With `--disturbance` the scenario also gets disturbance states for the held filter, their
+densities calibrated to the same NEES target (experiment/disturbance_calibration.py).
+
 The residual grows with the relative degree and with how fast the dynamics are against Ts: a
 stiff flexible joint (relative degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e7, the motor ~20.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import math
 from pathlib import Path
@@ -40,8 +44,9 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
-from dfeif_codegen.experiment import shapes
+from dfeif_codegen.experiment import disturbance_calibration, shapes
 from dfeif_codegen.experiment.trajectory import flags
+from dfeif_codegen.symbolic.disturbance import Disturbance
 
 MARKER = "# Starting scenario written by `codegen scenario`"
 
@@ -96,10 +101,11 @@ def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
               duration: float = 5.0, seed: int = 1000, rounds: int = 3,
-              shape: shapes.Shape | None = None, **options) -> tuple[np.ndarray, list[str]]:
+              shape: shapes.Shape | None = None, **options) -> tuple:
     """q per chain and a log of the rounds (see the module docstring). `options`: the filters'
     settings of the closed loops (closed_loop.Config fields, e.g. the predictor the scenario
-    selects), so q is calibrated for the filter that will run."""
+    selects), so q is calibrated for the filter that will run. With `disturbance` among them
+    (a Disturbance, its densities ignored): (q, log, the Disturbance with calibrated densities)."""
     shape = shape or shapes.from_domains(flat)
     q = _reference_q(flat, spec, ts, substeps, shape)
     floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
@@ -115,6 +121,9 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
         # too small a q is what these loops are run to measure: their NEES is meant to be high,
         # only a plant that leaves its domain or overflows ends one
 
+    dist = options.pop("disturbance", None)
+    if dist is not None:      # the loops are closed by the chapter's filter (module docstring)
+        options["predictor"] = "brunovsky"
     for _ in range(rounds):
         cfg = config(q, seed)
         try:
@@ -125,13 +134,35 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             continue
         k0 = int(round(cfg.metrics_from / ts))
         rec = res.recording      # the residual of the predictor the loop ran (the chapter's on main)
+        if dist is not None:
+            held = _held_residual_q(flat, ts, cfg, res, k0)
+            q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:]), q)
+            log.append(f"along the closed loop: q = {_fmt(held)} (held), {_fmt(q)} (the loop's filter)")
+            # a model error drawn per run makes each run's NEES another (1.6 to 21 over 10 seeds at
+            # 20% on the motor): more runs than the fixed model's two
+            seeds = [seed + i for i in range(DRAWN_RUNS if cfg.plant_error.draw != "none" else NEES_RUNS)]
+            loops = [ex.run(config(q, s, NEES_SECONDS)) for s in seeds]
+            match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees)  # noqa: E731
+            return disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
                                  getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
         break
+    if dist is not None:
+        raise ArithmeticError(f"every closed loop of the calibration diverged (q up to {_fmt(q)})")
     return match_nees(flat, q, config, [seed + i for i in range(NEES_RUNS)], log)
 
 
+def _held_residual_q(flat, ts, cfg, res, k0) -> np.ndarray:
+    """The held filter's q from its one-step residual along the loop `cfg` (its result `res`),
+    on the exact model: what white noise describes; a model error is the disturbances'."""
+    if cfg.plant_error.active:
+        res = ex.run(dataclasses.replace(cfg, plant_error=ex.EXACT_MODEL))
+    rec = res.recording
+    return implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:], "held")
+
+
+DRAWN_RUNS = 8
 NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 2, 1.1, 8, 20.0
 
 
@@ -146,7 +177,7 @@ def _master_nees(config, q, seeds) -> float:
     return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
 
 
-def match_nees(flat, q, config, seeds, log) -> tuple[np.ndarray, list[str]]:
+def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list[str]]:
     """Scale q (every chain alike, keeping the residual's proportions) until the master's NEES,
     averaged over `seeds` closed loops without delays of NEES_SECONDS (the length of a
     scenario's runs: the NEES of a filter with little process noise drifts over a run, so a
@@ -154,16 +185,18 @@ def match_nees(flat, q, config, seeds, log) -> tuple[np.ndarray, list[str]]:
     band for any number of runs. A secant on log NEES against log scale (NEES falls as q
     grows); at most NEES_EVALS evaluations, keeping the closest. The residual alone does not get
     there: it is coloured (correlated from step to step), which white noise of the same variance
-    does not describe, and the estimate's own error feeds back through u."""
+    does not describe, and the estimate's own error feeds back through u. `nees(q)`: another
+    measure of the master's NEES at q than `seeds` closed loops of `config`."""
     n = flat.n
+    nees_at = nees or (lambda qq: _master_nees(config, qq, seeds))
     tried = []                                   # (log scale, log NEES / n)
     scale = 0.0
     for _ in range(NEES_EVALS):
-        nees = _master_nees(config, q * math.exp(scale), seeds)
-        if not math.isfinite(nees):
+        value = nees_at(q * math.exp(scale))
+        if not math.isfinite(value):
             scale += math.log(10.0)             # too small a q lost a run: ten times more
             continue
-        tried.append((scale, math.log(nees / n)))
+        tried.append((scale, math.log(value / n)))
         if abs(tried[-1][1]) <= math.log(NEES_TOL):
             break
         if len(tried) < 2 or tried[-1][0] == tried[-2][0]:
@@ -209,8 +242,12 @@ def _fmt(values) -> str:
     return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
 
 
-def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str, list[str]]:
-    """The TOML text of a starting scenario for model `spec`, and the calibration log."""
+def starting_scenario(spec: str, shape: shapes.Shape | None = None, disturbance: Disturbance | None = None,
+                      plant_error=None) -> tuple[str, list[str]]:
+    """The TOML text of a starting scenario for model `spec`, and the calibration log;
+    `disturbance` (its densities ignored): calibrated for the held filter with those states;
+    `plant_error` (model_error.ParamError): the calibration's plants have it, and so has the
+    scenario (its [model_error] table)."""
     flat = ex._flat(spec)
     shape = shape or shapes.from_domains(flat)
     model = flat.model
@@ -222,7 +259,10 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str
     if model.measurement is None:
         std = [float(f"{0.004 * abs(a):.3g}") for a in shape.amplitude]
         noise_std = [std, [1.25 * s for s in std]]
-    q, log = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape)
+    options = ({} if plant_error is None else {"plant_error": plant_error}) | \
+        ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance})
+    q, log, *calibrated = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape, **options)
+    disturbance = calibrated[0] if calibrated else None
     if all(entry.startswith("closed loop diverged") for entry in log[1:]):
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged "
                             f"(q up to {_fmt(q)} on a {shape.kind} of amplitude {_fmt(shape.amplitude)} around "
@@ -280,8 +320,27 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None) -> tuple[str
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
+    lines += _extra_tables(plant_error, disturbance)
     return "\n".join(lines), log
 
+
+
+def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
+    """The [model_error] and [disturbance] tables of a starting scenario, when asked for."""
+    lines: list[str] = []
+    if plant_error is not None:
+        lines += ["# the plant's parameters against the model's (--param-error), as calibrated", "[model_error]"]
+        lines += [f"relative = {{ {', '.join(f'{k} = {v:g}' for k, v in plant_error.relative)} }}"] \
+            if plant_error.relative else []
+        lines += [f'draw = "{plant_error.draw}"', f"spread = {dict(plant_error.spread)['*']:g}", ""] \
+            if plant_error.spread else [""]
+    if disturbance is not None:
+        lines += ["# one disturbance state per chain on its top derivative (run with --predictor held);",
+                  "# q: their densities, scaled so that the master's NEES averages n",
+                  "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {_toml_list(disturbance.q)}"]
+        lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
+        lines += [""]
+    return lines
 
 def _toml_list(values) -> str:
     return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
@@ -289,10 +348,20 @@ def _toml_list(values) -> str:
 
 def scenario(model: str, out: str | None = None, max_seconds: float | None = None,
              max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
-             phase=None, period: float | None = None) -> str:
+             phase=None, period: float | None = None, disturbance: str | None = None,
+             tau: float | None = None, param_error: str | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
-    derivation runs under `max_seconds` CPU seconds and `max_memory` GB."""
+    derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `disturbance`
+    ("random_walk" or "gauss_markov", `tau` its time constant [s]): the scenario adds
+    disturbance states and calibrates their densities; `param_error` (as `simulate
+    --param-error`): the calibration's plants and the scenario get that model error."""
+    dist = disturbance_calibration.from_options(disturbance, tau)
+    plant_error = None
+    if param_error is not None:
+        from dfeif_codegen.experiment import model_error
+        plant_error = model_error.from_option(param_error)
+        plant_error = plant_error if plant_error.active else None
     path = Path(out) if out else None
     if path is not None and path.exists():
         try:
@@ -305,9 +374,11 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
         from dfeif_codegen.paths import writable_file
         writable_file(path, "--out")
     flat = derivation.derive(model, max_seconds, max_memory)
+    if plant_error is not None:
+        plant_error.check(flat.model, lambda key: "--param-error")
     ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
     try:
-        text, _ = starting_scenario(model, ref)
+        text, _ = starting_scenario(model, ref, dist, plant_error)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
                             f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "
@@ -316,3 +387,4 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")
     return text
+

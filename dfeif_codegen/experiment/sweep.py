@@ -73,6 +73,8 @@ def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
     key = (engine, cfg) if kind == "df" else (engine, cfg, kind)
     if cfg.plant_error.active:          # out of Config's repr, so error-free runs keep their ids
         key = (*key, cfg.plant_error)
+    if cfg.disturbance is not None:     # likewise
+        key = (*key, cfg.disturbance)
     return hashlib.sha256(repr(key).encode()).hexdigest()[:20]
 
 
@@ -88,7 +90,8 @@ def one(cfg: ex.Config, engine: Engine, codes: dict, series, kind: str = "df"):
         return f"{type(exc).__name__}: {exc}", None
     if kind != "df":
         from dfeif_codegen.experiment import compare
-        m = compare.evaluate(res, kind.split("-")[0])
+        base = kind.split("-")[0]      # the derivative-free filter with the run's disturbance states
+        m = compare.evaluate(res, base, disturbance=cfg.disturbance if base == "df" else None)
         return (m["failed"] if "failed" in m else m), None
     return res.metrics, (series(res) if series else None)
 

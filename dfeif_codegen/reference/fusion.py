@@ -82,11 +82,11 @@ class Master:
     it broadcasts to the nodes."""
 
     def __init__(self, flat, ts, q, x0, P0, n_nodes: int, rule: str = "difference", max_lag: int = 32,
-                 predictor: str = predictors.DEFAULT):
+                 predictor: str = predictors.DEFAULT, disturbance=None):
         if rule not in RULES:
             raise ValueError(f"rule must be one of {RULES}, not {rule!r}")
         self.rule, self.n_nodes, self.max_lag = rule, n_nodes, max_lag
-        self.predictor = predictors.make(predictor, flat, ts, q)
+        self.predictor = predictors.make(predictor, flat, ts, q, disturbance=disturbance)
         self.A, self.Q = self.predictor.Phi, self.predictor.Q
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])

@@ -74,20 +74,21 @@ class NodeFilter:
     predictor) or v = F + G u (`brunovsky`)."""
 
     def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay",
-                 dtype=np.float64, predictor: str = predictors.DEFAULT):
+                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
         """`dtype` is the precision of every stored value and operation: float64 for the
         reference; float32 gives a second single-precision implementation (numpy and LAPACK
         instead of the generated C), to tell the method's conditioning from the C's rounding
         (the held predictor's mean map is evaluated in double and rounded)."""
         if oosm not in ("replay", "retrodict"):
             raise ValueError(f"oosm must be 'replay' or 'retrodict', not {oosm!r}")
-        predictors.check(predictor, oosm)
+        predictors.check(predictor, oosm, disturbance)
         if max_lag < 1:
             raise ValueError("max_lag must be at least 1")
         self.flat, self.ts, self.q, self.oosm, self.max_lag = flat, ts, q, oosm, max_lag
         self.dtype = np.dtype(dtype)
-        self.predictor = predictors.make(predictor, flat, ts, q, self.dtype)
+        self.predictor = predictors.make(predictor, flat, ts, q, self.dtype, disturbance)
         self.A, self.Q = self.predictor.Phi, self.predictor.Q
+        self.n = len(self.A)     # flat.n, plus one disturbance state per chain if asked for
         self.B, self.C = (a.astype(self.dtype) for a in flat.discrete(ts)[1:])
         self.R = measurement_covariance(R, flat.m).astype(self.dtype)
         self.heads = np.array(flat.heads)
@@ -173,7 +174,7 @@ class NodeFilter:
             slot.K = spd_solve(slot.S, Pp[:, h].T).T
             x, P = xp + slot.K @ slot.e, posterior(Pp, slot.K, self.R, h)
         else:
-            slot.K = np.zeros((self.flat.n, self.flat.m), dtype=self.dtype)
+            slot.K = np.zeros((self.n, self.flat.m), dtype=self.dtype)
             x, P = xp, Pp
         slot.P_post = P
         return x, P

@@ -19,10 +19,12 @@ from dfeif_codegen.symbolic import numeric, sampling
 from dfeif_codegen.symbolic.sampling import DEFAULT, PREDICTORS, for_method  # noqa: F401 (re-exported)
 
 
-def check(name: str, oosm: str = "replay") -> None:
+def check(name: str, oosm: str = "replay", disturbance=None) -> None:
     """ValueError naming the options for an unknown predictor or one retrodiction cannot use."""
     if name not in PREDICTORS:
         raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, not {name!r}")
+    if disturbance is not None and name != "held":
+        raise ValueError(f"[disturbance] needs --predictor held (the {name} predictor has no disturbance states)")
     if oosm == "retrodict" and name != "brunovsky":
         raise ValueError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the transition "
                          f"over the lag, ill-conditioned for the {name} predictor's); use --oosm replay")
@@ -68,12 +70,17 @@ class Held:
 
     name = "held"
 
-    def __init__(self, flat, ts: float, q, dtype=np.float64):
+    def __init__(self, flat, ts: float, q, dtype=np.float64, disturbance=None):
+        """`disturbance` (symbolic/disturbance.py): the state is extended by one disturbance
+        state per chain, after the canonical ones."""
         self.flat, self.ts, self.q, self.dtype = flat, float(ts), q, np.dtype(dtype)
-        self.H = held_constants(flat, self.ts)
+        self.drift = None if disturbance is None else (disturbance.kind, disturbance.tau)
+        self.qd = None if disturbance is None else disturbance.densities(flat.m)
+        self.H = _cached(("sampling", id(flat), self.ts, self.drift), flat,
+                         lambda: sampling.held_sampling(flat, ts, disturbance=disturbance))
         self.Phi = self.H.E.astype(self.dtype)
-        self.Q = self.H.Q(q).astype(self.dtype)
-        self._step = _mean_function(flat, self.H)
+        self.Q = self.H.Q(q, self.qd).astype(self.dtype)
+        self._step = _mean_function(flat, self.H, self.drift)
         self._p = flat.param_vector
         self._ahead: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -84,7 +91,7 @@ class Held:
         """Φ₀^N and the noise of N periods (the Van Loan integral over N Ts)."""
         if N not in self._ahead:
             H = self.H.ahead(N)
-            self._ahead[N] = (H.E, H.Q(self.q))
+            self._ahead[N] = (H.E, H.Q(self.q, self.qd))
         return self._ahead[N]
 
     def bring(self, xs: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
@@ -102,7 +109,7 @@ _CACHE: dict[tuple, tuple] = {}
 
 def held_constants(flat, ts: float) -> sampling.HeldSampling:
     """The held predictor's build-time constants, computed once per flat system and period."""
-    return _cached(("sampling", id(flat), float(ts)), flat, lambda: sampling.held_sampling(flat, ts))
+    return _cached(("sampling", id(flat), float(ts), None), flat, lambda: sampling.held_sampling(flat, ts))
 
 
 def _cached(key: tuple, flat, make_value):
@@ -112,15 +119,17 @@ def _cached(key: tuple, flat, make_value):
     return _CACHE[key][1]
 
 
-def _mean_function(flat, H) -> numeric.Numeric:
+def _mean_function(flat, H, drift=None) -> numeric.Numeric:
     """The ETD2RK step as one CasADi function (x, u, p) -> x⁺."""
     def make():
-        x, u, p = ca.SX.sym("x", flat.n), ca.SX.sym("u", flat.m), ca.SX.sym("p", len(flat.params))
+        x, u, p = ca.SX.sym("x", len(H.A)), ca.SX.sym("u", flat.m), ca.SX.sym("p", len(flat.params))
         return numeric.Numeric(ca.Function("held_mean", [x, u, p], [held_mean_sx(flat, H, x, u, p)], {"cse": True}))
-    return _cached(("mean", id(flat), H.ts), flat, make)
+    return _cached(("mean", id(flat), H.ts, drift), flat, make)
 
 
-def make(name: str, flat, ts: float, q, dtype=np.float64):
-    """The predictor called `name` (one of PREDICTORS)."""
-    check(name)
-    return (Held if name == "held" else Brunovsky)(flat, ts, q, dtype)
+def make(name: str, flat, ts: float, q, dtype=np.float64, disturbance=None):
+    """The predictor called `name` (one of PREDICTORS); `disturbance` needs the held one."""
+    check(name, disturbance=disturbance)
+    if name == "held":
+        return Held(flat, ts, q, dtype, disturbance)
+    return Brunovsky(flat, ts, q, dtype)

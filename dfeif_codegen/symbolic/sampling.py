@@ -104,29 +104,53 @@ class HeldSampling:
     u0: np.ndarray
     L0: np.ndarray         # (m, n)
     Bc: np.ndarray         # (n, m)
+    Ac: np.ndarray         # the linear part without L₀: A_c (with disturbance states, their drift too)
     A: np.ndarray          # A_c + B_c L₀
     E: np.ndarray          # e^{A Ts} = Φ₀
     Psi: np.ndarray        # Ts φ₁(A Ts): E = I + Ψ A
     G1: np.ndarray         # Ts φ₁(A Ts) B_c = Ψ B_c
     G2: np.ndarray         # Ts φ₂(A Ts) B_c
-    U: np.ndarray          # (m, n, n): Q₀ per unit density of each chain
+    U: np.ndarray          # (m [+ m], N, N): Q₀ per unit density of each chain [and disturbance]
+    noise: np.ndarray      # (N, m [+ m]): the columns the white noises enter through
 
-    def Q(self, q) -> np.ndarray:
-        """Q₀ for densities q (a scalar or one per chain)."""
-        qs = np.broadcast_to(np.asarray(q, dtype=float), (self.U.shape[0],))
+    def Q(self, q, qd=None) -> np.ndarray:
+        """Q₀ for densities q (a scalar or one per chain) and qd, the disturbance states' (if any)."""
+        m = self.Bc.shape[1]
+        qs = np.broadcast_to(np.asarray(q, dtype=float), (m,))
+        if len(self.U) > m:
+            qs = np.concatenate([qs, np.broadcast_to(np.asarray(qd, dtype=float), (len(self.U) - m,))])
         return np.einsum("j,jab->ab", qs, self.U)
 
     def ahead(self, steps: int) -> "HeldSampling":
         """The same linearization over `steps` periods: E = Φ₀^steps and the noise of that span."""
-        return assemble(self.A, self.Bc, self.L0, self.zeta0, self.u0, steps * self.ts)
+        return assemble(self.Ac, self.Bc, self.L0, self.zeta0, self.u0, steps * self.ts, self.noise)
 
 
-def assemble(A, Bc, L0, zeta0, u0, ts) -> HeldSampling:
-    """The constants for the linear part A = A_c + B_c L₀ at period ts."""
+def assemble(Ac, Bc, L0, zeta0, u0, ts, noise=None) -> HeldSampling:
+    """The constants for the linear part A = A_c + B_c L₀ at period ts; white noise of unit
+    density enters through each column of `noise` (default B_c: each chain's top derivative)."""
+    A = Ac + Bc @ L0
+    noise = Bc if noise is None else noise
     E, G1, G2 = phi_matrices(A, Bc, ts)
     Psi = phi_matrices(A, np.eye(len(A)), ts)[1]
-    U = np.array([van_loan(A, Bc[:, j], ts) for j in range(Bc.shape[1])])
-    return HeldSampling(float(ts), np.asarray(zeta0, float), np.asarray(u0, float), L0, Bc, A, E, Psi, G1, G2, U)
+    U = np.array([van_loan(A, noise[:, j], ts) for j in range(noise.shape[1])])
+    return HeldSampling(float(ts), np.asarray(zeta0, float), np.asarray(u0, float), L0, Bc, Ac, A, E, Psi, G1, G2, U,
+                        noise)
+
+
+def augmented(flat, L0, dist) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(A_c, B_c, L₀, noise columns) of the canonical state followed by one disturbance state per
+    chain entering its top derivative (symbolic/disturbance.py); without `dist`, the plain ones."""
+    Ac, Bc, _ = flat.canonical()
+    if dist is None:
+        return Ac, Bc, L0, Bc
+    n, m = Bc.shape
+    A = np.zeros((n + m, n + m))
+    A[:n, :n], A[:n, n:], A[n:, n:] = Ac, Bc, dist.drift(m)
+    B = np.vstack([Bc, np.zeros((m, m))])
+    L = np.hstack([L0, np.zeros((m, m))])
+    noise = np.hstack([B, np.vstack([np.zeros((n, m)), np.eye(m)])])
+    return A, B, L, noise
 
 
 def remainder_function(flat) -> ca.Function:
@@ -147,11 +171,10 @@ def held_increment_sx(flat, H: HeldSampling, x: ca.SX, z: ca.SX, u: ca.SX, p) ->
     a centre on the chain heads: A_c never reads a head). In the increment form of the module
     docstring of sampling.py: d = Ψ (A_c x + B_c v(z)), a = z + d, and
     x⁺ - x = d + Γ₂ (v(a) - v(z) - L₀ d), v = F + G u: no large terms that cancel."""
-    top = remainder_function(flat)
-    Ac, _, _ = flat.canonical()
-    v0 = top(z, u, p)[0]
-    d = ca.mtimes(constant(H.Psi), ca.mtimes(constant(Ac), x) + ca.mtimes(constant(H.Bc), v0))
-    return d + ca.mtimes(constant(H.G2), top(z + d, u, p)[0] - v0 - ca.mtimes(constant(H.L0), d))
+    top, n = remainder_function(flat), flat.n
+    v0 = top(z[:n], u, p)[0]
+    d = ca.mtimes(constant(H.Psi), ca.mtimes(constant(H.Ac), x) + ca.mtimes(constant(H.Bc), v0))
+    return d + ca.mtimes(constant(H.G2), top((z + d)[:n], u, p)[0] - v0 - ca.mtimes(constant(H.L0), d))
 
 
 def held_input_sx(flat, H: HeldSampling, z: ca.SX, v: ca.SX, p) -> tuple[ca.SX, ca.SX]:
@@ -207,13 +230,14 @@ def nominal_point(flat, x=None, u=None) -> tuple[np.ndarray, np.ndarray]:
     return zeta0, u
 
 
-def held_sampling(flat, ts: float, x=None, u=None) -> HeldSampling:
+def held_sampling(flat, ts: float, x=None, u=None, disturbance=None) -> HeldSampling:
     """The held-input predictor's constants at period `ts`, linearized at the nominal point (or
-    at the physical state `x` and input `u`, to measure the sensitivity to that choice)."""
+    at the physical state `x` and input `u`, to measure the sensitivity to that choice); with
+    `disturbance`, for the state extended by one disturbance state per chain."""
     zeta0, u0 = nominal_point(flat, x, u)
     _, jac = remainder_function(flat)(zeta0, u0, flat.param_vector)
     L0 = np.array(jac, dtype=float).reshape(flat.m, flat.n)
     if not np.all(np.isfinite(L0)):
         raise ModelError(f"{flat.model.where('states')}: dF/dzeta + dG/dzeta u is not finite at the nominal state")
-    Ac, Bc, _ = flat.canonical()
-    return assemble(Ac + Bc @ L0, Bc, L0, zeta0, u0, ts)
+    Ac, Bc, L0, noise = augmented(flat, L0, disturbance)
+    return assemble(Ac, Bc, L0, zeta0, u0, ts, noise)

@@ -1,0 +1,95 @@
+"""`codegen scenario --disturbance`: the disturbance states' densities (symbolic/disturbance.py),
+scaled so that the master's NEES averages n, the middle of its band (starter.match_nees).
+
+Why on recordings: the held filter's estimate does not yet close the flatness controller's loop
+well (reference/predictor.py: the controller computes u as if v were held), and under model
+error many of those loops stop tracking before they say anything about the filter. So the
+loops are closed by the chapter's Brunovsky filter, which keeps them, and the held filter with
+disturbance states runs on each loop's recording, fed the applied u (experiment/compare.py: the
+same data an EKF is judged on). Its q stays the one-step residual's; the densities take what
+white noise on the top derivatives does not describe (a wrong parameter, the coloured part of
+the residual). If the NEES is at or below n already with negligible densities (1e-6 q: the
+model explains the data), q is scaled instead and the densities stay at that floor.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from dfeif_codegen.experiment import compare
+from dfeif_codegen.reference import predictor as predictors
+from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.symbolic.disturbance import KINDS, Disturbance
+
+FLOOR = 1e-6
+
+
+def held_nees(results: list, q, dist: Disturbance) -> float:
+    """The held filter's master NEES with disturbance states `dist`, averaged over the steps and
+    the recordings (inf if it fails or diverges on one)."""
+    values = []
+    for res in results:
+        rec = dataclasses.replace(res.recording, predictor="held", q=np.asarray(q, dtype=float))
+        m = compare.evaluate(dataclasses.replace(res, recording=rec), "df", disturbance=dist)
+        if "failed" in m:
+            return math.inf
+        values.append(float(np.mean(m["nees_master"])))
+    return float(np.mean(values))
+
+
+def with_densities(dist: Disturbance, qd) -> Disturbance:
+    return Disturbance(dist.kind, tuple(float(v) for v in qd), dist.tau, dist.p0_std)
+
+
+def first_guess(flat, ts: float, loops: list) -> np.ndarray:
+    """Per chain, the density of a random walk that gathers in one second the variance of what
+    the held model misses on the chain's top derivative along the loops: the top state's
+    one-step residual over Ts, squared and averaged (the disturbance it would take)."""
+    pred = predictors.make("held", flat, ts, np.ones(flat.m))
+    tops = [c.offset + c.degree - 1 for c in flat.chains]
+    miss = []
+    for res in loops:
+        z, u = res.zeta, res.recording.u
+        r = np.array([z[k + 1] - pred.mean(z[k], u[k]) for k in range(len(z) - 1)])[:, tops]
+        angle = np.array([c.angle and c.degree == 1 for c in flat.chains])    # a top that is an angle head
+        miss.append(np.where(angle, (r + np.pi) % (2 * np.pi) - np.pi, r) / ts)
+    return np.maximum(np.mean(np.concatenate(miss) ** 2, axis=0), 1e-300)
+
+
+def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: list[str]):
+    """(q, log, the Disturbance with calibrated densities) from the results of the loops closed
+    by the Brunovsky filter; `match(q, log, nees)` is starter.match_nees with its NEES measure
+    `nees(q)`, `tol` its factor."""
+    floor = with_densities(dist, FLOOR * np.asarray(q, dtype=float))
+    if held_nees(loops, q, floor) <= flat.n * tol:
+        log.append(f"held filter's NEES at or below n with disturbance q = {_text(floor.q)}: the model needs none")
+        q, log = match(q, log, lambda qq: held_nees(loops, qq, floor))
+        return q, log, floor
+    guess = first_guess(flat, loops[0].recording.ts, loops)
+    log.append(f"disturbance q from what the held model misses on the top derivatives: {_text(guess)}")
+    qd, log = match(guess, log, lambda qd: held_nees(loops, q, with_densities(dist, qd)))
+    log[-1] = log[-1].replace(" at q = ", f" at q = {_text(q)}, disturbance q = ")
+    return q, log, with_densities(dist, qd)
+
+
+def _text(values) -> str:
+    return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
+
+
+def from_options(kind: str | None, tau: float | None) -> Disturbance | None:
+    """--disturbance KIND [--tau S], checked before any work."""
+    if kind is None:
+        if tau is not None:
+            raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+        return None
+    if kind not in KINDS:
+        raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(KINDS)}")
+    if kind == "gauss_markov":
+        if tau is None or not math.isfinite(tau) or tau <= 0:
+            raise ScenarioError(f"--tau {tau}: --disturbance gauss_markov needs a time constant > 0 [s]")
+    elif tau is not None:
+        raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+    return Disturbance(kind, (1.0,), tau)

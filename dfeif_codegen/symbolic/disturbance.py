@@ -1,0 +1,84 @@
+"""Disturbance states for model error (scenario `[disturbance]`, docs/algorithms.md "Disturbance
+states"): one state d_i per chain entering its top derivative, y_i^(r_i) = F_i + G_i u + d_i,
+so that what the model gets wrong (a parameter, an unmodelled force) is estimated instead of
+biasing the chain. `random_walk`: ḋ = w; `gauss_markov`: ḋ = -d / tau + w (first order);
+w white with density q_i per chain. Only the held predictor carries them (its transition is
+the exponential of the augmented A; the Brunovsky chain has no place for them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+KINDS = ("random_walk", "gauss_markov")
+KEYS = {"kind", "q", "tau", "p0_std"}
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    kind: str
+    q: tuple                 # density per chain (1 value: every chain)
+    tau: float | None = None     # Gauss-Markov time constant [s]
+    p0_std: tuple | None = None  # initial std per chain; None: the stationary one (Gauss-Markov) or
+                                 # the spread one second of the random walk gathers
+
+    def densities(self, m: int) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self.q, dtype=float), (m,)).copy()
+
+    def drift(self, m: int) -> np.ndarray:
+        """ḋ = D d: 0 for the random walk, -1/tau for Gauss-Markov."""
+        return np.eye(m) * (-1.0 / self.tau if self.kind == "gauss_markov" else 0.0)
+
+    def initial_std(self, m: int) -> np.ndarray:
+        if self.p0_std is not None:
+            return np.broadcast_to(np.asarray(self.p0_std, dtype=float), (m,)).copy()
+        span = self.tau / 2 if self.kind == "gauss_markov" else 1.0
+        return np.sqrt(self.densities(m) * span)
+
+    def scaled(self, factor: float) -> "Disturbance":
+        """The same disturbance with every density times `factor` (calibration)."""
+        return Disturbance(self.kind, tuple(float(v) * factor for v in self.q), self.tau, self.p0_std)
+
+
+def augment(x0, P0, dist: Disturbance | None, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(x0, P0) of the canonical state extended by the disturbances (mean 0, independent)."""
+    if dist is None:
+        return np.asarray(x0, dtype=float), np.asarray(P0, dtype=float)
+    n = len(x0)
+    P = np.zeros((n + m, n + m))
+    P[:n, :n], P[n:, n:] = P0, np.diag(dist.initial_std(m) ** 2)
+    return np.concatenate([x0, np.zeros(m)]), P
+
+
+def from_table(table: dict, fail) -> Disturbance:
+    """The scenario's [disturbance] table; `fail(key, message)` raises the one-line error."""
+    for key in table:
+        if key not in KEYS:
+            fail(f"disturbance.{key}", f"unknown field (expected one of {', '.join(sorted(KEYS))})")
+    kind = table.get("kind")
+    if kind not in KINDS:
+        fail("disturbance.kind", f"must be one of {', '.join(KINDS)}, got {kind!r}")
+    q = _numbers(table.get("q"), "disturbance.q", fail, allow_zero=True)
+    tau = table.get("tau")
+    if kind == "gauss_markov":
+        if not _number(tau) or tau <= 0:
+            fail("disturbance.tau", f"the Gauss-Markov time constant must be a number > 0 [s], got {tau!r}")
+        tau = float(tau)
+    elif tau is not None:
+        fail("disturbance.tau", "applies to kind = \"gauss_markov\" only")
+    p0 = _numbers(table["p0_std"], "disturbance.p0_std", fail, allow_zero=False) if "p0_std" in table else None
+    return Disturbance(kind, q, tau, p0)
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and abs(v) != float("inf")
+
+
+def _numbers(value, key: str, fail, allow_zero: bool) -> tuple:
+    items = value if isinstance(value, list) else [value]
+    bound = ">= 0" if allow_zero else "> 0"
+    if not items or not all(_number(v) and (v > 0 or (allow_zero and v == 0)) for v in items):
+        fail(key, f"must be a number {bound} or a non-empty list of them (one per chain), got {value!r}")
+    return tuple(float(v) for v in items)

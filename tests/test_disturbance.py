@@ -1,0 +1,104 @@
+"""Disturbance states (symbolic/disturbance.py, scenario [disturbance]): the augmented constants
+against closed forms, and an oracle run: a plant whose input carries a constant unknown bias,
+integrated by a tight ODE solver, measured through its flat outputs. The held filter without
+disturbance states keeps a steady bias on each chain's top state; with a random-walk state per
+chain it estimates the bias (G times the input offset) and the top state's bias goes."""
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.linalg import expm
+
+from dfeif_codegen.experiment import scenario
+from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.reference.node import NodeFilter
+from dfeif_codegen.symbolic import flatness, model, sampling
+from dfeif_codegen.symbolic.disturbance import Disturbance, augment
+
+TS = 0.01
+
+
+@lru_cache(maxsize=None)
+def flat_system(name):
+    return flatness.derive(model.load(name))
+
+
+@pytest.mark.parametrize("kind,tau", [("random_walk", None), ("gauss_markov", 0.5)])
+def test_augmented_transition_is_the_exponential_of_the_extended_dynamics(kind, tau):
+    """Φ₀ = e^{A Ts} of A = [[A_c + B_c L₀, B_c], [0, D]] (scipy's expm), and the disturbance's own
+    noise block equals the scalar closed form: q Ts (random walk), q tau/2 (1 - e^{-2 Ts/tau})."""
+    flat = flat_system("dc_motor_link")
+    dist = Disturbance(kind, (3.0,), tau)
+    H = sampling.held_sampling(flat, TS, disturbance=dist)
+    base = sampling.held_sampling(flat, TS)
+    n, m = flat.n, flat.m
+    A = np.zeros((n + m, n + m))
+    A[:n, :n], A[:n, n:], A[n:, n:] = base.A, base.Bc, dist.drift(m)
+    # two scaling-and-squaring exponentials of a matrix with a fast mode (|A Ts| ~ 150): each is
+    # accurate to ~ 2^s eps of its norm, s ~ 10 squarings; 1e-11 of the norm on any IEEE machine
+    scale = np.abs(H.E).max()
+    assert np.abs(H.E - expm(A * TS)).max() < 1e-11 * scale
+    assert np.abs(H.E[:n, :n] - base.E).max() < 1e-11 * scale
+    Q = H.Q(0.0, 3.0)
+    want = 3.0 * TS if tau is None else 3.0 * tau / 2 * (1 - np.exp(-2 * TS / tau))
+    assert abs(Q[n, n] - want) < 1e-12 * want
+    assert np.allclose(H.Q(5.0, 0.0)[:n, :n], base.Q(5.0), rtol=1e-12, atol=0)
+
+
+def _biased_run(flat, bias, dist, steps=1500, seed=4):
+    """A node filter on a plant whose input is u + bias (the model's u without it); returns the
+    filter's estimates and the truth per step."""
+    top = sampling.remainder_function(flat)
+    Ac, Bc, _ = flat.canonical()
+    p = flat.param_vector
+    zeta, u0 = sampling.nominal_point(flat)
+    rng = np.random.default_rng(seed)
+    R = 1e-6
+    x0, P0 = augment(zeta.copy(), np.diag(np.tile([1e-4, 1e-2, 1.0], flat.m)[:flat.n]), dist, flat.m)
+    node = NodeFilter(flat, TS, 20.0, R, x0, P0, predictor="held", disturbance=dist)
+    xs, truth = [], []
+    for k in range(steps):
+        node.update(zeta[flat.heads] + np.sqrt(R) * rng.standard_normal(flat.m), True)
+        xs.append(node.x.copy())
+        truth.append(zeta.copy())
+        u = u0 + 0.5 * np.sin(2 * np.pi * k * TS / 2.0) * np.ones(flat.m)
+        node.predict(u)
+        zeta = solve_ivp(lambda t, s: Ac @ s + Bc @ np.asarray(top(s, u + bias, p)[0]).ravel(), (0, TS), zeta,
+                         method="DOP853", rtol=1e-11, atol=1e-12).y[:, -1]
+    return np.array(xs), np.array(truth)
+
+
+def test_random_walk_state_removes_the_bias_of_a_constant_input_offset():
+    flat = flat_system("dc_motor_link")
+    bias = np.array([0.5])                        # V on the motor's 12 V scale
+    gain = flat.G_num(sampling.nominal_point(flat)[0]) @ bias   # what it adds to theta''' (G constant here)
+    top_state = flat.heads[0] + flat.degrees[0] - 1
+    tail = slice(700, None)                       # after the transient (7 s)
+    plain, truth = _biased_run(flat, bias, None)
+    err_plain = np.mean(plain[tail, top_state] - truth[tail, top_state])
+    with_d, truth_d = _biased_run(flat, bias, Disturbance("random_walk", (50.0,)))
+    err_d = np.mean(with_d[tail, top_state] - truth_d[tail, top_state])
+    d_est = np.mean(with_d[tail, flat.n])
+    spread = np.std(with_d[tail, top_state] - truth_d[tail, top_state])
+    print(f"\nbias of theta'': without d {err_plain:.3e}, with d {err_d:.3e} (spread {spread:.2e}); "
+          f"d {d_est:.3f} against G*bias {gain[0]:.3f}")
+    assert abs(err_plain) > 10 * abs(err_d)       # the steady bias is gone
+    assert abs(err_d) < 0.2 * spread + 1e-9 or abs(err_d) < 0.05 * abs(err_plain)
+    assert abs(d_est - gain[0]) < 0.05 * abs(gain[0])   # the disturbance state is the offset's effect
+
+
+@pytest.mark.parametrize("table,words", [
+    ('kind = "random_walk"\nq = -1.0', "disturbance.q: must be a number >= 0"),
+    ('kind = "gauss_markov"\nq = 1.0\ntau = 0', "disturbance.tau: the Gauss-Markov time constant must be"),
+    ('kind = "gauss_markov"\nq = 1.0\ntau = -2.0', "disturbance.tau: the Gauss-Markov time constant must be"),
+    ('kind = "gauss_markov"\nq = 1.0', "disturbance.tau"),
+    ('kind = "walk"\nq = 1.0', "disturbance.kind: must be one of random_walk, gauss_markov"),
+    ('kind = "random_walk"\nq = 1.0\ntau = 1.0', "disturbance.tau: applies to kind"),
+    ('kind = "random_walk"\nqq = 1.0', "disturbance.qq: unknown field"),
+])
+def test_bad_disturbance_tables_are_one_line_errors_naming_the_field(table, words):
+    with pytest.raises(ScenarioError) as err:
+        scenario.loads(f"[disturbance]\n{table}\n", "s.toml")
+    assert words in str(err.value) and "\n" not in str(err.value) and str(err.value).startswith("s.toml:")
