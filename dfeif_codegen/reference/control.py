@@ -56,8 +56,13 @@ class FlatController:
         if self.gains.shape != (flat.n,):
             raise ValueError(f"gains must have length n = {flat.n}, got shape {self.gains.shape}")
 
-    def __call__(self, x, ref_flags, params=None) -> tuple[np.ndarray, np.ndarray]:
-        """(u, v) for the estimate `x` and reference flags, chain by chain [y_d, ..., y_d^(r)]."""
+    def __call__(self, x, ref_flags, params=None, disturbance=None) -> tuple[np.ndarray, np.ndarray]:
+        """(u, v) for the estimate `x` and reference flags, chain by chain [y_d, ..., y_d^(r)].
+        `disturbance`: the filters' estimate d of what the model misses on each chain's top
+        derivative (symbolic/disturbance.py), which enters where F does: u - G⁻¹ d then gives the
+        plant's top derivatives what u gives the model (the offset cancelled, as an integral
+        action would). In the held law too: its first stage sees d through S Γ₁ (G u + d), so the
+        same shift cancels it there (not v - d, which S Γ₁ would scale)."""
         x, ref = np.asarray(x, dtype=float), np.asarray(ref_flags, dtype=float)
         if ref.shape != (self.flat.n + self.flat.m,):
             raise ValueError(f"ref_flags must have length n + m = {self.flat.n + self.flat.m}")
@@ -78,6 +83,8 @@ class FlatController:
             u = np.linalg.solve(G, v - F)
         else:
             u = np.array(self._held(x, v, self.flat.param_vector if params is None else params), dtype=float).reshape(-1)
+        if disturbance is not None:
+            u = u - np.linalg.solve(G, np.asarray(disturbance, dtype=float))
         if np.isfinite(self.u_min).any() or np.isfinite(self.u_max).any():
             clamped = np.clip(u, self.u_min, self.u_max)
             self.saturations += int(np.count_nonzero((u < self.u_min) | (u > self.u_max)))
