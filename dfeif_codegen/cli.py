@@ -55,8 +55,9 @@ def _filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
     p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
                    help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
     p.add_argument("--predictor", choices=["held", "brunovsky"], default=None,
-                   help="the filters' prediction: held (the canonical dynamics with the applied u held) or "
-                        "brunovsky (the chapter's chain driven by v = F + G u; the default)")
+                   help="the filters' prediction and the control law: held (the canonical dynamics with the "
+                        "applied u held; the default) or brunovsky (the chapter's chain driven by v = F + G u; "
+                        "the default with --oosm retrodict)")
 
 
 def _build_arguments(p: argparse.ArgumentParser) -> None:

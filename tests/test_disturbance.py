@@ -102,3 +102,32 @@ def test_bad_disturbance_tables_are_one_line_errors_naming_the_field(table, word
     with pytest.raises(ScenarioError) as err:
         scenario.loads(f"[disturbance]\n{table}\n", "s.toml")
     assert words in str(err.value) and "\n" not in str(err.value) and str(err.value).startswith("s.toml:")
+
+
+def test_the_law_cancels_the_estimated_disturbance_under_model_error(monkeypatch):
+    """dc_motor_link whose plant has R 20% above and J 20% below the model's, closed loops of 10 s
+    (numpy engine): the held filter with random-walk disturbance states and the law that cancels
+    them (u - G⁻¹ d) tracks θ more than 4x better than the same filter whose law ignores them,
+    than the held filter without them and than the chapter's filter and law (measured: 1.0e-2
+    against 6.4e-2 and 8.0e-2 for the last two)."""
+    from dfeif_codegen.experiment import closed_loop as ex, model_error as me, recording
+
+    base = dict(model="dc_motor_link", duration=10.0, poles=(10.0,), amplitude=(0.5,), seed=1, metrics_from=3.0,
+                plant_error=me.from_option("R=0.2,J=-0.2"))
+    held_d = dict(q=(5.74e-7,), disturbance=Disturbance("random_walk", (2.7e5,)), predictor="held")
+
+    def theta_tracking(**kw) -> float:
+        return float(ex.run(ex.Config(**base, **kw)).metrics["rmse_tracking"][0])
+
+    cancelled = theta_tracking(**held_d)
+    others = [theta_tracking(q=(20.0,), predictor="held", watch_nees=False),
+              theta_tracking(q=(20.0,), predictor="brunovsky")]
+    made = recording.FilterBank.__init__
+
+    def ignoring(self, *args, **kwargs):
+        made(self, *args, **kwargs)
+        self.compensate = False
+    monkeypatch.setattr(recording.FilterBank, "__init__", ignoring)
+    others.append(theta_tracking(**held_d, watch_nees=False))
+    print(f"\ntheta tracking RMSE: cancelled {cancelled:.2e}, others {others}")
+    assert all(cancelled < other / 4 for other in others)

@@ -201,6 +201,14 @@ def test_builtin_scenario_is_the_paper_grid():
     assert [r.label for r in sc.grid] == [(0, 0, 0.0), (4, 6, 0.8), (8, 10, 0.8), (12, 15, 0.8),
                                           (18, 20, 0.6), (25, 30, 0.6)]
     assert sc.references == ["sinusoid", "seesaw"] and len(sc.noise_scale) == 2
+    # each predictor's filters get their own q; a run's config carries the one its predictor takes
+    from dfeif_codegen.experiment.plan import make_config
+    assert sc.q_for("held") == sc.q_for("brunovsky") == [20.0]
+    sc.q_brunovsky = [60.0]
+    for predictor, want in ((None, 20.0), ("held", 20.0), ("brunovsky", 60.0)):
+        cfg = make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[0], "replay", "difference", 0, predictor)
+        assert cfg.q == (want,) and cfg.q_brunovsky == (60.0,)
+    assert make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[0], "retrodict", "difference", 0).q == (60.0,)
 
 
 def test_simulate_json_end_to_end(tmp_path, capsys):
@@ -219,6 +227,8 @@ def test_simulate_json_end_to_end(tmp_path, capsys):
 @pytest.mark.parametrize("text, field", [
     ("[scenario]\nruns = 0\n", "scenario.runs"),
     ("[filter]\nq = -1.0\n", "filter.q"),
+    ("[filter]\nq_brunovsky = [1.0, 2.0]\n", "filter.q_brunovsky"),   # the motor has one chain
+    ("[filter]\nq_brunovsky = 0.0\n", "filter.q_brunovsky"),
     ("[[grid]]\nd = [2, 3]\np = 1.5\n", "grid[1]"),
     ("[[nodes]]\nnoise_scale = 1.0\ncolour = 2\n", "nodes[1].colour"),
     ("[scenario]\nfusion = [\"average\"]\n", "scenario.fusion"),

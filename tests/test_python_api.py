@@ -13,6 +13,7 @@ import pytest
 
 import dfeif_codegen as dc
 from dfeif_codegen.errors import ModelError
+from dfeif_codegen.symbolic.sampling import held_sampling
 from dfeif_codegen.reference.control import FlatController, hurwitz_gains
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.node import NodeFilter
@@ -64,7 +65,7 @@ def test_readme_example_runs_as_written_and_matches_the_reference(in_tmp):
     node = NodeFilter(flat, ts, q, R, x0, P0, max_lag=32, oosm="replay", predictor="held")
     master = Master(flat, ts, q, x0, P0, n_nodes=2, rule="difference", max_lag=32, predictor="held")
     gains = hurwitz_gains(3, 5.0)
-    ctrl = FlatController(flat, gains=gains)
+    ctrl = FlatController(flat, gains=gains, held=held_sampling(flat, ts))   # the held build's law
     for k, z in enumerate(ns["frames"]):
         node.update(z, gamma=k != 1)
         if k == 2:
@@ -161,9 +162,10 @@ def test_control_matches_the_reference_at_other_parameters(lib):
     params[[q.name for q in flat.model.parameters].index("J")] *= 2
     x, flags, gains = np.array([0.3, -0.2, 1.5]), np.array([0.5, 0.1, 0.0, 0.0]), lib.gains([4.0])
     u, v = lib.control(x, flags, gains, params)
-    u_ref, v_ref = FlatController(flat, gains=gains)(x, flags, params)
+    ctrl = FlatController(flat, gains=gains, held=held_sampling(flat, 0.01))   # the default build's law
+    u_ref, v_ref = ctrl(x, flags, params)
     assert rel(u, u_ref) < RTOL and rel(v, v_ref) < RTOL
-    assert rel(u, FlatController(flat, gains=gains)(x, flags)[0]) > 1e-3   # it did change u
+    assert rel(u, ctrl(x, flags)[0]) > 1e-3   # it did change u
 
 
 def test_cache_reuses_the_library_and_float_builds_use_float32(tmp_path, host_cc):
@@ -218,7 +220,7 @@ def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc
     c_master = lib.Master(x0, P0, q)
     r_master = Master(flat, ts, q, x0, P0, n_nodes=3, rule="ci", max_lag=4, predictor=predictor)
     gains = lib.gains([3.0, 4.0])
-    ctrl = FlatController(flat, gains=gains)
+    ctrl = FlatController(flat, gains=gains, held=held_sampling(flat, ts) if predictor == "held" else None)
     frames = rng.normal(0.0, 0.05, (6, 3, m))
     for k in range(6):
         for i, (c, r) in enumerate(zip(c_nodes, r_nodes)):

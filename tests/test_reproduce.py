@@ -165,7 +165,7 @@ def test_every_task_of_the_full_command_is_a_valid_simulate_call(tmp_path):
         scenario = "paper"
         if task.q is not None or task.rows is not None:
             scenario = str(tmp_path / f"{task.name}.toml")
-            Path(scenario).write_text(tasks.scenario_text(task.q, task.rows))
+            Path(scenario).write_text(tasks.scenario_text(task.q, task.rows, task.options.get("predictor")))
         o = task.options
 
         def listed(v):
@@ -173,4 +173,4 @@ def test_every_task_of_the_full_command_is_a_valid_simulate_call(tmp_path):
 
         p = plan(task.model, scenario, 2, 0, None, 32, listed(o.get("oosm")), listed(o.get("fusion")),
                  listed(o.get("reference")), o.get("filters"), None)
-        assert p.runs == 2 and (task.q is None or p.sc.q[0] == task.q)
+        assert p.runs == 2 and (task.q is None or p.sc.q_for(task.options.get("predictor", "held"))[0] == task.q)

@@ -100,6 +100,9 @@ class Config:
     # the plant's parameters against the model's (experiment/model_error.py); out of repr, so a
     # run without model error keeps its id in --results files (sweep.run_id adds it when set)
     plant_error: ParamError = field(default=EXACT_MODEL, repr=False)
+    # the chapter's filter's q where the comparison re-runs it on the recordings (--filters
+    # brunovsky; empty: q): its q covers what the held filter's model leaves out
+    q_brunovsky: tuple = field(default=(), repr=False)
     # the filters' disturbance states (symbolic/disturbance.py), None: none; out of repr as above
     disturbance: object = field(default=None, repr=False)
     # reference "trajectory": the user's CSV (experiment/trajectory_file.py); out of repr like

@@ -107,12 +107,14 @@ def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled
 
 
 def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled: bool = False,
-                     disturbance=None) -> dict:
+                     disturbance=None, q=None) -> dict:
     """Nodes and master of `kind` over a recording: node and master estimates and covariances in
     canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and the CPU seconds of the
     filter loop alone (process time; the maps to canonical coordinates after it are not counted).
-    "df" runs the derivative-free filter itself through the same driver (CanonicalModel)."""
-    filt = filter_of(rec.model, float(rec.ts), tuple(np.asarray(rec.q, float)), substeps, kind, compiled,
+    "df" runs the derivative-free filter itself through the same driver (CanonicalModel). `q`:
+    the filter's process-noise densities when not the recording's (the chapter's filter's own)."""
+    q = tuple(np.asarray(rec.q if q is None or len(q) == 0 else ex._per_chain(q, rec.m), float))
+    filt = filter_of(rec.model, float(rec.ts), q, substeps, kind, compiled,
                      rec.predictor, disturbance)
     pm = filt.model
     brunovsky = kind == "brunovsky" or (kind == "df" and rec.predictor == "brunovsky")
@@ -167,7 +169,8 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None
     rec = res.recording
     try:
         with np.errstate(all="raise"):
-            out = run_on_recording(rec, kind, res.config.substeps, compiled, disturbance)
+            q = res.config.q_brunovsky if kind == "brunovsky" else None
+            out = run_on_recording(rec, kind, res.config.substeps, compiled, disturbance, q)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return {"failed": f"{kind}: {type(exc).__name__}: {exc}"}
     mine = dataclasses.replace(rec, node_x=out["node_x"], node_P=out["node_P"], x=out["x"], P=out["P"])

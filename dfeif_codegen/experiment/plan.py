@@ -30,8 +30,10 @@ def configurations(oosm: list[str], fusion: list[str], baselines: list[str]) -> 
 def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method: str, fusion: str,
                 seed: int, predictor: str | None = None) -> ex.Config:
     """One run's configuration; `predictor` None: held, brunovsky with retrodict (ex.Config)."""
+    predictor = predictors.for_method(predictor, method if method in ex.OOSM else "replay")
     return ex.Config(
-        model=model, ts=sc.ts, duration=sc.duration, substeps=sc.substeps, q=tuple(sc.q), poles=tuple(sc.poles),
+        model=model, ts=sc.ts, duration=sc.duration, substeps=sc.substeps, q=tuple(sc.q_for(predictor)),
+        poles=tuple(sc.poles),
         p0_std=tuple(sc.p0_std), initial_error=sc.initial_error, reference=ref, amplitude=tuple(sc.amplitude),
         period=sc.period, offset=tuple(sc.offset), harmonics=sc.harmonics, phase=tuple(sc.phase),
         cycles=tuple(int(c) for c in sc.cycles), tracking_bound=tuple(sc.tracking_bound),
@@ -39,7 +41,8 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
-        predictor=predictor, disturbance=sc.disturbance, trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
+        predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")), disturbance=sc.disturbance,
+        trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:

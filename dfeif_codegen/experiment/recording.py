@@ -98,7 +98,10 @@ class FilterBank:
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
                              predictor=predictor, disturbance=disturbance)
         self.takes_v = predictor == "brunovsky"
-        self.control = FlatController(flat, gains=gains)
+        held = predictors.held_constants(flat, ts) if predictor == "held" else None
+        self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds
+        # the law cancels the filters' estimate of what the model misses (docs/algorithms.md)
+        self.compensate = disturbance is not None
         self.max_lag = max_lag
         self.sent: list[dict[int, object]] = [{} for _ in self.nodes]
 
@@ -113,7 +116,8 @@ class FilterBank:
             sent.pop(k - self.max_lag - 1, None)
         self.master.fuse([sent.get(s) if s >= 0 else None for sent, s in zip(self.sent, sources)])
         n = self.n
-        u, v = self.control(self.master.x[:n], ref)
+        d = self.master.x[n:] if self.compensate and len(self.master.x) > n else None
+        u, v = self.control(self.master.x[:n], ref, disturbance=d)
         out = (applied, [nd.x[:n].copy() for nd in self.nodes], [nd.P[:n, :n].copy() for nd in self.nodes],
                self.master.x[:n].copy(), self.master.P[:n, :n].copy(), u, v)
         w = v if self.takes_v else u      # what the master broadcasts for the nodes' prediction

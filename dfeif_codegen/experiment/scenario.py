@@ -28,7 +28,7 @@ BUILTIN = ("paper", "unicycle", "pvtol")
 _ALLOWED = {
     "scenario": {"name", "description", "duration", "ts", "runs", "substeps", "metrics_from", "references",
                  "oosm", "fusion", "baselines"},
-    "filter": {"q", "p0_std", "initial_error"},
+    "filter": {"q", "q_brunovsky", "p0_std", "initial_error"},
     "control": {"poles"},
     "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound", "file",
                   "smoothing"},
@@ -71,6 +71,7 @@ class Scenario:
     fusion: list[str] = field(default_factory=lambda: ["difference"])
     baselines: list[str] = field(default_factory=lambda: list(BASELINES))
     q: list[float] = field(default_factory=lambda: [20.0])
+    q_brunovsky: list[float] | None = None   # the chapter's filter's q, when it differs from q
     p0_std: list[float] = field(default_factory=lambda: [0.05, 0.1, 1.0])
     initial_error: bool = True
     poles: list[float] = field(default_factory=lambda: [10.0])
@@ -89,6 +90,12 @@ class Scenario:
     disturbance: disturbances.Disturbance | None = None        # the filters' disturbance states, if any
     trajectory: trajectory_file.Trajectory | None = None     # [reference] file: the reference "trajectory"
     _lines: dict = field(default_factory=dict, repr=False)
+
+    def q_for(self, predictor: str) -> list[float]:
+        """The process-noise densities of the filters `predictor` names: the two predictors'
+        q mean different things (model error of the held mean, or the whole of F + G u's
+        variation over a period for the chapter's chain), so a scenario may give both."""
+        return self.q_brunovsky if predictor == "brunovsky" and self.q_brunovsky else self.q
 
     def where(self, key: str) -> str:
         """`file:line: key`; entry i of an array of tables is looked up as `grid#i` and shown as `grid[i+1]`."""
@@ -131,7 +138,8 @@ class Scenario:
         if self.duration / ts > MAX_STEPS:
             fail("scenario.duration", f"{self.duration:g} s at Ts = {ts:g} s is {self.duration / ts:.3g} steps; "
                                       f"at most {MAX_STEPS:g} per run")
-        for key, values in (("filter.q", self.q), ("control.poles", self.poles),
+        for key, values in (("filter.q", self.q), ("filter.q_brunovsky", self.q_brunovsky or self.q),
+                            ("control.poles", self.poles),
                             ("reference.amplitude", self.amplitude), ("reference.offset", self.offset),
                             ("reference.phase", self.phase), ("reference.cycles", self.cycles),
                             *((("reference.tracking_bound", self.tracking_bound),) if self.tracking_bound else ())):
@@ -282,6 +290,8 @@ def _read_settings(r: _Reader, data: dict) -> None:
     sc = r.sc
     filt = data.get("filter", {})
     sc.q = r.numbers(filt, "filter", "q", sc.q)
+    if "q_brunovsky" in filt:
+        sc.q_brunovsky = r.numbers(filt, "filter", "q_brunovsky", [])
     sc.p0_std = r.numbers(filt, "filter", "p0_std", sc.p0_std)
     sc.initial_error = filt.get("initial_error", sc.initial_error)
     if not isinstance(sc.initial_error, bool):

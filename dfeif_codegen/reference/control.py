@@ -1,15 +1,20 @@
 """Flatness-based tracking control (docs/mathematics.md section 6, docs/algorithms.md "Flatness-based
 control"): a linear tracking law on each canonical chain gives `v`, and `u = G^-1 (v - F)` makes
 the plant's `y^(r) = F + G u` equal to it, so the tracking error obeys a chosen linear ODE.
+With the held-input predictor the law knows the plant holds u, not v, over a period: u is the
+input whose held value gives each chain's top derivative the increment Ts v
+(symbolic/sampling.py `held_input_sx`).
 """
 
 from __future__ import annotations
 
 from math import comb
 
+import casadi as ca
 import numpy as np
 
 from dfeif_codegen.reference.linalg import wrap
+from dfeif_codegen.symbolic import numeric, sampling
 
 
 def hurwitz_gains(degree: int, lam: float) -> np.ndarray:
@@ -29,10 +34,13 @@ class FlatController:
     ODE at -lam. Or explicit `gains`, length n, chain by chain `[k_1, ..., k_r]` (k_1 multiplies
     the highest derivative's error, k_r the output's error): the order the C kernel takes.
     Like the C: refuses (SingularControl) when |det G(x)| < singular_rtol * |det G(nominal)|, and
-    clamps u to the inputs' declared limits, counting clamped inputs in `saturations`."""
+    clamps u to the inputs' declared limits, counting clamped inputs in `saturations`.
+    `held`: the held predictor's constants (sampling.HeldSampling): u is then the input to hold
+    over the period (module docstring); None: the chapter's u = G^-1 (v - F)."""
 
-    def __init__(self, flat, poles=5.0, gains=None, singular_rtol=SINGULAR_RTOL):
+    def __init__(self, flat, poles=5.0, gains=None, singular_rtol=SINGULAR_RTOL, held=None):
         self.flat = flat
+        self._held = None if held is None else _held_law(flat, held)
         self.singular_rtol = float(singular_rtol)
         self.saturations = 0
         self._det_nominal = None
@@ -48,8 +56,13 @@ class FlatController:
         if self.gains.shape != (flat.n,):
             raise ValueError(f"gains must have length n = {flat.n}, got shape {self.gains.shape}")
 
-    def __call__(self, x, ref_flags, params=None) -> tuple[np.ndarray, np.ndarray]:
-        """(u, v) for the estimate `x` and reference flags, chain by chain [y_d, ..., y_d^(r)]."""
+    def __call__(self, x, ref_flags, params=None, disturbance=None) -> tuple[np.ndarray, np.ndarray]:
+        """(u, v) for the estimate `x` and reference flags, chain by chain [y_d, ..., y_d^(r)].
+        `disturbance`: the filters' estimate d of what the model misses on each chain's top
+        derivative (symbolic/disturbance.py), which enters where F does: u - G⁻¹ d then gives the
+        plant's top derivatives what u gives the model (the offset cancelled, as an integral
+        action would). In the held law too: its first stage sees d through S Γ₁ (G u + d), so the
+        same shift cancels it there (not v - d, which S Γ₁ would scale)."""
         x, ref = np.asarray(x, dtype=float), np.asarray(ref_flags, dtype=float)
         if ref.shape != (self.flat.n + self.flat.m,):
             raise ValueError(f"ref_flags must have length n + m = {self.flat.n + self.flat.m}")
@@ -66,9 +79,27 @@ class FlatController:
         if not np.isfinite(det) or not abs(det) >= self.singular_rtol * self._det_nominal:
             raise SingularControl(f"det G(x) = {det:.3g} is below {self.singular_rtol:g} of its nominal "
                                   f"{self._det_nominal:.3g} at x = {np.array2string(x, precision=4)}")
-        u = np.linalg.solve(G, v - F)
+        if self._held is None:
+            u = np.linalg.solve(G, v - F)
+        else:
+            u = np.array(self._held(x, v, self.flat.param_vector if params is None else params), dtype=float).reshape(-1)
+        if disturbance is not None:
+            u = u - np.linalg.solve(G, np.asarray(disturbance, dtype=float))
         if np.isfinite(self.u_min).any() or np.isfinite(self.u_max).any():
             clamped = np.clip(u, self.u_min, self.u_max)
             self.saturations += int(np.count_nonzero((u < self.u_min) | (u > self.u_max)))
             u, v = clamped, F + G @ clamped
         return u, v
+
+
+_LAWS: dict[tuple, tuple] = {}
+
+
+def _held_law(flat, H) -> numeric.Numeric:
+    """(z, v, p) -> u of the held-input law, one CasADi function per flat system and period."""
+    key = (id(flat), H.ts)
+    if key not in _LAWS or _LAWS[key][0] is not flat:
+        z, v, p = ca.SX.sym("z", flat.n), ca.SX.sym("v", flat.m), ca.SX.sym("p", len(flat.params))
+        u, _ = sampling.held_input_sx(flat, H, z, v, p)
+        _LAWS[key] = (flat, numeric.Numeric(ca.Function("held_input", [z, v, p], [u], {"cse": True})))
+    return _LAWS[key][1]

@@ -107,6 +107,11 @@ class Held:
 _CACHE: dict[tuple, tuple] = {}
 
 
+def held_constants(flat, ts: float) -> sampling.HeldSampling:
+    """The held predictor's build-time constants, computed once per flat system and period."""
+    return _cached(("sampling", id(flat), float(ts), None), flat, lambda: sampling.held_sampling(flat, ts))
+
+
 def _cached(key: tuple, flat, make_value):
     """One value per flat system and period (a sweep builds hundreds of filters of one model)."""
     if key not in _CACHE or _CACHE[key][0] is not flat:

@@ -40,15 +40,18 @@ class Task:
         return f"{self.name}-{hashlib.sha256(text.encode()).hexdigest()[:12]}"
 
 
-_FILTERS = {"reference": "sinusoid", "oosm": "replay", "fusion": "difference", "filters": "df,ekf,ukf"}
-_ONE = {"reference": "sinusoid", "oosm": "replay", "fusion": "difference"}
+# The document's tables are the chapter's filter's (`--predictor brunovsky`): the experiment as the
+# chapter ran it, before the held predictor (its section of the document says what it changes).
+_CHAPTER = {"predictor": "brunovsky"}
+_FILTERS = {"reference": "sinusoid", "oosm": "replay", "fusion": "difference", "filters": "df,ekf,ukf", **_CHAPTER}
+_ONE = {"reference": "sinusoid", "oosm": "replay", "fusion": "difference", **_CHAPTER}
 
 # Every table and figure of docs/experiment.md (the document's sections name these tasks).
 FULL = [
-    Task("motor", "dc_motor_link", plot=True),
-    Task("arm", "two_link_arm"),
+    Task("motor", "dc_motor_link", _CHAPTER, plot=True),
+    Task("arm", "two_link_arm", _CHAPTER),
     Task("methods", "dc_motor_link", {"reference": "sinusoid", "oosm": ["replay", "retrodict"],
-                                      "fusion": ["difference", "ci"]}),
+                                      "fusion": ["difference", "ci"], **_CHAPTER}),
     Task("filters_motor", "dc_motor_link", _FILTERS),
     Task("filters_arm", "two_link_arm", _FILTERS),
     Task("q60", "dc_motor_link", _ONE, q=60.0),
@@ -60,13 +63,16 @@ FULL = [
 QUICK = [FULL[0], Task("filters_motor", "dc_motor_link", _FILTERS, rows=(0, 5))]
 
 
-def scenario_text(q: float | None, rows: tuple[int, ...] | None) -> str:
-    """The paper scenario with another q and/or only some of its delay rows (indices in order)."""
+def scenario_text(q: float | None, rows: tuple[int, ...] | None, predictor: str | None = None) -> str:
+    """The paper scenario with another q (of `predictor`'s filters: the scenario gives the
+    chapter's its own) and/or only some of its delay rows (indices in order)."""
     text = PAPER.read_text(encoding="utf-8")
     if q is not None:
         text, count = re.subn(r"(?m)^q = [0-9.eE+-]+", f"q = {q!r}", text)
         if count != 1:
             raise ScenarioError(f"{PAPER}: expected one 'q = ...' line")
+        if predictor == "brunovsky":      # the chapter's filter takes its own q where one is given
+            text = re.sub(r"(?m)^q_brunovsky = [0-9.eE+-]+", f"q_brunovsky = {q!r}", text)
     if rows is not None:
         head, *blocks = text.split("[[grid]]")
         if any(not 0 <= r < len(blocks) for r in rows):
@@ -96,7 +102,7 @@ def run_task(task: Task, runs: int, out: Path, simulate, workers=None, scheduler
     if task.q is not None or task.rows is not None:
         path = out / "scenarios" / f"{key}.toml"
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(scenario_text(task.q, task.rows), encoding="utf-8")
+        path.write_text(scenario_text(task.q, task.rows, task.options.get("predictor")), encoding="utf-8")
         scenario = str(path)
     records = out / "tasks" / f"{key}.jsonl"
     result = simulate(task.model, scenario=scenario, runs=runs, quiet=quiet, workers=workers, scheduler=scheduler,

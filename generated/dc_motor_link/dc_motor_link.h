@@ -8,9 +8,10 @@
  *
  * The filters run on the canonical (Brunovsky) state zeta = [theta_0, theta_1, theta_2],
  * chain by chain; each chain's first entry is a measured flat output.
- * The input of the canonical model is v = F(zeta) + G(zeta) u, computed at the master by
- * dc_motor_link_control() and broadcast: every node predicts with the same v (predictor
- * "brunovsky").
+ * They predict with the applied input u held over the period, as the plant holds it: the mean by
+ * the canonical dynamics dzeta/dt = A_c zeta + B_c (F(zeta) + G(zeta) u) sampled by a fixed
+ * exponential integrator, the covariance by constant matrices (predictor "held"). u is computed
+ * at the master by dc_motor_link_control() and broadcast: every node predicts with the same u.
  *
  * Conventions
  * - Scalars are dc_motor_link_real (double). Matrices are row-major arrays: A[i * cols + j].
@@ -57,7 +58,7 @@ extern "C" {
 #define DC_MOTOR_LINK_SINGULAR_RTOL 1e-06
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
-#define DC_MOTOR_LINK_PREDICTS_WITH_U 0
+#define DC_MOTOR_LINK_PREDICTS_WITH_U 1
 /** late-measurement window: lags 1..NMAX steps */
 #define DC_MOTOR_LINK_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -156,7 +157,7 @@ typedef struct {
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
- * measurement and the input (v) used to predict out of it. Estimates, priors and measurements are
+ * measurement and the input (u) used to predict out of it. Estimates, priors and measurements are
  * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
  * the estimate), so that single precision resolves the flat outputs to their own size, not to
  * that of the distance travelled; the functions below add it back.
@@ -224,7 +225,7 @@ typedef struct {
     dc_motor_link_real x_prior[DC_MOTOR_LINK_NX];
     dc_motor_link_real P_prior[DC_MOTOR_LINK_NXX];
     dc_motor_link_real q[DC_MOTOR_LINK_NY];
-    /** inputs (v) of steps k-NMAX..k-1, step j in slot j % NMAX */
+    /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     dc_motor_link_real v[DC_MOTOR_LINK_NMAX_NY];
     uint32_t k;
     dc_motor_link_master_health health;
@@ -250,7 +251,7 @@ int dc_motor_link_node_update(dc_motor_link_node* node,
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int dc_motor_link_node_update_delayed(dc_motor_link_node* node,
                                       const dc_motor_link_real z[DC_MOTOR_LINK_NY], int32_t lag);
-/** Predict to step k + 1 (after update() of step k) with the broadcast input: v. */
+/** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int dc_motor_link_node_predict(dc_motor_link_node* node,
                                const dc_motor_link_real input[DC_MOTOR_LINK_NY]);
 /** Current estimate; either output may be NULL. */
@@ -281,7 +282,7 @@ int dc_motor_link_master_init(dc_motor_link_master* master,
 int dc_motor_link_master_fuse(dc_motor_link_master* master,
                               const dc_motor_link_packet packets[DC_MOTOR_LINK_NNODES],
                               const uint8_t present[DC_MOTOR_LINK_NNODES]);
-/** Predict to step k + 1 with the broadcast input (v), as the nodes. */
+/** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int dc_motor_link_master_predict(dc_motor_link_master* master,
                                  const dc_motor_link_real input[DC_MOTOR_LINK_NY]);
 /** Fused estimate; either output may be NULL. */

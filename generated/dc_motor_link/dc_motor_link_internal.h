@@ -37,7 +37,7 @@ typedef dc_motor_link_real real;
 #if DC_MOTOR_LINK_FUSION_CI != 0
 #error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_FUSION_CI)"
 #endif
-#if DC_MOTOR_LINK_PREDICTS_WITH_U != 0
+#if DC_MOTOR_LINK_PREDICTS_WITH_U != 1
 #error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_PREDICTS_WITH_U)"
 #endif
 #if DC_MOTOR_LINK_CI_ITERATIONS != 10

@@ -10,9 +10,10 @@
 
 #include "dc_motor_link.h"
 
-/* dc_motor_link_kern_node_predict:(post[9],v,q)->(x1[3],P1[6]) */
-int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real v[1],
-                                    const dc_motor_link_real q[1], dc_motor_link_real x1[3],
+/* dc_motor_link_kern_node_predict:(post[9],u,q,centre)->(x1[3],P1[6]) */
+int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real u[1],
+                                    const dc_motor_link_real q[1],
+                                    const dc_motor_link_real centre[1], dc_motor_link_real x1[3],
                                     dc_motor_link_real P1[6]);
 
 /* dc_motor_link_kern_update:(prior[9],e,R)->(post[9],piv) */
@@ -25,10 +26,15 @@ int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_r
                             const dc_motor_link_real c[3], dc_motor_link_real Y[9],
                             dc_motor_link_real y[3], dc_motor_link_real piv[3]);
 
-/* dc_motor_link_kern_predict:(x[3],P[3x3],v,q)->(x1[3],P1[3x3]) */
+/* dc_motor_link_kern_node_predict_P:(P[6],q)->(P1[6]) */
+int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_motor_link_real q[1],
+                                      dc_motor_link_real P1[6]);
+
+/* dc_motor_link_kern_predict:(x[3],P[3x3],u,q,centre)->(x1[3],P1[3x3]) */
 int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
-                               const dc_motor_link_real v[1], const dc_motor_link_real q[1],
-                               dc_motor_link_real x1[3], dc_motor_link_real P1[9]);
+                               const dc_motor_link_real u[1], const dc_motor_link_real q[1],
+                               const dc_motor_link_real centre[1], dc_motor_link_real x1[3],
+                               dc_motor_link_real P1[9]);
 
 /* dc_motor_link_kern_master_gain:(x[3],P[3x3],xp[3],Pp[3x3],c[3])->(dY[6],dy[3],piv[6]) */
 int dc_motor_link_kern_master_gain(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
@@ -42,18 +48,8 @@ int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Pc[9], const dc_moto
                                    dc_motor_link_real x[3], dc_motor_link_real P[9],
                                    dc_motor_link_real piv[6]);
 
-/* dc_motor_link_kern_advance:(N,x[3],P[3x3],effect[3],q)->(x1[3],P1[3x3]) */
-int dc_motor_link_kern_advance(const dc_motor_link_real N[1], const dc_motor_link_real x[3],
-                               const dc_motor_link_real P[9], const dc_motor_link_real effect[3],
-                               const dc_motor_link_real q[1], dc_motor_link_real x1[3],
-                               dc_motor_link_real P1[9]);
-
-/* dc_motor_link_kern_input_step:(effect[3],v)->(effect1[3]) */
-int dc_motor_link_kern_input_step(const dc_motor_link_real effect[3], const dc_motor_link_real v[1],
-                                  dc_motor_link_real effect1[3]);
-
 /* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det,nsat) */
-#define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 13
+#define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 22
 int dc_motor_link_kern_control(const dc_motor_link_real x[3], const dc_motor_link_real flags[4],
                                const dc_motor_link_real gains[3],
                                const dc_motor_link_real params[8], dc_motor_link_real u[1],

@@ -35,8 +35,7 @@ static int master_step(const real* x, const real* P, const real* v, const real* 
                        const real* centre, real* x1, real* P1)
 {
     int rc = DC_MOTOR_LINK_OK;
-    (void)centre; /* A maps the heads' centre to itself */
-    (void)dc_motor_link_kern_predict(x, P, v, q, x1, P1);
+    (void)dc_motor_link_kern_predict(x, P, v, q, centre, x1, P1);
     if ((dc_motor_link_finite(x1, NX) == 0) || (dc_motor_link_finite(P1, NXX) == 0)) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
@@ -55,43 +54,26 @@ static void master_recentre(dc_motor_link_master* master)
     }
 }
 
-/* The stored inputs' effect on an estimate of step j at the master's step k: the sum over
- * s = j .. k-1 of A^(k-1-s) B v(s), one step per input (from 0). */
-static void inputs_effect(const dc_motor_link_master* master, uint32_t j, real effect[NX])
-{
-    real next[NX];
-    uint32_t s;
-    (void)memset(effect, 0, sizeof(real[NX]));
-    for (s = j; s < master->k; s++) {
-        (void)dc_motor_link_kern_input_step(effect, &master->v[input_at(s)], next);
-        (void)memcpy(effect, next, sizeof(next));
-    }
-}
-
 /* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
- * P_in itself when the packet is from this step, else brought forward in one step of length
- * k - j (effect: the inputs' effect over those steps) into P_buf; *P_out says which. */
+ * P_in itself when the packet is from this step, else predicted step by step with the stored
+ * inputs (the held mean is not linear: no one-step form) into P_buf; *P_out says which.
+ * `effect` is not used. */
 static inline int bring(const dc_motor_link_master* master, const dc_motor_link_packet* pk,
                         const real* x_in, const real* P_in, const real* effect, real* x,
                         real* P_buf, const real** P_out)
 {
     real x1[NX];
-    uint32_t age;
-    real steps;
+    real P1[NXX];
+    uint32_t s;
     int rc = DC_MOTOR_LINK_OK;
-    /* the centres differ by whole steps */
+    (void)effect;
     dc_motor_link_move_origin(x_in, pk->centre, master->centre, x);
-    if (pk->step < master->k) {
-        age = master->k - pk->step;
-        steps = (real)age;
-        (void)dc_motor_link_kern_advance(&steps, x, P_in, effect, master->q, x1, P_buf);
+    *P_out = P_in;
+    for (s = pk->step; (s < master->k) && (rc == DC_MOTOR_LINK_OK); s++) {
+        rc = master_step(x, *P_out, &master->v[input_at(s)], master->q, master->centre, x1, P1);
         (void)memcpy(x, x1, sizeof(x1));
-        if ((dc_motor_link_finite(x, NX) == 0) || (dc_motor_link_finite(P_buf, NXX) == 0)) {
-            rc = DC_MOTOR_LINK_ERR_NONFINITE;
-        }
+        (void)memcpy(P_buf, P1, sizeof(P1));
         *P_out = P_buf;
-    } else {
-        *P_out = P_in;
     }
     return rc;
 }
@@ -270,9 +252,7 @@ int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
             /* P or P_pred not SPD, or P above P_pred (difference rule) */
             rc = DC_MOTOR_LINK_ERR_SINGULAR;
         } else {
-            if (pk->step < master->k) {
-                inputs_effect(master, pk->step, effect);
-            }
+            (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
             rc = bring(master, pk, pk->x, pk->P, effect, x, P, &Pk);
             on_branch(master, x, turns);
             if (rc == DC_MOTOR_LINK_OK) {

@@ -149,14 +149,13 @@ static inline int pivots_ok(const real* piv)
     return (piv[0] > (real)0) ? 1 : 0;
 }
 
-/* Prediction of a state, x1 = A x + B v, P1 = A P A' + Q (the centre commutes with A); 0 or an
- * error code. */
-static inline int predict_step(const real* post, const real* v, const real* q, const real* centre,
+/* Prediction of a state with the input u held (the heads relative to `centre`); 0 or an error
+ * code. */
+static inline int predict_step(const real* post, const real* u, const real* q, const real* centre,
                                real* prior)
 {
     int rc = DC_MOTOR_LINK_OK;
-    (void)centre;
-    (void)dc_motor_link_kern_node_predict(post, v, q, prior, &prior[NX]);
+    (void)dc_motor_link_kern_node_predict(post, u, q, centre, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
@@ -310,7 +309,11 @@ static int prior_P(const dc_motor_link_node* node, uint32_t j, real* prior)
         }
         rc = update_step(prior, zero, used, node->R, post);
         if (rc == DC_MOTOR_LINK_OK) {
-            rc = predict_step(post, zero, node->q, node->centre, prior);
+            /* the covariance alone: the held mean at x = 0 may leave the model's domain */
+            (void)dc_motor_link_kern_node_predict_P(&post[NX], node->q, &prior[NX]);
+            if (dc_motor_link_finite(&prior[NX], (size_t)NPP) == 0) {
+                rc = DC_MOTOR_LINK_ERR_NONFINITE;
+            }
         }
         s++;
     }

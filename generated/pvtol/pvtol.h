@@ -9,9 +9,10 @@
  * The filters run on the canonical (Brunovsky) state zeta = [px_0, px_1, px_2, px_3, pz_0, pz_1,
  * pz_2, pz_3],
  * chain by chain; each chain's first entry is a measured flat output.
- * The input of the canonical model is v = F(zeta) + G(zeta) u, computed at the master by
- * pvtol_control() and broadcast: every node predicts with the same v (predictor
- * "brunovsky").
+ * They predict with the applied input u held over the period, as the plant holds it: the mean by
+ * the canonical dynamics dzeta/dt = A_c zeta + B_c (F(zeta) + G(zeta) u) sampled by a fixed
+ * exponential integrator, the covariance by constant matrices (predictor "held"). u is computed
+ * at the master by pvtol_control() and broadcast: every node predicts with the same u.
  *
  * Conventions
  * - Scalars are pvtol_real (double). Matrices are row-major arrays: A[i * cols + j].
@@ -58,7 +59,7 @@ extern "C" {
 #define PVTOL_SINGULAR_RTOL 1e-06
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
-#define PVTOL_PREDICTS_WITH_U 0
+#define PVTOL_PREDICTS_WITH_U 1
 /** late-measurement window: lags 1..NMAX steps */
 #define PVTOL_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -147,7 +148,7 @@ typedef struct {
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
- * measurement and the input (v) used to predict out of it. Estimates, priors and measurements are
+ * measurement and the input (u) used to predict out of it. Estimates, priors and measurements are
  * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
  * the estimate), so that single precision resolves the flat outputs to their own size, not to
  * that of the distance travelled; the functions below add it back.
@@ -215,7 +216,7 @@ typedef struct {
     pvtol_real x_prior[PVTOL_NX];
     pvtol_real P_prior[PVTOL_NXX];
     pvtol_real q[PVTOL_NY];
-    /** inputs (v) of steps k-NMAX..k-1, step j in slot j % NMAX */
+    /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     pvtol_real v[PVTOL_NMAX_NY];
     uint32_t k;
     pvtol_master_health health;
@@ -237,7 +238,7 @@ int pvtol_node_init(pvtol_node* node, const pvtol_real x0[PVTOL_NX], const pvtol
 int pvtol_node_update(pvtol_node* node, const pvtol_real z[PVTOL_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int pvtol_node_update_delayed(pvtol_node* node, const pvtol_real z[PVTOL_NY], int32_t lag);
-/** Predict to step k + 1 (after update() of step k) with the broadcast input: v. */
+/** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int pvtol_node_predict(pvtol_node* node, const pvtol_real input[PVTOL_NY]);
 /** Current estimate; either output may be NULL. */
 int pvtol_node_estimate(const pvtol_node* node, pvtol_real x[PVTOL_NX], pvtol_real P[PVTOL_NXX]);
@@ -260,7 +261,7 @@ int pvtol_master_init(pvtol_master* master, const pvtol_real x0[PVTOL_NX],
  */
 int pvtol_master_fuse(pvtol_master* master, const pvtol_packet packets[PVTOL_NNODES],
                       const uint8_t present[PVTOL_NNODES]);
-/** Predict to step k + 1 with the broadcast input (v), as the nodes. */
+/** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int pvtol_master_predict(pvtol_master* master, const pvtol_real input[PVTOL_NY]);
 /** Fused estimate; either output may be NULL. */
 int pvtol_master_estimate(const pvtol_master* master, pvtol_real x[PVTOL_NX],

@@ -36,7 +36,7 @@ typedef pvtol_real real;
 #if PVTOL_FUSION_CI != 0
 #error "pvtol.h comes from another build (PVTOL_FUSION_CI)"
 #endif
-#if PVTOL_PREDICTS_WITH_U != 0
+#if PVTOL_PREDICTS_WITH_U != 1
 #error "pvtol.h comes from another build (PVTOL_PREDICTS_WITH_U)"
 #endif
 #if PVTOL_CI_ITERATIONS != 10

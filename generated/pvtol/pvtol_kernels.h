@@ -10,21 +10,25 @@
 
 #include "pvtol.h"
 
-/* pvtol_kern_node_predict:(post[44],v[2],q[2])->(x1[8],P1[36]) */
-int pvtol_kern_node_predict(const pvtol_real post[44], const pvtol_real v[2], const pvtol_real q[2],
-                            pvtol_real x1[8], pvtol_real P1[36]);
+/* pvtol_kern_node_predict:(post[44],u[2],q[2],centre[2])->(x1[8],P1[36]) */
+int pvtol_kern_node_predict(const pvtol_real post[44], const pvtol_real u[2], const pvtol_real q[2],
+                            const pvtol_real centre[2], pvtol_real x1[8], pvtol_real P1[36]);
 
 /* pvtol_kern_update:(prior[44],e[2],R[2x2])->(post[44],piv[2]) */
 int pvtol_kern_update(const pvtol_real prior[44], const pvtol_real e[2], const pvtol_real R[4],
                       pvtol_real post[44], pvtol_real piv[2]);
 
+/* pvtol_kern_node_predict_P:(P[36],q[2])->(P1[36]) */
+int pvtol_kern_node_predict_P(const pvtol_real P[36], const pvtol_real q[2], pvtol_real P1[36]);
+
 /* pvtol_kern_info:(x[8],P[8x8],c[8])->(Y[8x8],y[8],piv[8]) */
 int pvtol_kern_info(const pvtol_real x[8], const pvtol_real P[64], const pvtol_real c[8],
                     pvtol_real Y[64], pvtol_real y[8], pvtol_real piv[8]);
 
-/* pvtol_kern_predict:(x[8],P[8x8],v[2],q[2])->(x1[8],P1[8x8]) */
-int pvtol_kern_predict(const pvtol_real x[8], const pvtol_real P[64], const pvtol_real v[2],
-                       const pvtol_real q[2], pvtol_real x1[8], pvtol_real P1[64]);
+/* pvtol_kern_predict:(x[8],P[8x8],u[2],q[2],centre[2])->(x1[8],P1[8x8]) */
+int pvtol_kern_predict(const pvtol_real x[8], const pvtol_real P[64], const pvtol_real u[2],
+                       const pvtol_real q[2], const pvtol_real centre[2], pvtol_real x1[8],
+                       pvtol_real P1[64]);
 
 /* pvtol_kern_master_gain:(x[8],P[8x8],xp[8],Pp[8x8],c[8])->(dY[36],dy[8],piv[16]) */
 int pvtol_kern_master_gain(const pvtol_real x[8], const pvtol_real P[64], const pvtol_real xp[8],
@@ -36,16 +40,8 @@ int pvtol_kern_fuse_finish(const pvtol_real Pc[64], const pvtol_real dY[36], con
                            const pvtol_real c[8], pvtol_real x[8], pvtol_real P[64],
                            pvtol_real piv[16]);
 
-/* pvtol_kern_advance:(N,x[8],P[8x8],effect[8],q[2])->(x1[8],P1[8x8]) */
-int pvtol_kern_advance(const pvtol_real N[1], const pvtol_real x[8], const pvtol_real P[64],
-                       const pvtol_real effect[8], const pvtol_real q[2], pvtol_real x1[8],
-                       pvtol_real P1[64]);
-
-/* pvtol_kern_input_step:(effect[8],v[2])->(effect1[8]) */
-int pvtol_kern_input_step(const pvtol_real effect[8], const pvtol_real v[2], pvtol_real effect1[8]);
-
 /* pvtol_kern_control:(x[8],flags[10],gains[8],params[3])->(u[2],v[2],det,nsat) */
-#define PVTOL_KERN_CONTROL_SZ_W 18
+#define PVTOL_KERN_CONTROL_SZ_W 36
 int pvtol_kern_control(const pvtol_real x[8], const pvtol_real flags[10], const pvtol_real gains[8],
                        const pvtol_real params[3], pvtol_real u[2], pvtol_real v[2],
                        pvtol_real det[1], pvtol_real nsat[1],

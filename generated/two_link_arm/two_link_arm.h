@@ -8,9 +8,10 @@
  *
  * The filters run on the canonical (Brunovsky) state zeta = [q1_0, q1_1, q1_2, q2_0, q2_1, q2_2],
  * chain by chain; each chain's first entry is a measured flat output.
- * The input of the canonical model is v = F(zeta) + G(zeta) u, computed at the master by
- * two_link_arm_control() and broadcast: every node predicts with the same v (predictor
- * "brunovsky").
+ * They predict with the applied input u held over the period, as the plant holds it: the mean by
+ * the canonical dynamics dzeta/dt = A_c zeta + B_c (F(zeta) + G(zeta) u) sampled by a fixed
+ * exponential integrator, the covariance by constant matrices (predictor "held"). u is computed
+ * at the master by two_link_arm_control() and broadcast: every node predicts with the same u.
  *
  * Conventions
  * - Scalars are two_link_arm_real (double). Matrices are row-major arrays: A[i * cols + j].
@@ -57,7 +58,7 @@ extern "C" {
 #define TWO_LINK_ARM_SINGULAR_RTOL 1e-06
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
-#define TWO_LINK_ARM_PREDICTS_WITH_U 0
+#define TWO_LINK_ARM_PREDICTS_WITH_U 1
 /** late-measurement window: lags 1..NMAX steps */
 #define TWO_LINK_ARM_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -162,7 +163,7 @@ typedef struct {
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
- * measurement and the input (v) used to predict out of it. Estimates, priors and measurements are
+ * measurement and the input (u) used to predict out of it. Estimates, priors and measurements are
  * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
  * the estimate), so that single precision resolves the flat outputs to their own size, not to
  * that of the distance travelled; the functions below add it back.
@@ -230,7 +231,7 @@ typedef struct {
     two_link_arm_real x_prior[TWO_LINK_ARM_NX];
     two_link_arm_real P_prior[TWO_LINK_ARM_NXX];
     two_link_arm_real q[TWO_LINK_ARM_NY];
-    /** inputs (v) of steps k-NMAX..k-1, step j in slot j % NMAX */
+    /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     two_link_arm_real v[TWO_LINK_ARM_NMAX_NY];
     uint32_t k;
     two_link_arm_master_health health;
@@ -256,7 +257,7 @@ int two_link_arm_node_update(two_link_arm_node* node, const two_link_arm_real z[
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int two_link_arm_node_update_delayed(two_link_arm_node* node,
                                      const two_link_arm_real z[TWO_LINK_ARM_NY], int32_t lag);
-/** Predict to step k + 1 (after update() of step k) with the broadcast input: v. */
+/** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int two_link_arm_node_predict(two_link_arm_node* node,
                               const two_link_arm_real input[TWO_LINK_ARM_NY]);
 /** Current estimate; either output may be NULL. */
@@ -286,7 +287,7 @@ int two_link_arm_master_init(two_link_arm_master* master,
 int two_link_arm_master_fuse(two_link_arm_master* master,
                              const two_link_arm_packet packets[TWO_LINK_ARM_NNODES],
                              const uint8_t present[TWO_LINK_ARM_NNODES]);
-/** Predict to step k + 1 with the broadcast input (v), as the nodes. */
+/** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int two_link_arm_master_predict(two_link_arm_master* master,
                                 const two_link_arm_real input[TWO_LINK_ARM_NY]);
 /** Fused estimate; either output may be NULL. */

@@ -10,10 +10,10 @@
 
 #include "two_link_arm.h"
 
-/* two_link_arm_kern_node_predict:(post[27],v[2],q[2])->(x1[6],P1[21]) */
-int two_link_arm_kern_node_predict(const two_link_arm_real post[27], const two_link_arm_real v[2],
-                                   const two_link_arm_real q[2], two_link_arm_real x1[6],
-                                   two_link_arm_real P1[21]);
+/* two_link_arm_kern_node_predict:(post[27],u[2],q[2],centre[2])->(x1[6],P1[21]) */
+int two_link_arm_kern_node_predict(const two_link_arm_real post[27], const two_link_arm_real u[2],
+                                   const two_link_arm_real q[2], const two_link_arm_real centre[2],
+                                   two_link_arm_real x1[6], two_link_arm_real P1[21]);
 
 /* two_link_arm_kern_update:(prior[27],e[2],R[2x2])->(post[27],piv[2]) */
 int two_link_arm_kern_update(const two_link_arm_real prior[27], const two_link_arm_real e[2],
@@ -25,10 +25,15 @@ int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real
                            const two_link_arm_real c[6], two_link_arm_real Y[36],
                            two_link_arm_real y[6], two_link_arm_real piv[6]);
 
-/* two_link_arm_kern_predict:(x[6],P[6x6],v[2],q[2])->(x1[6],P1[6x6]) */
+/* two_link_arm_kern_node_predict_P:(P[21],q[2])->(P1[21]) */
+int two_link_arm_kern_node_predict_P(const two_link_arm_real P[21], const two_link_arm_real q[2],
+                                     two_link_arm_real P1[21]);
+
+/* two_link_arm_kern_predict:(x[6],P[6x6],u[2],q[2],centre[2])->(x1[6],P1[6x6]) */
 int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
-                              const two_link_arm_real v[2], const two_link_arm_real q[2],
-                              two_link_arm_real x1[6], two_link_arm_real P1[36]);
+                              const two_link_arm_real u[2], const two_link_arm_real q[2],
+                              const two_link_arm_real centre[2], two_link_arm_real x1[6],
+                              two_link_arm_real P1[36]);
 
 /* two_link_arm_kern_master_gain:(x[6],P[6x6],xp[6],Pp[6x6],c[6])->(dY[21],dy[6],piv[12]) */
 int two_link_arm_kern_master_gain(const two_link_arm_real x[6], const two_link_arm_real P[36],
@@ -42,18 +47,8 @@ int two_link_arm_kern_fuse_finish(const two_link_arm_real Pc[36], const two_link
                                   two_link_arm_real x[6], two_link_arm_real P[36],
                                   two_link_arm_real piv[12]);
 
-/* two_link_arm_kern_advance:(N,x[6],P[6x6],effect[6],q[2])->(x1[6],P1[6x6]) */
-int two_link_arm_kern_advance(const two_link_arm_real N[1], const two_link_arm_real x[6],
-                              const two_link_arm_real P[36], const two_link_arm_real effect[6],
-                              const two_link_arm_real q[2], two_link_arm_real x1[6],
-                              two_link_arm_real P1[36]);
-
-/* two_link_arm_kern_input_step:(effect[6],v[2])->(effect1[6]) */
-int two_link_arm_kern_input_step(const two_link_arm_real effect[6], const two_link_arm_real v[2],
-                                 two_link_arm_real effect1[6]);
-
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
-#define TWO_LINK_ARM_KERN_CONTROL_SZ_W 55
+#define TWO_LINK_ARM_KERN_CONTROL_SZ_W 81
 int two_link_arm_kern_control(const two_link_arm_real x[6], const two_link_arm_real flags[8],
                               const two_link_arm_real gains[6], const two_link_arm_real params[11],
                               two_link_arm_real u[2], two_link_arm_real v[2],

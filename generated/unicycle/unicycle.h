@@ -8,9 +8,10 @@
  *
  * The filters run on the canonical (Brunovsky) state zeta = [x_0, x_1, y_0, y_1],
  * chain by chain; each chain's first entry is a measured flat output.
- * The input of the canonical model is v = F(zeta) + G(zeta) u, computed at the master by
- * unicycle_control() and broadcast: every node predicts with the same v (predictor
- * "brunovsky").
+ * They predict with the applied input u held over the period, as the plant holds it: the mean by
+ * the canonical dynamics dzeta/dt = A_c zeta + B_c (F(zeta) + G(zeta) u) sampled by a fixed
+ * exponential integrator, the covariance by constant matrices (predictor "held"). u is computed
+ * at the master by unicycle_control() and broadcast: every node predicts with the same u.
  *
  * Conventions
  * - Scalars are unicycle_real (double). Matrices are row-major arrays: A[i * cols + j].
@@ -57,7 +58,7 @@ extern "C" {
 #define UNICYCLE_SINGULAR_RTOL 1e-06
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
-#define UNICYCLE_PREDICTS_WITH_U 0
+#define UNICYCLE_PREDICTS_WITH_U 1
 /** late-measurement window: lags 1..NMAX steps */
 #define UNICYCLE_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -140,7 +141,7 @@ typedef struct {
 /**
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
- * measurement and the input (v) used to predict out of it. Estimates, priors and measurements are
+ * measurement and the input (u) used to predict out of it. Estimates, priors and measurements are
  * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
  * the estimate), so that single precision resolves the flat outputs to their own size, not to
  * that of the distance travelled; the functions below add it back.
@@ -208,7 +209,7 @@ typedef struct {
     unicycle_real x_prior[UNICYCLE_NX];
     unicycle_real P_prior[UNICYCLE_NXX];
     unicycle_real q[UNICYCLE_NY];
-    /** inputs (v) of steps k-NMAX..k-1, step j in slot j % NMAX */
+    /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     unicycle_real v[UNICYCLE_NMAX_NY];
     uint32_t k;
     unicycle_master_health health;
@@ -232,7 +233,7 @@ int unicycle_node_update(unicycle_node* node, const unicycle_real z[UNICYCLE_NY]
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int unicycle_node_update_delayed(unicycle_node* node, const unicycle_real z[UNICYCLE_NY],
                                  int32_t lag);
-/** Predict to step k + 1 (after update() of step k) with the broadcast input: v. */
+/** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int unicycle_node_predict(unicycle_node* node, const unicycle_real input[UNICYCLE_NY]);
 /** Current estimate; either output may be NULL. */
 int unicycle_node_estimate(const unicycle_node* node, unicycle_real x[UNICYCLE_NX],
@@ -257,7 +258,7 @@ int unicycle_master_init(unicycle_master* master, const unicycle_real x0[UNICYCL
  */
 int unicycle_master_fuse(unicycle_master* master, const unicycle_packet packets[UNICYCLE_NNODES],
                          const uint8_t present[UNICYCLE_NNODES]);
-/** Predict to step k + 1 with the broadcast input (v), as the nodes. */
+/** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int unicycle_master_predict(unicycle_master* master, const unicycle_real input[UNICYCLE_NY]);
 /** Fused estimate; either output may be NULL. */
 int unicycle_master_estimate(const unicycle_master* master, unicycle_real x[UNICYCLE_NX],

@@ -36,7 +36,7 @@ typedef unicycle_real real;
 #if UNICYCLE_FUSION_CI != 0
 #error "unicycle.h comes from another build (UNICYCLE_FUSION_CI)"
 #endif
-#if UNICYCLE_PREDICTS_WITH_U != 0
+#if UNICYCLE_PREDICTS_WITH_U != 1
 #error "unicycle.h comes from another build (UNICYCLE_PREDICTS_WITH_U)"
 #endif
 #if UNICYCLE_CI_ITERATIONS != 10

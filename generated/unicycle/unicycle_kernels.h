@@ -10,9 +10,10 @@
 
 #include "unicycle.h"
 
-/* unicycle_kern_node_predict:(post[14],v[2],q[2])->(x1[4],P1[10]) */
-int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real v[2],
-                               const unicycle_real q[2], unicycle_real x1[4], unicycle_real P1[10]);
+/* unicycle_kern_node_predict:(post[14],u[2],q[2],centre[2])->(x1[4],P1[10]) */
+int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real u[2],
+                               const unicycle_real q[2], const unicycle_real centre[2],
+                               unicycle_real x1[4], unicycle_real P1[10]);
 
 /* unicycle_kern_update:(prior[14],e[2],R[2x2])->(post[14],piv[2]) */
 int unicycle_kern_update(const unicycle_real prior[14], const unicycle_real e[2],
@@ -23,10 +24,14 @@ int unicycle_kern_info(const unicycle_real x[4], const unicycle_real P[16],
                        const unicycle_real c[4], unicycle_real Y[16], unicycle_real y[4],
                        unicycle_real piv[4]);
 
-/* unicycle_kern_predict:(x[4],P[4x4],v[2],q[2])->(x1[4],P1[4x4]) */
+/* unicycle_kern_node_predict_P:(P[10],q[2])->(P1[10]) */
+int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real q[2],
+                                 unicycle_real P1[10]);
+
+/* unicycle_kern_predict:(x[4],P[4x4],u[2],q[2],centre[2])->(x1[4],P1[4x4]) */
 int unicycle_kern_predict(const unicycle_real x[4], const unicycle_real P[16],
-                          const unicycle_real v[2], const unicycle_real q[2], unicycle_real x1[4],
-                          unicycle_real P1[16]);
+                          const unicycle_real u[2], const unicycle_real q[2],
+                          const unicycle_real centre[2], unicycle_real x1[4], unicycle_real P1[16]);
 
 /* unicycle_kern_master_gain:(x[4],P[4x4],xp[4],Pp[4x4],c[4])->(dY[10],dy[4],piv[8]) */
 int unicycle_kern_master_gain(const unicycle_real x[4], const unicycle_real P[16],
@@ -39,17 +44,8 @@ int unicycle_kern_fuse_finish(const unicycle_real Pc[16], const unicycle_real dY
                               const unicycle_real dy[4], const unicycle_real c[4],
                               unicycle_real x[4], unicycle_real P[16], unicycle_real piv[8]);
 
-/* unicycle_kern_advance:(N,x[4],P[4x4],effect[4],q[2])->(x1[4],P1[4x4]) */
-int unicycle_kern_advance(const unicycle_real N[1], const unicycle_real x[4],
-                          const unicycle_real P[16], const unicycle_real effect[4],
-                          const unicycle_real q[2], unicycle_real x1[4], unicycle_real P1[16]);
-
-/* unicycle_kern_input_step:(effect[4],v[2])->(effect1[4]) */
-int unicycle_kern_input_step(const unicycle_real effect[4], const unicycle_real v[2],
-                             unicycle_real effect1[4]);
-
 /* unicycle_kern_control:(x[4],flags[6],gains[4],params[0])->(u[2],v[2],det,nsat) */
-#define UNICYCLE_KERN_CONTROL_SZ_W 12
+#define UNICYCLE_KERN_CONTROL_SZ_W 22
 int unicycle_kern_control(const unicycle_real x[4], const unicycle_real flags[6],
                           const unicycle_real gains[4], const unicycle_real params[1],
                           unicycle_real u[2], unicycle_real v[2], unicycle_real det[1],

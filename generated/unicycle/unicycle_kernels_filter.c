@@ -1,101 +1,143 @@
 /* DO NOT EDIT: unicycle module, generated from template kernels.c.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build unicycle`. */
-/* Node filter kernels (the master reuses predict): node_predict, update, info, predict.
+/* Node filter kernels (the master reuses predict): node_predict, update, info, node_predict_P,
+ * predict.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
 #include <math.h>
 #include "unicycle_internal.h"
 
+static unicycle_real casadi_hypot(unicycle_real x, unicycle_real y)
+{
+    return hypot(x, y);
+}
+
 static unicycle_real casadi_sq(unicycle_real x)
 {
     return x * x;
 }
 
-/* unicycle_kern_node_predict:(post[14],v[2],q[2])->(x1[4],P1[10]) */
-int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real v[2],
-                               const unicycle_real q[2], unicycle_real x1[4], unicycle_real P1[10])
+/* unicycle_kern_node_predict:(post[14],u[2],q[2],centre[2])->(x1[4],P1[10]) */
+int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real u[2],
+                               const unicycle_real q[2], const unicycle_real centre[2],
+                               unicycle_real x1[4], unicycle_real P1[10])
 {
-    unicycle_real w[9];
+    (void)centre;
+    unicycle_real w[17];
     w[0] = post[0];
     w[1] = 2.0000000000000000e-02;
     w[2] = post[1];
     w[3] = (w[1] * w[2]);
+    w[4] = 2.0000000000000001e-04;
+    w[5] = post[3];
+    w[6] = casadi_hypot(w[2], w[5]);
+    w[6] = (w[2] / w[6]);
+    w[7] = u[0];
+    w[6] = (w[6] * w[7]);
+    w[8] = u[1];
+    w[9] = (w[5] * w[8]);
+    w[6] = (w[6] - w[9]);
+    w[9] = (w[4] * w[6]);
+    w[3] = (w[3] + w[9]);
+    w[9] = 6.6666666666666683e-05;
+    w[10] = (w[1] * w[6]);
+    w[11] = (w[2] + w[10]);
+    w[12] = casadi_hypot(w[2], w[5]);
+    w[12] = (w[5] / w[12]);
+    w[12] = (w[12] * w[7]);
+    w[13] = (w[2] * w[8]);
+    w[12] = (w[12] + w[13]);
+    w[13] = (w[1] * w[12]);
+    w[14] = (w[5] + w[13]);
+    w[15] = casadi_hypot(w[11], w[14]);
+    w[15] = (w[11] / w[15]);
+    w[15] = (w[15] * w[7]);
+    w[16] = (w[14] * w[8]);
+    w[15] = (w[15] - w[16]);
+    w[15] = (w[15] - w[6]);
+    w[6] = (w[9] * w[15]);
+    w[3] = (w[3] + w[6]);
     w[0] = (w[0] + w[3]);
-    w[3] = 2.0000000000000001e-04;
-    w[4] = v[0];
-    w[5] = (w[3] * w[4]);
-    w[0] = (w[0] + w[5]);
     x1[0] = w[0];
-    w[4] = (w[1] * w[4]);
-    w[2] = (w[2] + w[4]);
+    w[0] = 1.0000000000000000e-02;
+    w[15] = (w[0] * w[15]);
+    w[10] = (w[10] + w[15]);
+    w[2] = (w[2] + w[10]);
     x1[1] = w[2];
     w[2] = post[2];
-    w[4] = post[3];
-    w[0] = (w[1] * w[4]);
-    w[2] = (w[2] + w[0]);
-    w[0] = v[1];
-    w[5] = (w[3] * w[0]);
-    w[2] = (w[2] + w[5]);
+    w[10] = (w[1] * w[5]);
+    w[15] = (w[4] * w[12]);
+    w[10] = (w[10] + w[15]);
+    w[15] = casadi_hypot(w[11], w[14]);
+    w[14] = (w[14] / w[15]);
+    w[14] = (w[14] * w[7]);
+    w[11] = (w[11] * w[8]);
+    w[14] = (w[14] + w[11]);
+    w[14] = (w[14] - w[12]);
+    w[9] = (w[9] * w[14]);
+    w[10] = (w[10] + w[9]);
+    w[2] = (w[2] + w[10]);
     x1[2] = w[2];
-    w[0] = (w[1] * w[0]);
-    w[4] = (w[4] + w[0]);
-    x1[3] = w[4];
-    w[4] = post[4];
-    w[0] = post[5];
-    w[2] = (w[1] * w[0]);
-    w[4] = (w[4] + w[2]);
-    w[2] = post[6];
-    w[5] = (w[1] * w[2]);
-    w[0] = (w[0] + w[5]);
-    w[5] = (w[1] * w[0]);
-    w[4] = (w[4] + w[5]);
-    w[5] = 2.6666666666666673e-06;
-    w[6] = q[0];
-    w[7] = (w[5] * w[6]);
-    w[4] = (w[4] + w[7]);
-    P1[0] = w[4];
-    w[4] = (w[3] * w[6]);
-    w[0] = (w[0] + w[4]);
-    P1[1] = w[0];
-    w[6] = (w[1] * w[6]);
-    w[2] = (w[2] + w[6]);
-    P1[2] = w[2];
-    w[2] = post[7];
-    w[6] = post[8];
-    w[0] = (w[1] * w[6]);
+    w[0] = (w[0] * w[14]);
+    w[13] = (w[13] + w[0]);
+    w[5] = (w[5] + w[13]);
+    x1[3] = w[5];
+    w[5] = post[4];
+    w[13] = post[5];
+    w[0] = (w[1] * w[13]);
+    w[5] = (w[5] + w[0]);
+    w[0] = post[6];
+    w[14] = (w[1] * w[0]);
+    w[13] = (w[13] + w[14]);
+    w[14] = (w[1] * w[13]);
+    w[5] = (w[5] + w[14]);
+    w[14] = 2.6666666666666668e-06;
+    w[2] = q[0];
+    w[10] = (w[14] * w[2]);
+    w[5] = (w[5] + w[10]);
+    P1[0] = w[5];
+    w[5] = (w[4] * w[2]);
+    w[13] = (w[13] + w[5]);
+    P1[1] = w[13];
+    w[2] = (w[1] * w[2]);
+    w[0] = (w[0] + w[2]);
+    P1[2] = w[0];
+    w[0] = post[7];
+    w[2] = post[8];
+    w[13] = (w[1] * w[2]);
+    w[0] = (w[0] + w[13]);
+    w[13] = post[10];
+    w[5] = post[11];
+    w[10] = (w[1] * w[5]);
+    w[13] = (w[13] + w[10]);
+    w[10] = (w[1] * w[13]);
+    w[0] = (w[0] + w[10]);
+    P1[3] = w[0];
+    w[0] = (w[1] * w[5]);
     w[2] = (w[2] + w[0]);
-    w[0] = post[10];
-    w[4] = post[11];
-    w[7] = (w[1] * w[4]);
-    w[0] = (w[0] + w[7]);
-    w[7] = (w[1] * w[0]);
-    w[2] = (w[2] + w[7]);
-    P1[3] = w[2];
-    w[2] = (w[1] * w[4]);
-    w[6] = (w[6] + w[2]);
-    P1[4] = w[6];
-    w[6] = post[9];
-    w[2] = post[12];
-    w[7] = (w[1] * w[2]);
-    w[6] = (w[6] + w[7]);
-    w[7] = post[13];
-    w[8] = (w[1] * w[7]);
-    w[2] = (w[2] + w[8]);
-    w[8] = (w[1] * w[2]);
-    w[6] = (w[6] + w[8]);
-    w[8] = q[1];
-    w[5] = (w[5] * w[8]);
-    w[6] = (w[6] + w[5]);
-    P1[5] = w[6];
-    P1[6] = w[0];
-    P1[7] = w[4];
-    w[3] = (w[3] * w[8]);
-    w[2] = (w[2] + w[3]);
-    P1[8] = w[2];
-    w[1] = (w[1] * w[8]);
-    w[7] = (w[7] + w[1]);
-    P1[9] = w[7];
+    P1[4] = w[2];
+    w[2] = post[9];
+    w[0] = post[12];
+    w[10] = (w[1] * w[0]);
+    w[2] = (w[2] + w[10]);
+    w[10] = post[13];
+    w[9] = (w[1] * w[10]);
+    w[0] = (w[0] + w[9]);
+    w[9] = (w[1] * w[0]);
+    w[2] = (w[2] + w[9]);
+    w[9] = q[1];
+    w[14] = (w[14] * w[9]);
+    w[2] = (w[2] + w[14]);
+    P1[5] = w[2];
+    P1[6] = w[13];
+    P1[7] = w[5];
+    w[4] = (w[4] * w[9]);
+    w[0] = (w[0] + w[4]);
+    P1[8] = w[0];
+    w[1] = (w[1] * w[9]);
+    w[10] = (w[10] + w[1]);
+    P1[9] = w[10];
     return 0;
     return 0;
 }
@@ -403,10 +445,76 @@ int unicycle_kern_info(const unicycle_real x[4], const unicycle_real P[16],
     return 0;
 }
 
-/* unicycle_kern_predict:(x[4],P[4x4],v[2],q[2])->(x1[4],P1[4x4]) */
+/* unicycle_kern_node_predict_P:(P[10],q[2])->(P1[10]) */
+int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real q[2],
+                                 unicycle_real P1[10])
+{
+    unicycle_real w[9];
+    w[0] = P[0];
+    w[1] = 2.0000000000000000e-02;
+    w[2] = P[1];
+    w[3] = (w[1] * w[2]);
+    w[0] = (w[0] + w[3]);
+    w[3] = P[2];
+    w[4] = (w[1] * w[3]);
+    w[2] = (w[2] + w[4]);
+    w[4] = (w[1] * w[2]);
+    w[0] = (w[0] + w[4]);
+    w[4] = 2.6666666666666668e-06;
+    w[5] = q[0];
+    w[6] = (w[4] * w[5]);
+    w[0] = (w[0] + w[6]);
+    P1[0] = w[0];
+    w[0] = 2.0000000000000001e-04;
+    w[6] = (w[0] * w[5]);
+    w[2] = (w[2] + w[6]);
+    P1[1] = w[2];
+    w[5] = (w[1] * w[5]);
+    w[3] = (w[3] + w[5]);
+    P1[2] = w[3];
+    w[3] = P[3];
+    w[5] = P[4];
+    w[2] = (w[1] * w[5]);
+    w[3] = (w[3] + w[2]);
+    w[2] = P[6];
+    w[6] = P[7];
+    w[7] = (w[1] * w[6]);
+    w[2] = (w[2] + w[7]);
+    w[7] = (w[1] * w[2]);
+    w[3] = (w[3] + w[7]);
+    P1[3] = w[3];
+    w[3] = (w[1] * w[6]);
+    w[5] = (w[5] + w[3]);
+    P1[4] = w[5];
+    w[5] = P[5];
+    w[3] = P[8];
+    w[7] = (w[1] * w[3]);
+    w[5] = (w[5] + w[7]);
+    w[7] = P[9];
+    w[8] = (w[1] * w[7]);
+    w[3] = (w[3] + w[8]);
+    w[8] = (w[1] * w[3]);
+    w[5] = (w[5] + w[8]);
+    w[8] = q[1];
+    w[4] = (w[4] * w[8]);
+    w[5] = (w[5] + w[4]);
+    P1[5] = w[5];
+    P1[6] = w[2];
+    P1[7] = w[6];
+    w[0] = (w[0] * w[8]);
+    w[3] = (w[3] + w[0]);
+    P1[8] = w[3];
+    w[1] = (w[1] * w[8]);
+    w[7] = (w[7] + w[1]);
+    P1[9] = w[7];
+    return 0;
+    return 0;
+}
+
+/* unicycle_kern_predict:(x[4],P[4x4],u[2],q[2],centre[2])->(x1[4],P1[4x4]) */
 int unicycle_kern_predict(const unicycle_real x[4], const unicycle_real P[16],
-                          const unicycle_real v[2], const unicycle_real q[2], unicycle_real x1[4],
-                          unicycle_real P1[16])
+                          const unicycle_real u[2], const unicycle_real q[2],
+                          const unicycle_real centre[2], unicycle_real x1[4], unicycle_real P1[16])
 {
     unicycle_real post_packed[14];
     unicycle_real P1_packed[10];
@@ -423,7 +531,7 @@ int unicycle_kern_predict(const unicycle_real x[4], const unicycle_real P[16],
             k++;
         }
     }
-    (void)unicycle_kern_node_predict(post_packed, v, q, x1, P1_packed);
+    (void)unicycle_kern_node_predict(post_packed, u, q, centre, x1, P1_packed);
     k = 0;
     for (j = 0; j < 4; j++) {
         for (i = 0; i <= j; i++) {

@@ -158,14 +158,13 @@ static inline int pivots_ok(const real* piv)
     return unicycle_positive(piv, NY);
 }
 
-/* Prediction of a state, x1 = A x + B v, P1 = A P A' + Q (the centre commutes with A); 0 or an
- * error code. */
-static inline int predict_step(const real* post, const real* v, const real* q, const real* centre,
+/* Prediction of a state with the input u held (the heads relative to `centre`); 0 or an error
+ * code. */
+static inline int predict_step(const real* post, const real* u, const real* q, const real* centre,
                                real* prior)
 {
     int rc = UNICYCLE_OK;
-    (void)centre;
-    (void)unicycle_kern_node_predict(post, v, q, prior, &prior[NX]);
+    (void)unicycle_kern_node_predict(post, u, q, centre, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = UNICYCLE_ERR_NONFINITE;
     }
@@ -325,7 +324,11 @@ static int prior_P(const unicycle_node* node, uint32_t j, real* prior)
         }
         rc = update_step(prior, zero, used, node->R, post);
         if (rc == UNICYCLE_OK) {
-            rc = predict_step(post, zero, node->q, node->centre, prior);
+            /* the covariance alone: the held mean at x = 0 may leave the model's domain */
+            (void)unicycle_kern_node_predict_P(&post[NX], node->q, &prior[NX]);
+            if (unicycle_finite(&prior[NX], (size_t)NPP) == 0) {
+                rc = UNICYCLE_ERR_NONFINITE;
+            }
         }
         s++;
     }

@@ -75,8 +75,8 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     s = Chains(flat, opts)
     name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
     info = node.info(s, name("info"))
-    if opts.predictor == "held":
-        h = held.Held(flat, opts.ts)
+    h = held.Held(flat, opts.ts) if opts.predictor == "held" else None
+    if h is not None:
         node_predict = held.node_predict(h, name("node_predict"))
         filt = [held.predict(h, name("predict")), node_predict, node.update(s, name("update")), info]
         filt += [held.node_predict_P(h, name("node_predict_P"))] if opts.oosm == "replay" else []
@@ -100,6 +100,6 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     if opts.predictor != "held":
         loopable.append(("node_predict", node_predict, loops.node_predict_loop))
     looped = {f.name(): loop(s, f.name()) for key, f, loop in loopable if f.n_instructions() > LOOP_OPS[key]}
-    return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"))]},
+    return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"), h and h.H)]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
                      wrappers={name("predict"): name("node_predict")}, loops=looped)

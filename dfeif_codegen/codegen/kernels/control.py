@@ -2,13 +2,15 @@
 
 The model's F-bar and G-bar (sympy, from `symbolic.flatness`) are converted here by
 `symbolic.numeric.to_casadi`, the one sympy -> CasADi bridge, and CasADi's common-subexpression
-elimination shares their terms.
+elimination shares their terms. With the held-input predictor (`held`: its build-time constants)
+u is the input to hold over the period (symbolic/sampling.py `held_input_sx`), the reference's law.
 """
 
 from __future__ import annotations
 
 import casadi as ca
 
+from dfeif_codegen.symbolic import sampling
 from dfeif_codegen.symbolic.numeric import to_casadi
 from dfeif_codegen.codegen.kernels.chains import Chains, wrap_angle
 from dfeif_codegen.codegen.kernels.linalg import sym
@@ -30,7 +32,7 @@ def _clamp(flat, u: ca.SX, m: int) -> tuple[ca.SX, ca.SX]:
     return ca.vertcat(*clamped), nsat
 
 
-def control(s: Chains, name: str) -> ca.Function:
+def control(s: Chains, name: str, held: sampling.HeldSampling | None = None) -> ca.Function:
     """u and v = F + G u from the estimate, reference flags and gains (algorithms.md)."""
     flat, n, m = s.flat, s.n, s.m
     x, flags, gains = sym("x", n), sym("flags", n + m), sym("gains", n)
@@ -54,10 +56,11 @@ def control(s: Chains, name: str) -> ca.Function:
     for i in range(m):
         for j in range(m):
             G[i, j] = to_casadi(flat.G[i, j], table, f"G-bar[{i},{j}]")
-    if m == 1:
-        u, det = (v - F) / G, G
+    det = G if m == 1 else ca.det(G)
+    if held is not None:
+        u = sampling.held_input_sx(flat, held, x, v, p)[0]
     else:
-        u, det = ca.solve(G, v - F), ca.det(G)
+        u = (v - F) / G if m == 1 else ca.solve(G, v - F)
     # declared actuator limits: clamp u, count the clamped inputs, and broadcast the v the
     # clamped u really produces (v = F + G u), so the filters predict what the plant does
     nsat = ca.SX(0)
