@@ -41,9 +41,9 @@ VARIANTS = {
     "dc-float-retro-ci3": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci", "nodes": 3}),
     "dc-float-paper": ("dc_motor_link", {"precision": "float", "fusion": "paper", "max_lag": 5}),
     "dc-float-retro-ci": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
-    # the held-input predictor with replay (the default is the chapter's Brunovsky predictor)
-    "dc-held": ("dc_motor_link", {"predictor": "held"}),
-    "arm-float-held": ("two_link_arm", {"precision": "float", "predictor": "held"}),
+    # the chapter's Brunovsky predictor with replay (the default is the held-input predictor)
+    "dc-brunovsky": ("dc_motor_link", {"predictor": "brunovsky"}),
+    "arm-float-held": ("two_link_arm", {"precision": "float"}),
     "arm-double": ("two_link_arm", {}),
     "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
@@ -404,14 +404,14 @@ def wrap(e):
 
 
 def test_node_matches_numpy(built, tmp_path):
-    folder = built("dc-held")
+    folder = built("dc-double")
     lib = Lib(shared_library(folder, tmp_path), "dc_motor_link")
     from dfeif_codegen.reference import predictor as predictors
 
     flat = _flat("dc_motor_link")
     C = flat.discrete(flat.model.ts)[2]
     q = np.array([3.0])
-    pred = predictors.make("held", flat, flat.model.ts, q)     # the dc-held build's predictor
+    pred = predictors.make("held", flat, flat.model.ts, q)     # the default build's predictor
     A, Q = pred.Phi, pred.Q
     R = np.array([[2e-4]])
     x, P = np.array([0.3, -0.1, 0.2]), np.diag([1e-2, 1e-1, 1.0])
@@ -466,7 +466,7 @@ def test_late_measurement_replay_and_retrodict_agree(built, tmp_path):
     """One late measurement with drops in between: retrodiction is exact, so it equals replay (both
     with the Brunovsky predictor, the only one retrodiction takes), and replay equals processing
     the measurement on time (the held predictor's replay too)."""
-    replay = Lib(shared_library(built("dc-double"), tmp_path), "dc_motor_link")
+    replay = Lib(shared_library(built("dc-brunovsky"), tmp_path), "dc_motor_link")
     retro_dir = tmp_path / "retro"
     retro_dir.mkdir()
     retro = Lib(shared_library(built("dc-retro-ci"), retro_dir), "dc_motor_link")
@@ -491,7 +491,7 @@ def test_late_measurement_replay_and_retrodict_agree(built, tmp_path):
 
 
 def test_master_difference_and_control_match_numpy(built, tmp_path):
-    lib = Lib(shared_library(built("dc-double"), tmp_path), "dc_motor_link")   # A, B in closed form
+    lib = Lib(shared_library(built("dc-brunovsky"), tmp_path), "dc_motor_link")   # A, B in closed form
     flat = _flat("dc_motor_link")
     A, B, _ = flat.discrete(flat.model.ts)
     q = np.array([2.0])

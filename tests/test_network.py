@@ -260,7 +260,7 @@ def test_restarted_master_refuses_frames_recorded_before_it_restarted(runs, tmp_
     def inject(step):
         return [("master", f) for f in replays] if step == 90 else [(0, command)]
 
-    out = runs("master-restart-replayed", duration=1.5, key=KEY, faults=(run.Fault("master", 60, 90),),
+    out = runs("master-restart-replayed", duration=1.5, key=KEY, faults=(launch.Fault("master", 60, 90),),
                command_timeout=0.1, inject_at=(90, 95), inject=inject)
     assert out.returncodes == {name: 0 for name in out.returncodes}
     counts = out.master["counters"]["R"]

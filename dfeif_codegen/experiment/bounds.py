@@ -141,7 +141,7 @@ def network_of(cfg: ex.Config, steps: int) -> Network:
 
 
 def matched_model(cfg: ex.Config):
-    """(A, Q, R per node, P0) of the filters of `cfg`: the matched linear model."""
+    """(A, Q, R per node, P0) of the Brunovsky filters of `cfg`: the matched linear model."""
     flat = ex._flat(cfg.model)
     ts = float(cfg.ts or flat.model.ts)
     A, _, _ = flat.discrete(ts)

@@ -15,12 +15,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import sympy as sp
 
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.symbolic.lie import nominal_state
+
+if TYPE_CHECKING:   # for the annotation only: trajectory_file is imported where it is used
+    from dfeif_codegen.experiment.trajectory_file import Trajectory
 
 SHAPES = ("sinusoid", "seesaw", "circle", "figure8")
 PERIOD, AMPLITUDE = 5.0, 0.5   # for outputs without a declared domain (the paper's scale)
@@ -37,7 +41,7 @@ class Shape:
     phase: tuple
     cycles: tuple
     period: float             # for a user's trajectory: the length of its file, in whole steps
-    trajectory: object = None  # experiment/trajectory_file.Trajectory, for kind "trajectory"
+    trajectory: Trajectory | None = None  # for kind "trajectory"
     rate: float = 0.0          # its angular frequency [rad/s], measured (from_trajectory)
 
     def config(self) -> dict:

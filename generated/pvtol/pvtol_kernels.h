@@ -41,7 +41,7 @@ int pvtol_kern_fuse_finish(const pvtol_real Pc[64], const pvtol_real dY[36], con
                            pvtol_real piv[16]);
 
 /* pvtol_kern_control:(x[8],flags[10],gains[8],params[3])->(u[2],v[2],det,nsat) */
-#define PVTOL_KERN_CONTROL_SZ_W 36
+#define PVTOL_KERN_CONTROL_SZ_W 38
 int pvtol_kern_control(const pvtol_real x[8], const pvtol_real flags[10], const pvtol_real gains[8],
                        const pvtol_real params[3], pvtol_real u[2], pvtol_real v[2],
                        pvtol_real det[1], pvtol_real nsat[1],

@@ -45,7 +45,7 @@ int unicycle_kern_fuse_finish(const unicycle_real Pc[16], const unicycle_real dY
                               unicycle_real x[4], unicycle_real P[16], unicycle_real piv[8]);
 
 /* unicycle_kern_control:(x[4],flags[6],gains[4],params[0])->(u[2],v[2],det,nsat) */
-#define UNICYCLE_KERN_CONTROL_SZ_W 22
+#define UNICYCLE_KERN_CONTROL_SZ_W 24
 int unicycle_kern_control(const unicycle_real x[4], const unicycle_real flags[6],
                           const unicycle_real gains[4], const unicycle_real params[1],
                           unicycle_real u[2], unicycle_real v[2], unicycle_real det[1],
