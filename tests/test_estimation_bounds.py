@@ -1,5 +1,6 @@
 """What any estimator can reach on the *matched linear model* of the paper scenario (the
-canonical chain driven by white noise of density q): the reference levels two of the experiment's
+canonical chain driven by white noise of density q; its Kalman filters are the Brunovsky
+predictor's, built with predictor="brunovsky"): the reference levels two of the experiment's
 acceptance figures are compared with (docs/experiment.md, "The acceptance figures, restated").
 The real plant has no process noise, so on it these are reference levels, not limits: the
 measured fusion gain on x3 and the master x1 RMSE both beat them (experiment/bounds.py computes
@@ -54,8 +55,8 @@ def test_fusion_gain_bound(model):
     flat = ex._flat(model)
     A, _, C = flat.discrete(ts)
     Q = flat.process_noise(ts, q)
-    nodes = [NodeFilter(flat, ts, q, R[i], np.zeros(flat.n), P0) for i in range(2)]
-    master = Master(flat, ts, q, np.zeros(flat.n), P0, 2, rule="difference")
+    nodes = [NodeFilter(flat, ts, q, R[i], np.zeros(flat.n), P0, predictor="brunovsky") for i in range(2)]
+    master = Master(flat, ts, q, np.zeros(flat.n), P0, 2, rule="difference", predictor="brunovsky")
     for _ in range(600):
         for node in nodes:
             node.update(np.zeros(flat.m), True)
@@ -90,8 +91,8 @@ def test_delay_loss_bound():
     def mean_master_p11(row, seed) -> float:
         cfg = simulate.make_config(sc, "dc_motor_link", 2, 32, "sinusoid", row, "replay", "difference", seed)
         net = Network(list(cfg.sensor), list(cfg.uplink), steps, np.random.default_rng(seed))
-        nodes = [NodeFilter(flat, ts, q, R[i], np.zeros(flat.n), P0) for i in range(2)]
-        master = Master(flat, ts, q, np.zeros(flat.n), P0, 2, rule="difference")
+        nodes = [NodeFilter(flat, ts, q, R[i], np.zeros(flat.n), P0, predictor="brunovsky") for i in range(2)]
+        master = Master(flat, ts, q, np.zeros(flat.n), P0, 2, rule="difference", predictor="brunovsky")
         p11 = []
         for k in range(steps):
             for i, node in enumerate(nodes):

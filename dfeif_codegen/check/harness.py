@@ -290,8 +290,10 @@ def filter_bank(library: Library):
 
     class CFilterBank:
         def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                     node_dtype=None, predictor=None):
+                     node_dtype=None, predictor=None, disturbance=None):
             del node_dtype, predictor   # the library's build fixed both (it predicts with <P>_PREDICTS_WITH_U's input)
+            if disturbance is not None:
+                raise SetupError("the generated C has no disturbance states: run [disturbance] in the reference")
             opts = library.model.options
             for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R))):
                 if key in opts and opts[key] != want:

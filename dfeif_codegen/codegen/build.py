@@ -266,12 +266,18 @@ def clean_stale(out_root: Path, name: str) -> None:
 
 def _swap(target: Path, tmp: Path, old: Path | None) -> None:
     """target -> old, tmp -> target with SIGINT and SIGTERM held off between the two renames (a
-    signal there would leave no output folder, only the hidden old one); delivered after."""
+    signal there would leave no output folder, only the hidden old one); delivered after. Also
+    recorded by a Python handler: a process-directed signal goes to any thread not blocking it."""
     import signal
-    held = {signal.SIGINT, signal.SIGTERM}
+    import threading
+    held = (signal.SIGINT, signal.SIGTERM)
+    pending: list[int] = []
+    saved = {}
+    if threading.current_thread() is threading.main_thread():
+        saved = {s: signal.signal(s, lambda signum, _frame: pending.append(signum)) for s in held}
     masked = hasattr(signal, "pthread_sigmask")
     if masked:
-        before = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+        before = signal.pthread_sigmask(signal.SIG_BLOCK, set(held))
     try:
         if old is not None:
             os.rename(target, old)
@@ -283,7 +289,15 @@ def _swap(target: Path, tmp: Path, old: Path | None) -> None:
             raise
     finally:
         if masked:
-            signal.pthread_sigmask(signal.SIG_SETMASK, before)
+            signal.pthread_sigmask(signal.SIG_SETMASK, before)   # a blocked one is recorded now
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+        for signum in dict.fromkeys(pending):
+            handler = saved[signal.Signals(signum)]
+            if callable(handler):
+                handler(signum, None)              # Python's: KeyboardInterrupt for SIGINT
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)        # the default action (SIGTERM ends the process)
 
 
 def _keep_theirs(target: Path, tmp: Path, files: dict[str, str]) -> None:

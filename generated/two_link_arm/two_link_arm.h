@@ -447,7 +447,8 @@ int two_link_arm_command_decode(const uint8_t* buf, size_t len, const uint8_t* k
                                 two_link_arm_frame_header* header);
 /** key NULL: CRC only; base: global step of the master's step 0; epoch: this boot's, chosen by the
  * caller and never used before under this key (a boot counter kept in non-volatile memory,
- * incremented at every boot: the nodes take a newer epoch, RFC 1982 order, and refuse older ones). */
+ * incremented at every boot: the nodes take a newer epoch, RFC 1982 order, and refuse older
+ * ones). */
 int two_link_arm_inbox_init(two_link_arm_inbox* inbox, const uint8_t key[16], uint32_t base,
                             uint32_t epoch);
 /** A restarted master's first packet: the checks of master_receive that need no master state

@@ -674,11 +674,11 @@ int two_link_arm_command_receive(two_link_arm_command_rx* rx, const uint8_t* buf
     real u1[TWO_LINK_ARM_NU];
     int rc = TWO_LINK_ARM_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
-        (void)memset(v1, 0, sizeof(v1)); /* (set by a decode that succeeds; compilers cannot tell) */
+        /* v1, u1 are set by a decode that succeeds; compilers cannot tell */
+        (void)memset(v1, 0, sizeof(v1));
         (void)memset(u1, 0, sizeof(u1));
-        rc = master_frame_taken(rx,
-                                command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h),
-                                &h);
+        rc = command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h);
+        rc = master_frame_taken(rx, rc, &h);
         if (rc == TWO_LINK_ARM_OK) {
             *step = h.step;
             (void)memcpy(v, v1, sizeof(v1));

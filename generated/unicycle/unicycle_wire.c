@@ -672,11 +672,11 @@ int unicycle_command_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t
     real u1[UNICYCLE_NU];
     int rc = UNICYCLE_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
-        (void)memset(v1, 0, sizeof(v1)); /* (set by a decode that succeeds; compilers cannot tell) */
+        /* v1, u1 are set by a decode that succeeds; compilers cannot tell */
+        (void)memset(v1, 0, sizeof(v1));
         (void)memset(u1, 0, sizeof(u1));
-        rc = master_frame_taken(rx,
-                                command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h),
-                                &h);
+        rc = command_decode(buf, len, (rx->keyed != 0u) ? rx->key : NULL, v1, u1, &h);
+        rc = master_frame_taken(rx, rc, &h);
         if (rc == UNICYCLE_OK) {
             *step = h.step;
             (void)memcpy(v, v1, sizeof(v1));
