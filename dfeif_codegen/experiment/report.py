@@ -163,8 +163,8 @@ class _Printer:
         self.table("Table IV: RMSE of the estimation error at the master", xcols,
                    [self.cells(s, "rmse_master") for s in summaries])
         if bound is not None and method in ex.OOSM:
-            self.table("Table IV-c: exact optimal filter's RMSE on the matched linear model, centralized "
-                       "(per node below)", xcols, [[f"{v:.3e}" for v in b.rmse_central] for b in bound])
+            self.table("Table IV-c: exact optimal filter's RMSE on the matched linear model (the Brunovsky "
+                       "chain with q), centralized (per node below)", xcols, [[f"{v:.3e}" for v in b.rmse_central] for b in bound])
             for i in range(nodes):
                 self.table(f"  ... node {i + 1} alone", xcols, [[f"{v:.3e}" for v in b.rmse_nodes[i]] for b in bound])
         if bound is not None:
