@@ -867,3 +867,54 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     np.testing.assert_allclose(Y.reshape(n, n), np.linalg.inv(P), rtol=1e-10, atol=1e-13)
     np.testing.assert_allclose(y, np.linalg.solve(P, x - c), rtol=1e-10, atol=1e-13)
     np.testing.assert_allclose(piv, np.diag(np.linalg.cholesky(P)) ** 2, rtol=1e-10)
+
+
+def test_looped_fusion_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
+    """The master's kernels of a chain of 8 integrators printed as loops (kernels.LOOP_OPS at 0,
+    as long chains get them: kernels.fusion_loops) and as straight-line code, difference and
+    paper rules, double and float, on random SPD matrices (the update's P below the
+    prediction's, as in a filter): the loops do spd_inverse's operations in the straight-line
+    order, each sum from its first product, so every output is bit-equal (without
+    -ffp-contract, which the library's flags leave at its ISO default, off)."""
+    from dfeif_codegen.check import bench_peers
+    from dfeif_codegen.codegen import kernels
+
+    n, npk = 8, 8 * 9 // 2
+    spec = tmp_path / "chain8.toml"
+    spec.write_text(bench_peers.chain_model(n))
+    rng = np.random.default_rng(12)
+    G = rng.standard_normal((n, n))
+    P = G @ G.T + n * np.eye(n)
+    Pp = P + np.diag(rng.uniform(0.5, 2.0, n))
+    x, xp, c, dy = rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
+    H = rng.standard_normal((n, n))
+    Yp = H @ H.T + n * np.eye(n)   # a fused information, packed rows
+    Y = np.array([Yp[i, j] for i in range(n) for j in range(i, n)])
+    dY = 0.1 * Y
+    fused = ("master_gain", "master_info", "fuse_finish", "fuse_finish_difference")
+    for precision, dtype in (("double", np.float64), ("float", np.float32)):
+        for rule in ("difference", "paper"):
+            got = {}
+            for loop_ops in (0, 10 ** 6):
+                monkeypatch.setattr(kernels, "LOOP_OPS", {**kernels.LOOP_OPS, **{k: loop_ops for k in fused}})
+                folder = tmp_path / f"{precision}{rule}{loop_ops}"
+                mod = build.build(str(spec), folder, precision=precision, fusion=rule)
+                text = (folder / "chain8_kernels_fusion.c").read_text() if (folder / "chain8_kernels_fusion.c").exists() \
+                    else next(folder.rglob("chain8_kernels_fusion.c")).read_text()
+                lib = shared_library(mod.path, folder)
+                if rule == "difference":
+                    calls = [("master_gain", [x, P.ravel(), xp, Pp.ravel(), c], [npk, n, 2 * n]),
+                             ("fuse_finish", [P.ravel(), dY, dy, c], [n, n * n, 2 * n])]
+                else:
+                    calls = [("master_info", [x, P.ravel(), c], [npk, n, n]),
+                             ("fuse_finish", [Y, dy, c], [n, n * n, n])]
+                out = []
+                for kern, ins, sizes in calls:
+                    args = [a.astype(dtype) for a in ins] + [np.zeros(k, dtype) for k in sizes]
+                    assert getattr(lib, f"chain8_kern_{kern}")(*[a.ctypes.data_as(ctypes.c_void_p) for a in args]) == 0
+                    out += [a.astype(float) for a in args[len(ins):]]
+                    # the build at 0 prints every one of them as loops (no CasADi work array left)
+                    assert (f"int chain8_kern_{kern}(" in text) and ((" w0;" in text) == (loop_ops != 0))
+                got[loop_ops == 0] = out
+            for a, b in zip(got[True], got[False]):
+                assert np.all(np.isfinite(a)) and np.array_equal(a, b), (precision, rule)

@@ -26,14 +26,18 @@ def symbol_sizes(obj: Path) -> dict[str, int]:
             if len(parts) == 4 and parts[2] in "tT"}
 
 
-def chain_kernels(n: int, work: Path) -> tuple[dict[str, int], int]:
-    """Per-kernel bytes (short names) of chain n's filter kernels and the object's .text."""
+def chain_kernels(n: int, work: Path, group: str = "filter", predictor: str | None = "brunovsky") \
+        -> tuple[dict[str, int], int]:
+    """Per-kernel bytes (short names) of chain n's kernels of `group` (filter, fusion: the file
+    <model>_kernels_<group>.c) and the object's .text; `predictor` None: the default's build
+    (the scaling table's)."""
     spec = work / f"chain{n}.toml"
     spec.parent.mkdir(parents=True, exist_ok=True)
     spec.write_text(bench_peers.chain_model(n))
-    mf = harness.build_model(str(spec), work / f"chain{n}-float", "float", predictor="brunovsky")
-    src = [s for s in mf.sources() if s.name == f"chain{n}_kernels_filter.c"]
-    obj = target.compile_objects(src, work / f"obj-chain{n}", [mf.path], opt="-Os")[0]
+    label = f"chain{n}-float-{predictor or 'default'}"
+    mf = harness.build_model(str(spec), work / label, "float", predictor=predictor)
+    src = [s for s in mf.sources() if s.name == f"chain{n}_kernels_{group}.c"]
+    obj = target.compile_objects(src, work / f"obj-{label}-{group}", [mf.path], opt="-Os")[0]
     prefix = f"chain{n}_kern_"
     sizes = {name[len(prefix):]: size for name, size in symbol_sizes(obj).items() if name.startswith(prefix)}
     per: dict[str, int] = {}
