@@ -47,14 +47,16 @@ LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_f
 # node_predict straight-line up to 2,500 operations (a chain of 12 has 2,288) and info looped above
 # 500 (n >= 7: 601; two_link_arm 410), the node step grows at most 1.6x per n over n = 2..12 and
 # the filter kernels' .text as n^1.85.
-# The master's kernels (kernels.fusion_loops) are loop nests of the straight-line operations, about
-# 1.2 kB on the Cortex-M4F whatever n, but 2.5x their instructions on the host (master_fuse of a
-# chain of 7: 12,795 straight-line, 24,636 looped): looped from n = 10 (master_gain 2,910
-# operations, fuse_finish 2,737 / 1,507 for the difference / paper rule, master_info 1,462; at n = 9
-# 2,205, 2,063, 1,145, 1,109), every built-in model (pvtol n = 8) stays straight-line, and their
-# .text over n = 2..12 grows as n^0.9 (straight-line: n^2.6).
-LOOP_OPS = {"node_predict": 2500, "info": 500, "master_gain": 2500, "fuse_finish_difference": 2500,
-            "master_info": 1300, "fuse_finish": 1300}
+# The master's kernels (kernels.fusion_loops) are loops around written-out sums, O(n^2) code, about
+# a third more host instructions than the straight-line code (master_fuse, 2 packets: 12,795 ->
+# 17,753 at n = 7, 28,924 -> 37,887 at n = 10) and fewer bytes from n = 6 (Cortex-M4F: 24% fewer
+# at n = 7, 56% at n = 10). Looped from n = 7 as info is (master_gain 1,155 operations there,
+# fuse_finish 1,066 / 604 for the difference / paper rule, master_info 583; at n = 6 786, 719, 413,
+# 398), and so advance (Brunovsky builds: 629 at n = 7, 431 at n = 6, pvtol 458): their .text grows
+# as n^1.97 over n = 2..12 (n^1.87 with advance; straight-line n^2.6), the built-in models but
+# pvtol's master_gain, master_info and fuse_finish (n = 8) stay straight-line.
+LOOP_OPS = {"node_predict": 2500, "info": 500, "master_gain": 1000, "fuse_finish_difference": 900,
+            "master_info": 500, "fuse_finish": 500, "advance": 500}
 
 # A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
 # canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
@@ -110,6 +112,8 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     if opts.predictor != "held":
         loopable.append(("node_predict", node_predict, loops.node_predict_loop))
     loopable += [(key, f, lambda s, _, key=key, f=f: fusion_loops.loop_of(key, f)) for key, f in zip(fused, fus)]
+    loopable += [("advance", f, lambda s, _, f=f: fusion_loops.advance_loop(s, f)) for f in fus[2:]
+                 if f.name() == name("advance")]
     looped = {f.name(): loop(s, f.name()) for key, f, loop in loopable if f.n_instructions() > LOOP_OPS[key]}
     return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"), h and h.H)]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
