@@ -30,7 +30,7 @@ VARIANTS = [
     ("user:mixed_two_input_m", {"precision": "float"}),
     ("user:long_chain_sevens", {"precision": "float"}),   # kernels printed as loops
     ("pvtol", {"precision": "float"}),                     # a dynamic extension: extension_step
-    ("chain:10", {"precision": "float"}),                  # fusion kernels printed as loop nests
+    ("chain:10", {"precision": "float"}),                  # fusion kernels printed as loops
 ]
 STYLE = Path(str(resources.files("dfeif_codegen.templates") / ".clang-format"))
 
