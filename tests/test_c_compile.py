@@ -811,7 +811,7 @@ def test_looped_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
     for precision, dtype, tol in (("double", np.float64, (1e-13, 1e-11)), ("float", np.float32, (1e-5, 1e-3))):
         got = {}
         for loop_ops in (0, 10 ** 6):
-            monkeypatch.setattr(kernels, "LOOP_OPS", {"node_predict": loop_ops, "info": loop_ops})
+            monkeypatch.setattr(kernels, "LOOP_OPS", {**kernels.LOOP_OPS, "node_predict": loop_ops, "info": loop_ops})
             folder = tmp_path / f"{precision}{loop_ops}"
             mod = build.build(str(spec), folder, precision=precision, predictor="brunovsky")   # loops: Brunovsky's
             lib = shared_library(mod.path, folder)
@@ -857,7 +857,8 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     assert lib("kern_predict", x, P.ravel().copy(), v, q, x1, P1) == 0
     b = Chains(flatness.derive(model.load(str(spec))), Options(ts=0.01, predictor="brunovsky"))
     x1_ref, P1_ref = (np.array(a) for a in node.predict(b, "p")(x, P, v, q))
-    assert set(kernels.build(b.flat, b.opts, "chain7").loops) == {"chain7_kern_info"}
+    ks = kernels.build(b.flat, b.opts, "chain7")
+    assert set(ks.loops) & {f.name() for f in ks.groups["filter"]} == {"chain7_kern_info"}
     np.testing.assert_allclose(x1, x1_ref.ravel(), rtol=1e-13)
     np.testing.assert_allclose(P1.reshape(n, n), P1_ref, rtol=0, atol=1e-13 * np.abs(P1_ref).max())
     assert np.array_equal(P1.reshape(n, n), P1.reshape(n, n).T)
@@ -867,3 +868,57 @@ def test_filter_kernels_of_a_long_chain(tmp_path):
     np.testing.assert_allclose(Y.reshape(n, n), np.linalg.inv(P), rtol=1e-10, atol=1e-13)
     np.testing.assert_allclose(y, np.linalg.solve(P, x - c), rtol=1e-10, atol=1e-13)
     np.testing.assert_allclose(piv, np.diag(np.linalg.cholesky(P)) ** 2, rtol=1e-10)
+
+
+def test_looped_fusion_kernels_equal_the_straight_line_ones(tmp_path, monkeypatch):
+    """The master's kernels of a chain of 8 integrators printed as loops (kernels.LOOP_OPS at 0,
+    as long chains get them: kernels.fusion_loops) and as straight-line code, difference and
+    paper rules, double and float, Brunovsky builds (which also advance stale packets), on
+    random SPD matrices: the loops do the straight-line code's operations in its order, each
+    sum from its first product (advance's also add the exact zeros of A(N Ts) and Q_d between
+    chains, none for one chain), so every output is bit-equal (without -ffp-contract, which the
+    library's flags leave at its ISO default, off)."""
+    from dfeif_codegen.check import bench_peers
+    from dfeif_codegen.codegen import kernels
+
+    n, npk = 8, 8 * 9 // 2
+    spec = tmp_path / "chain8.toml"
+    spec.write_text(bench_peers.chain_model(n))
+    rng = np.random.default_rng(12)
+    G = rng.standard_normal((n, n))
+    P = G @ G.T + n * np.eye(n)
+    Pp = P + np.diag(rng.uniform(0.5, 2.0, n))
+    x, xp, c, dy = rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
+    H = rng.standard_normal((n, n))
+    Yp = H @ H.T + n * np.eye(n)   # a fused information, packed rows
+    Y = np.array([Yp[i, j] for i in range(n) for j in range(i, n)])
+    dY = 0.1 * Y
+    fused = ("master_gain", "master_info", "fuse_finish", "fuse_finish_difference", "advance")
+    for precision, dtype in (("double", np.float64), ("float", np.float32)):
+        for rule in ("difference", "paper"):
+            got = {}
+            for loop_ops in (0, 10 ** 6):
+                monkeypatch.setattr(kernels, "LOOP_OPS", {**kernels.LOOP_OPS, **{k: loop_ops for k in fused}})
+                folder = tmp_path / f"{precision}{rule}{loop_ops}"
+                mod = build.build(str(spec), folder, precision=precision, fusion=rule, predictor="brunovsky")
+                text = (folder / "chain8_kernels_fusion.c").read_text() if (folder / "chain8_kernels_fusion.c").exists() \
+                    else next(folder.rglob("chain8_kernels_fusion.c")).read_text()
+                lib = shared_library(mod.path, folder)
+                if rule == "difference":
+                    calls = [("master_gain", [x, P.ravel(), xp, Pp.ravel(), c], [npk, n, 2 * n]),
+                             ("fuse_finish", [P.ravel(), dY, dy, c], [n, n * n, 2 * n])]
+                else:
+                    calls = [("master_info", [x, P.ravel(), c], [npk, n, n]),
+                             ("fuse_finish", [Y, dy, c], [n, n * n, n])]
+                calls.append(("advance", [np.array([5.0]), x, P.ravel(), dy, np.array([2.0])], [n, n * n]))
+                out = []
+                for kern, ins, sizes in calls:
+                    args = [a.astype(dtype) for a in ins] + [np.zeros(k, dtype) for k in sizes]
+                    assert getattr(lib, f"chain8_kern_{kern}")(*[a.ctypes.data_as(ctypes.c_void_p) for a in args]) == 0
+                    out += [a.astype(float) for a in args[len(ins):]]
+                    # the build at 0 prints every one of them as loops, the other none
+                    body = text.split(f"int chain8_kern_{kern}(")[1].split("\n}\n")[0]
+                    assert ("for (" in body) == (loop_ops == 0), (kern, loop_ops)
+                got[loop_ops == 0] = out
+            for a, b in zip(got[True], got[False]):
+                assert np.all(np.isfinite(a)) and np.array_equal(a, b), (precision, rule)

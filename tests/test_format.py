@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from conftest import require_tool
+from dfeif_codegen.check import bench_peers
 from dfeif_codegen.codegen import build, layout
 from dfeif_codegen.symbolic.model import MODEL_NAME_LIMIT
 from test_user_models import FLEX_JOINT, LONG_CHAIN, MIXED
@@ -29,12 +30,18 @@ VARIANTS = [
     ("user:mixed_two_input_m", {"precision": "float"}),
     ("user:long_chain_sevens", {"precision": "float"}),   # kernels printed as loops
     ("pvtol", {"precision": "float"}),                     # a dynamic extension: extension_step
+    ("chain:10", {"precision": "float"}),                  # fusion kernels printed as loops
 ]
 STYLE = Path(str(resources.files("dfeif_codegen.templates") / ".clang-format"))
 
 
 def _spec(name: str, tmp: Path):
-    """A built-in name, or a user model (from test_user_models) renamed to a long name."""
+    """A built-in name, a synthetic chain of n integrators (`chain:n`), or a user model (from
+    test_user_models) renamed to a long name."""
+    if name.startswith("chain:"):
+        path = tmp / f"chain{name[6:]}.toml"
+        path.write_text(bench_peers.chain_model(int(name[6:])))
+        return str(path)
     if not name.startswith("user:"):
         return name
     new = name[5:]

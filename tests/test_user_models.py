@@ -93,9 +93,10 @@ pos = 0.002
 ang = 0.004
 """
 
-# Seven integrators in one chain: info has more than its kernels.LOOP_OPS operations, so it is
-# printed as C loops (the format and MISRA tests cover that code; node_predict's loops, from 13
-# integrators on, are checked against the straight line in tests/test_c_compile.py).
+# Seven integrators in one chain: info and the master's kernels have more than their
+# kernels.LOOP_OPS operations, so they are printed as C loops (the format and MISRA tests cover
+# that code; node_predict's loops, from 13 integrators on, are checked against the straight line
+# in tests/test_c_compile.py, and so are the master's).
 LONG_CHAIN = ("[model]\nname = \"long_chain\"\nts = 0.01\n"
               + "".join(f'[[states]]\nname = "x{i}"\n' for i in range(1, 8))
               + '[[inputs]]\nname = "u"\n[[parameters]]\nname = "b"\nvalue = 2.0\n[dynamics.f]\n'

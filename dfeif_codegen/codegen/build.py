@@ -98,7 +98,7 @@ def context(flat, opts: Options) -> dict:
         looped = [k.name[len(p) + 6:] for k in infos if k.name in ks.loops]
         kernel_code[group] = (code.rstrip("\n"), f"{GROUP_DOCS[group]}: "
                                     + ", ".join(k.name[len(p) + 6:] for k in infos) + "."
-                                    + (f" Printed as loops over static parts: {', '.join(looped)}." if looped else ""))
+                                    + (f" Printed as C loops (over static parts, if any): {', '.join(looped)}." if looped else ""))
         kernel_list += [{"name": k.name, "macro": k.name.upper(), "sz_w": k.sz_w, "local_work": k.local_work,
                          "signature": csource.wrap_comment(_comment(k.signature)),
                          "prototype": layout.pack(f"int {k.name}(", k.parameters(f"{p}_real", k.name.upper() + "_SZ_W"),

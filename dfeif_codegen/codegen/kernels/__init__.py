@@ -12,6 +12,7 @@ The package, dependencies pointing down the list:
   node      the node filter's kernels (predict, update, node_predict, info)
   retro     the node's retrodiction kernels (`--oosm retrodict`)
   loops     node_predict and info of long chains as C loops over small parts
+  fusion_loops  the master's fusion kernels of long chains as C loop nests
   fusion    the master's kernels (difference and paper rules, stale-packet prediction)
   held      the held-input predictor's kernels (`--predictor held`, the default)
   ci        covariance intersection's Newton-step kernels (`--fusion ci`)
@@ -26,7 +27,7 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 
-from dfeif_codegen.codegen.kernels import ci, control, fusion, held, loops, node, retro
+from dfeif_codegen.codegen.kernels import ci, control, fusion, fusion_loops, held, loops, node, retro
 from dfeif_codegen.codegen.kernels.chains import Chains
 from dfeif_codegen.codegen.kernels.csource import Loop
 from dfeif_codegen.codegen.options import Options
@@ -46,7 +47,16 @@ LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_f
 # node_predict straight-line up to 2,500 operations (a chain of 12 has 2,288) and info looped above
 # 500 (n >= 7: 601; two_link_arm 410), the node step grows at most 1.6x per n over n = 2..12 and
 # the filter kernels' .text as n^1.85.
-LOOP_OPS = {"node_predict": 2500, "info": 500}
+# The master's kernels (kernels.fusion_loops) are loops around written-out sums, O(n^2) code, about
+# a third more host instructions than the straight-line code (master_fuse, 2 packets: 12,795 ->
+# 17,753 at n = 7, 28,924 -> 37,887 at n = 10) and fewer bytes from n = 6 (Cortex-M4F: 24% fewer
+# at n = 7, 56% at n = 10). Looped from n = 7 as info is (master_gain 1,155 operations there,
+# fuse_finish 1,066 / 604 for the difference / paper rule, master_info 583; at n = 6 786, 719, 413,
+# 398), and so advance (Brunovsky builds: 629 at n = 7, 431 at n = 6, pvtol 458): their .text grows
+# as n^1.97 over n = 2..12 (n^1.87 with advance; straight-line n^2.6), the built-in models but
+# pvtol's master_gain, master_info and fuse_finish (n = 8) stay straight-line.
+LOOP_OPS = {"node_predict": 2500, "info": 500, "master_gain": 1000, "fuse_finish_difference": 900,
+            "master_info": 500, "fuse_finish": 500, "advance": 500}
 
 # A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
 # canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
@@ -87,8 +97,10 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
         filt += [retro.retro_step(s, name("retro_step")), retro.retro_finish(s, name("retro_finish"))]
     if opts.fusion == "difference":
         fus = [fusion.master_gain(s, name("master_gain")), fusion.fuse_finish_difference(s, name("fuse_finish"))]
+        fused = ["master_gain", "fuse_finish_difference"]
     else:
         fus = [fusion.master_info(s, name("master_info")), fusion.fuse_finish(s, name("fuse_finish"))]
+        fused = ["master_info", "fuse_finish"]
     if opts.fusion == "ci":
         fus += ci.ci_kernels(s, name)
     if opts.predictor != "held":   # the held master predicts stale packets step by step
@@ -99,6 +111,9 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     loopable = [("info", info, loops.info_loop)]
     if opts.predictor != "held":
         loopable.append(("node_predict", node_predict, loops.node_predict_loop))
+    loopable += [(key, f, lambda s, _, key=key, f=f: fusion_loops.loop_of(key, f)) for key, f in zip(fused, fus)]
+    loopable += [("advance", f, lambda s, _, f=f: fusion_loops.advance_loop(s, f)) for f in fus[2:]
+                 if f.name() == name("advance")]
     looped = {f.name(): loop(s, f.name()) for key, f, loop in loopable if f.n_instructions() > LOOP_OPS[key]}
     return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"), h and h.H)]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
