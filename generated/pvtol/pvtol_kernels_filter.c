@@ -1,7 +1,7 @@
 /* DO NOT EDIT: pvtol module, generated from template kernels.c.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build pvtol`. */
 /* Node filter kernels (the master reuses predict): node_predict, update, node_predict_P, info,
- * predict. Printed as loops over static parts: info.
+ * predict. Printed as C loops (over static parts, if any): info.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
