@@ -201,7 +201,7 @@ def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc
     intersection and retrodiction (Brunovsky predictor, predicting with v) or replay (held
     predictor, with u), driven through the API for six steps with a drop, late frames and a
     missing packet, against the reference (RTOL: the same argument as for the README; the CI
-    weights come from at most 10 Newton steps on a 3 x 3 system that is well conditioned here)."""
+    weights come from at most 8 Newton steps on a 3 x 3 system that is well conditioned here)."""
     from test_user_models import MIXED
 
     path = tmp_path / "mixed.toml"
