@@ -71,7 +71,7 @@ extern "C" {
 /** sampling period [s] */
 #define DC_MOTOR_LINK_TS 0.01
 /** Newton steps of covariance intersection */
-#define DC_MOTOR_LINK_CI_ITERATIONS 10
+#define DC_MOTOR_LINK_CI_ITERATIONS 8
 #define DC_MOTOR_LINK_PRECISION_FLOAT 0
 /** 0: replay (exact), 1: retrodiction */
 #define DC_MOTOR_LINK_OOSM_RETRODICT 0

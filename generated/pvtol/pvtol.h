@@ -72,7 +72,7 @@ extern "C" {
 /** sampling period [s] */
 #define PVTOL_TS 0.01
 /** Newton steps of covariance intersection */
-#define PVTOL_CI_ITERATIONS 10
+#define PVTOL_CI_ITERATIONS 8
 #define PVTOL_PRECISION_FLOAT 0
 /** 0: replay (exact), 1: retrodiction */
 #define PVTOL_OOSM_RETRODICT 0

@@ -71,7 +71,7 @@ extern "C" {
 /** sampling period [s] */
 #define TWO_LINK_ARM_TS 0.01
 /** Newton steps of covariance intersection */
-#define TWO_LINK_ARM_CI_ITERATIONS 10
+#define TWO_LINK_ARM_CI_ITERATIONS 8
 #define TWO_LINK_ARM_PRECISION_FLOAT 0
 /** 0: replay (exact), 1: retrodiction */
 #define TWO_LINK_ARM_OOSM_RETRODICT 0

@@ -71,7 +71,7 @@ extern "C" {
 /** sampling period [s] */
 #define UNICYCLE_TS 0.02
 /** Newton steps of covariance intersection */
-#define UNICYCLE_CI_ITERATIONS 10
+#define UNICYCLE_CI_ITERATIONS 8
 #define UNICYCLE_PRECISION_FLOAT 0
 /** 0: replay (exact), 1: retrodiction */
 #define UNICYCLE_OOSM_RETRODICT 0

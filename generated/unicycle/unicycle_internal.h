@@ -39,7 +39,7 @@ typedef unicycle_real real;
 #if UNICYCLE_PREDICTS_WITH_U != 1
 #error "unicycle.h comes from another build (UNICYCLE_PREDICTS_WITH_U)"
 #endif
-#if UNICYCLE_CI_ITERATIONS != 10
+#if UNICYCLE_CI_ITERATIONS != 8
 #error "unicycle.h comes from another build (UNICYCLE_CI_ITERATIONS)"
 #endif
 
