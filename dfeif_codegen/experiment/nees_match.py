@@ -100,6 +100,7 @@ def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list
     tried = []                                   # (log scale, log NEES / n)
     lost = 0
     scale = 0.0
+    floored = False
     while len(tried) < NEES_EVALS and lost <= NEES_LOST:
         value = nees_at(q * math.exp(scale))
         if not math.isfinite(value):
@@ -119,7 +120,8 @@ def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list
         scale = tried[-1][0] - step
         if tried[0][0] >= math.log(NEES_FLOOR):  # the loop closed near the residual: keep the floor
             scale = max(scale, min(math.log(NEES_FLOOR), tried[-1][0]))
-            if scale == tried[-1][0]:
+            floored = scale == tried[-1][0]
+            if floored:
                 break                            # at the floor, and NEES still asks for less q
     if not tried:
         log.append(f"master NEES: {NO_LOOP} (x1e-{NEES_LOST // 2} to x1e{(NEES_LOST + 1) // 2}) lost a closed loop; "
@@ -130,5 +132,6 @@ def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list
     inside = abs(best[1]) <= math.log(NEES_TOL)
     log.append(f"master NEES over {len(seeds)} runs without delays: {n * math.exp(best[1]):.3g} at q = {fmt(q)} "
                f"(x{math.exp(best[0]):.3g}; target n = {n}"
-               + ("" if inside else f", not reached in {len(tried)} tries, q lowered at most x{NEES_FLOOR:g}") + ")")
+               + ("" if inside else f", not reached in {len(tried)} tries")
+               + (f", q lowered at most x{NEES_FLOOR:g}" if floored else "") + ")")
     return q, log
