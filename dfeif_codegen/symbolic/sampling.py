@@ -200,17 +200,18 @@ def held_input_sx(flat, H: HeldSampling, z: ca.SX, v: ca.SX, p) -> tuple[ca.SX, 
     M = ca.mtimes(SG1, G)
     solve = (lambda b: b / M) if flat.m == 1 else (lambda b: ca.solve(M, b))  # noqa: E731
     goal = H.ts * v
-    u_first = _within_limits(flat, solve(goal - ca.mtimes(SPsiAc, z) - ca.mtimes(SG1, F)))
+    u_first = within_limits(flat, solve(goal - ca.mtimes(SPsiAc, z) - ca.mtimes(SG1, F)))
     step = held_increment_sx(flat, H, z, z, u_first, p)
     u = u_first + solve(goal - ca.vertcat(*[step[i] for i in tops]))
     return u, G
 
 
-def _within_limits(flat, u: ca.SX) -> ca.SX:
-    """u clamped to the inputs' declared limits. The correction step evaluates the predictor at
-    u₀: far outside the limits it can reach states where the canonical model folds back (a tank
-    model's level from a squared root: measured, u₀ = -0.04 against limits [0, 1e-3] gave a
-    correction of the wrong sign and the tank overflowed), while the plant only ever sees u clamped."""
+def within_limits(flat, u: ca.SX) -> ca.SX:
+    """u clamped to the inputs' declared limits (the generated control's clamp too). The held
+    law's correction step evaluates the predictor at u₀: far outside the limits it can reach
+    states where the canonical model folds back (a tank model's level from a squared root:
+    measured, u₀ = -0.04 against limits [0, 1e-3] gave a correction of the wrong sign and the
+    tank overflowed), while the plant only ever sees u clamped."""
     parts = []
     for i, w in enumerate(flat.model.inputs):
         ui = u[i]

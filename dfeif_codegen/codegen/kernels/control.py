@@ -16,20 +16,15 @@ from dfeif_codegen.codegen.kernels.chains import Chains, wrap_angle
 from dfeif_codegen.codegen.kernels.linalg import sym
 
 
-def _clamp(flat, u: ca.SX, m: int) -> tuple[ca.SX, ca.SX]:
+def _clamp(flat, u: ca.SX) -> tuple[ca.SX, ca.SX]:
     """u clamped to the declared actuator limits, and the count of inputs clamped."""
-    limits = [(i, w.min, w.max) for i, w in enumerate(flat.model.inputs) if w.bounded]
     nsat = ca.SX(0)
-    clamped = []
-    for i in range(m):
-        ui = u[i]
-        for j, lo, hi in limits:
-            if j == i and lo is not None:
-                nsat, ui = nsat + (u[i] < lo), ca.fmax(ui, lo)
-            if j == i and hi is not None:
-                nsat, ui = nsat + (u[i] > hi), ca.fmin(ui, hi)
-        clamped.append(ui)
-    return ca.vertcat(*clamped), nsat
+    for i, w in enumerate(flat.model.inputs):
+        if w.min is not None:
+            nsat = nsat + (u[i] < w.min)
+        if w.max is not None:
+            nsat = nsat + (u[i] > w.max)
+    return sampling.within_limits(flat, u), nsat
 
 
 def control(s: Chains, name: str, held: sampling.HeldSampling | None = None) -> ca.Function:
@@ -65,7 +60,7 @@ def control(s: Chains, name: str, held: sampling.HeldSampling | None = None) -> 
     # clamped u really produces (v = F + G u), so the filters predict what the plant does
     nsat = ca.SX(0)
     if any(w.bounded for w in flat.model.inputs):
-        u, nsat = _clamp(flat, u, m)
+        u, nsat = _clamp(flat, u)
         v = F + ca.mtimes(G, u)
     return ca.Function(name, [x, flags, gains, p], [u, v, det, nsat],
                        ["x", "flags", "gains", "params"], ["u", "v", "det", "nsat"], {"cse": True})
