@@ -66,6 +66,11 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
                    help="the C's real type (default double)")
     _filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
+    p.add_argument("--disturbance", metavar="KIND", default=None,
+                   help="random_walk or gauss_markov: one disturbance state per chain after the canonical "
+                        "state; their densities follow the chains' in q (held predictor only)")
+    p.add_argument("--tau", type=float, default=None, metavar="S",
+                   help="the gauss_markov disturbance's time constant [s]")
     p.add_argument("--check", action="store_true",
                    help="write nothing: exit 0 if DIR/<model> equals a fresh build, 1 (listing the files) if "
                         "stale, 2 if missing")
@@ -220,7 +225,7 @@ def parser() -> argparse.ArgumentParser:
 def _build_options(args: argparse.Namespace) -> dict:
     return dict(precision=args.precision, max_lag=args.max_lag, nodes=args.nodes, oosm=args.oosm or "replay",
                 fusion=args.fusion or "difference", ts=args.ts, singular_rtol=args.singular_rtol,
-                predictor=args.predictor)
+                predictor=args.predictor, disturbance=args.disturbance, tau=args.tau)
 
 
 def build(args: argparse.Namespace) -> int:
@@ -239,7 +244,8 @@ def build(args: argparse.Namespace) -> int:
                          **_budget(args))
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
-          f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion}, predictor {o.predictor})")
+          f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion}, predictor {o.predictor}"
+          + (f", disturbance {o.disturbance}" if o.disturbance else "") + ")")
     width = max(len(f) for f in module.files)
     for fname in module.files:
         print(f"  {fname:<{width}}  {(module.path / fname).stat().st_size:>7} bytes")

@@ -133,7 +133,16 @@ def generated() -> dict:
     c["disturbance in the C engine"] = (
         "scenario field", ["simulate", *S, "--predictor", "held"],
         {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--engine reference"])
-    for cmd in ("verify", "network"):
+    c["verify disturbance with the Brunovsky predictor"] = (
+        "scenario field", ["verify", *S, "--predictor", "brunovsky"],
+        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--disturbance", "--predictor held"])
+    c |= _opt("option: not a choice", "build", "--disturbance", ["walk", ""], words=["--disturbance"])
+    c["build disturbance with the Brunovsky predictor"] = (
+        "option: not a choice", ["build", "--disturbance", "random_walk", "--predictor", "brunovsky"], {},
+        ["--disturbance", "--predictor held"])
+    c["build tau without gauss_markov"] = ("option: out of range", ["build", "--tau", "0.5"], {},
+                                           ["--tau", "gauss_markov"])
+    for cmd in ("network",):
         c[f"{cmd} with disturbance states"] = (
             "scenario field", [cmd, *S], {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'},
             ["disturbance", f"codegen {cmd}", "--engine reference"])

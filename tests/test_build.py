@@ -17,7 +17,7 @@ import jinja2
 import pytest
 
 from dfeif_codegen import cli
-from dfeif_codegen.codegen import build, render
+from dfeif_codegen.codegen import build, provenance, render
 from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import model
@@ -77,7 +77,7 @@ def test_every_file_has_banner_and_manifest_hashes(fresh):
     assert manifest["model"] == "dc_motor_link" and len(manifest["model_hash"]) == 64
     assert manifest["options"] == {"ts": 0.01, "max_lag": 32, "nodes": 2, "oosm": "replay",
                                    "fusion": "difference", "precision": "double", "singular_rtol": 1e-6,
-                                   "predictor": "held"}
+                                   "predictor": "held", "disturbance": None, "tau": None}
     assert "dependencies" not in manifest and manifest["tool"] == {"name": "dfeif-codegen", "version": "0.1.0"}
     assert set(manifest["files"]) == set(files) - {"manifest.json"}
     for fname, entry in manifest["files"].items():
@@ -92,7 +92,7 @@ def test_dependency_patch_releases_change_nothing(fresh, tmp_path, monkeypatch):
     real = metadata.version
     bumped = {"numpy": "9.9.9", "sympy": "9.9.9", "jinja2": "9.9.9",
               "casadi": ".".join(real("casadi").split(".")[:2]) + ".99"}
-    monkeypatch.setattr(build.metadata, "version", lambda dist: bumped.get(dist) or real(dist))
+    monkeypatch.setattr(provenance.metadata, "version", lambda dist: bumped.get(dist) or real(dist))
     build.build("dc_motor_link", tmp_path)
     assert tree(tmp_path / "dc_motor_link") == tree(fresh / "dc_motor_link")
     for data in tree(fresh / "dc_motor_link").values():

@@ -44,6 +44,9 @@ VARIANTS = {
     # the chapter's Brunovsky predictor with replay (the default is the held-input predictor)
     "dc-brunovsky": ("dc_motor_link", {"predictor": "brunovsky"}),
     "arm-float-held": ("two_link_arm", {"precision": "float"}),
+    # disturbance states (codegen build --disturbance): the state extended, q by their densities
+    "dc-float-disturbance": ("dc_motor_link", {"precision": "float", "disturbance": "random_walk"}),
+    "arm-double-gauss-markov": ("two_link_arm", {"disturbance": "gauss_markov", "tau": 0.5}),
     "arm-double": ("two_link_arm", {}),
     "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
@@ -114,7 +117,8 @@ def test_strict_compile(built, tmp_path, cc, variant):
         run([compiler, *WARN, "-O2", "-I", folder, "-c", src, "-o", tmp_path / (src.stem + ".o")])
 
 
-@pytest.mark.parametrize("variant", ["dc-double", "dc-float", "dc-retro-ci", "arm-float-retro-ci"])
+@pytest.mark.parametrize("variant", ["dc-double", "dc-float", "dc-retro-ci", "arm-float-retro-ci",
+                                     "dc-float-disturbance"])
 def test_example_runs(built, tmp_path, variant):
     cc = tool("gcc")
     folder = built(variant)

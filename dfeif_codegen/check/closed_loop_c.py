@@ -261,8 +261,9 @@ class CEngine:
 
     def key(self, cfg: ex.Config) -> tuple:
         if cfg.disturbance is not None:   # checked while the runs are listed, before any compile
-            raise ScenarioError("[disturbance]: disturbance states are in the reference filters only, not yet in "
-                                "the generated C that --engine c runs; use --engine reference")
+            raise ScenarioError("[disturbance]: disturbance states are in the reference and the generated library "
+                                "(codegen verify), not yet in the compiled closed loop --engine c runs; use "
+                                "--engine reference")
         return build_key(cfg)
 
     def compile(self, keys: list) -> dict:

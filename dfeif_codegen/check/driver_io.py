@@ -25,15 +25,18 @@ INPUTS = ("recorded", "own")
 def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
     """The driver's inputs, C-contiguous, reals in the build's precision, integers int32;
     `v_in` is the reference's broadcast input (u for the held predictor, v for the Brunovsky one),
-    for runs that predict with the recorded inputs."""
+    for runs that predict with the recorded inputs. With disturbance states the initial states and
+    q are the filters' (Recording.filter_start)."""
     K = rec.ref.shape[0]
     source = np.full((K, rec.nodes), -1, dtype=np.int32)
     source[np.asarray(rec.pkt_step, int), np.asarray(rec.pkt_node, int)] = rec.pkt_src
     real = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
     int32 = lambda a: np.ascontiguousarray(a, dtype=np.int32)  # noqa: E731
+    start = rec.filter_start() if hasattr(rec, "filter_start") else \
+        {k: getattr(rec, k) for k in ("node_x0", "node_P0", "q", "master_x0", "master_P0")}
     return {
-        "node_x0": real(rec.node_x0), "node_P0": real(rec.node_P0), "R": real(rec.R), "q": real(rec.q),
-        "master_x0": real(rec.master_x0), "master_P0": real(rec.master_P0), "gains": real(rec.gains),
+        "node_x0": real(start["node_x0"]), "node_P0": real(start["node_P0"]), "R": real(rec.R), "q": real(start["q"]),
+        "master_x0": real(start["master_x0"]), "master_P0": real(start["master_P0"]), "gains": real(rec.gains),
         "params": real(rec.params),
         "z": real(rec.z), "gamma": int32(rec.gamma), "ref": real(rec.ref),
         "late_step": int32(rec.late_step), "late_node": int32(rec.late_node),
@@ -43,12 +46,27 @@ def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
 
 
 def output_arrays(rec, dtype) -> dict[str, np.ndarray]:
-    K, M, n, m = rec.ref.shape[0], rec.nodes, rec.n, rec.m
+    """The driver's output buffers, sized for the filters' state (`canonical` cuts them to n)."""
+    K, M, n, m = rec.ref.shape[0], rec.nodes, filter_size(rec), rec.m
     shapes = {"node_x": (M, K, n), "node_P": (M, K, n, n), "x": (K, n), "P": (K, n, n),
               "u": (K, m), "v": (K, m)}
     out = {k: np.zeros(s, dtype=dtype) for k, s in shapes.items()}
     out["late_applied"] = np.zeros(len(rec.late_step), dtype=np.int32)
     return out
+
+
+def filter_size(rec) -> int:
+    """The C filters' state dimension for a recording (disturbance states after the canonical)."""
+    return getattr(rec, "filter_n", rec.n)
+
+
+def canonical(out: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+    """The driver's outputs cut to the canonical state, what the recording holds (the disturbance
+    states act on it through the prediction, so a difference in them shows there)."""
+    cut = dict(out)
+    cut["node_x"], cut["node_P"] = out["node_x"][..., :n], out["node_P"][..., :n, :n]
+    cut["x"], cut["P"] = out["x"][..., :n], out["P"][..., :n, :n]
+    return cut
 
 
 _FILE_ORDER = ("node_x0", "node_P0", "R", "q", "master_x0", "master_P0", "gains", "params", "z", "gamma",
@@ -58,7 +76,7 @@ _FILE_ORDER = ("node_x0", "node_P0", "R", "q", "master_x0", "master_P0", "gains"
 def write_scenario(rec, model: ModelDir, path: Path, inputs: str = "recorded") -> Path:
     """scenario.bin for the driver's stand-alone program (format in driver.c.j2)."""
     arrays = scenario_arrays(rec, model.dtype)
-    head = np.array([0x43534644, 2, np.dtype(model.dtype).itemsize, rec.n, rec.m, rec.nodes,
+    head = np.array([0x43534644, 2, np.dtype(model.dtype).itemsize, filter_size(rec), rec.m, rec.nodes,
                      len(rec.params), rec.ref.shape[0], len(rec.late_step)], dtype="<i4")
     with open(path, "wb") as f:
         f.write(head.tobytes())
@@ -93,7 +111,7 @@ def read_results(rec, model: ModelDir, path: Path) -> tuple[dict, dict]:
         at += nbytes
     if at != len(data):
         raise SetupError(f"{path}: {len(data)} bytes, expected {at}")
-    return status, out
+    return status, canonical(out, rec.n)
 
 
 CALLS = {1: "node update", 2: "node update_delayed", 3: "node packet", 4: "master fuse", 5: "control",

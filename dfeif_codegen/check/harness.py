@@ -21,7 +21,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from dfeif_codegen.check.driver_io import (failure, output_arrays, read_results, recorded_inputs, scenario_arrays,
+from dfeif_codegen.check.driver_io import (canonical, failure, filter_size, output_arrays, read_results, recorded_inputs, scenario_arrays,
                                           write_scenario)
 from dfeif_codegen.errors import MismatchError, SetupError
 
@@ -141,14 +141,17 @@ class ModelDir:
 
 def build_model(model: str, out: Path, precision: str = "double", oosm: str = "replay",
                 fusion: str = "difference", nodes: int = 2, max_lag: int = 32, ts: float | None = None,
-                predictor: str | None = None) -> ModelDir:
+                predictor: str | None = None, disturbance=None) -> ModelDir:
     """Build a model into `out` through the public build API and open what it wrote (`predictor`
-    None: Brunovsky with retrodiction, else the default)."""
+    None: Brunovsky with retrodiction, else the default; `disturbance`: a Disturbance whose
+    states the C carries)."""
     from dfeif_codegen.codegen.build import build
     from dfeif_codegen.reference import predictor as predictors
 
     module = build(model, out, precision=precision, oosm=oosm, fusion=fusion, nodes=nodes, max_lag=max_lag, ts=ts,
-                   predictor=predictors.for_method(predictor, oosm))
+                   predictor=predictors.for_method(predictor, oosm),
+                   disturbance=None if disturbance is None else disturbance.kind,
+                   tau=None if disturbance is None else disturbance.tau)
     return ModelDir.open(module.path)
 
 
@@ -249,13 +252,13 @@ class Harness:
             raise MismatchError(failure({"failed_step": r.failed_step, "failed_call": r.failed_call,
                                          "status": err}))
         out["late_applied"] = out["late_applied"].astype(bool)
-        return out
+        return canonical(out, rec.n)
 
     def step(self, z, gamma, late, sources, ref):
         """One closed-loop step, with FilterBank.step's arguments and results:
         (late applied flags, node x list, node P list, x, P, u, v)."""
         lib, dt = self.library, self.library.dtype
-        M, n, m = self.rec.nodes, self.rec.n, self.rec.m
+        M, n, m = self.rec.nodes, filter_size(self.rec), self.rec.m
         z = np.ascontiguousarray(np.nan_to_num(np.asarray(z, dtype=float)), dtype=dt).reshape(M, m)
         gamma = np.ascontiguousarray(gamma, dtype=np.int32)
         late_node = np.array([e[0] for e in late], dtype=np.int32)
@@ -273,7 +276,8 @@ class Harness:
             _ptr(v), ctypes.byref(err))
         if call:
             raise MismatchError(failure({"failed_step": -1, "failed_call": call, "status": err.value}))
-        return list(applied.astype(bool)), list(nx), list(nP), x, P, u, v
+        c = self.rec.n    # the canonical part, as FilterBank.step returns it
+        return list(applied.astype(bool)), list(nx[:, :c]), list(nP[:, :c, :c]), x[:c], P[:c, :c], u, v
 
 
 def filter_bank(library: Library):
@@ -293,7 +297,8 @@ def filter_bank(library: Library):
                      node_dtype=None, predictor=None, disturbance=None):
             del node_dtype, predictor   # the library's build fixed both (it predicts with <P>_PREDICTS_WITH_U's input)
             if disturbance is not None:
-                raise SetupError("the generated C has no disturbance states: run [disturbance] in the reference")
+                raise SetupError("the compiled closed loop does not carry disturbance states yet (codegen verify "
+                                 "does): run [disturbance] with --engine reference")
             opts = library.model.options
             for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R))):
                 if key in opts and opts[key] != want:

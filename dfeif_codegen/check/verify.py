@@ -262,7 +262,9 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     driver_io.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
-    sc.without_disturbance("codegen verify")
+    if sc.disturbance is not None:    # the C carries the scenario's disturbance states: held only
+        Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor, disturbance=sc.disturbance.kind,
+                tau=sc.disturbance.tau)
     sc.check_model(derivation.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row, ref = verify_row(sc), sc.references[0]   # the paper's: sinusoid; a CSV's: trajectory
     scenarios.check_window(sc, max_lag, nodes)
@@ -279,8 +281,9 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         work = Path(tmp)
         # the C is built at the sampling period the scenario records at (its ts, else the model's)
         built = harness.build_model(model, work / "gen", precision, oosm, fusion, nodes, max_lag, ts=sc.ts or None,
-                                    predictor=predictor)
-        settings = (f"{built.name}, {precision}, oosm {oosm}, fusion {fusion}, predictor {predictor}, {nodes} nodes, "
+                                    predictor=predictor, disturbance=sc.disturbance)
+        dist = "" if sc.disturbance is None else f", disturbance {sc.disturbance.kind}"
+        settings = (f"{built.name}, {precision}, oosm {oosm}, fusion {fusion}, predictor {predictor}{dist}, {nodes} nodes, "
                     f"max lag {max_lag}, "
                     f"target {target}, {inputs} inputs{' with ASan+UBSan' if sanitize else ''}")
         say(f"codegen verify: {settings}")

@@ -9,24 +9,20 @@ committed generated/ can be checked against a fresh build.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
-import re
 import shutil
 import subprocess
 import tempfile
 from dataclasses import asdict, dataclass
-from importlib import metadata
 from pathlib import Path
 
 import jinja2
-import sympy as sp
 
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
-from dfeif_codegen.codegen import kernels, layout, render
+from dfeif_codegen.codegen import kernels, layout, provenance, render
 from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
@@ -48,36 +44,6 @@ class GeneratedModule:
     files: tuple[str, ...]
 
 
-def model_hash(m: model.Model) -> str:
-    """SHA-256 of a canonical description of the model (sympy srepr is stable)."""
-    doc = {
-        "name": m.name, "ts": m.ts,
-        "states": [s.name for s in m.states], "inputs": [u.name for u in m.inputs],
-        "parameters": [[q.name, q.value] for q in m.parameters],
-        "f": [sp.srepr(e) for e in m.f], "g": [sp.srepr(e) for e in m.g],
-        "outputs": [[o.name, sp.srepr(o.expr), o.angle] for o in m.outputs],
-    }
-    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
-
-
-def versions() -> dict[str, str]:
-    """What the generated files may record of the tools that wrote them: this tool's version
-    and CasADi's release series (major.minor), which prints the kernels. Nothing that changes
-    without the generated code changing (no patch releases, no numpy or sympy versions), so the
-    committed output and `build --check` do not go stale on a dependency's patch release."""
-    try:
-        casadi = ".".join(metadata.version("casadi").split(".")[:2])
-    except metadata.PackageNotFoundError:
-        casadi = "unknown"
-    return {"dfeif-codegen": __version__, "casadi": casadi}
-
-
-def cmake_version(version: str) -> str:
-    """The numeric part CMake accepts for project(VERSION) (`0.2.0.dev1` -> `0.2.0`)."""
-    mt = re.match(r"\d+(?:\.\d+){0,3}", version)
-    return mt.group(0) if mt else "0"
-
-
 def _comment(text: str) -> str:
     """Safe inside a C block comment and on one line."""
     return " ".join(str(text).replace("*/", "* /").replace("/*", "/ *").split())
@@ -89,6 +55,7 @@ def context(flat, opts: Options) -> dict:
     p = m.name
     ks = kernels.build(flat, opts, p)
     real_c = "float" if opts.precision == "float" else "double"
+    nd = flat.m if opts.disturbance else 0
     kernel_code: dict[str, tuple[str, str]] = {}
     kernel_list: list[dict] = []
     for group, functions in ks.groups.items():
@@ -108,7 +75,9 @@ def context(flat, opts: Options) -> dict:
     return {
         "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
         "description": _comment(m.description or p),
-        "zeta_names": [_comment(z) for z in flat.zeta], "n": flat.n, "m": flat.m, "np": len(flat.params),
+        "zeta_names": [_comment(z) for z in flat.zeta] + [f"d_{flat.zeta[h]}" for h in flat.heads[:nd]],
+        # n: the filters' state (the canonical one, nz, then nd disturbance states); nq densities
+        "n": flat.n + nd, "nz": flat.n, "nd": nd, "nq": flat.m + nd, "m": flat.m, "np": len(flat.params),
         "degrees": flat.degrees, "heads": flat.heads, "angles": [int(c.angle) for c in flat.chains],
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
@@ -118,8 +87,8 @@ def context(flat, opts: Options) -> dict:
         "ci_factor": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_grad"), 0),
         "ci_pivots": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_dir"), 0),
         "ci_regulariser": CI_REGULARISER,
-        "model_hash": model_hash(m), "versions": versions(),
-        "cmake_version": cmake_version(__version__),
+        "model_hash": provenance.model_hash(m), "versions": provenance.versions(),
+        "cmake_version": provenance.cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         # the node stores P priors every `check_every` steps (replay recomputes the ones between
         # with the P recursion); a retrodiction restarts that recursion, so it keeps every one
@@ -160,21 +129,24 @@ def generate(m: model.Model, opts: Options, progress=None) -> dict[str, str]:
 
 
 def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
-                       singular_rtol, predictor) -> tuple[model.Model, Options]:
+                       singular_rtol, predictor, disturbance=None, tau=None) -> tuple[model.Model, Options]:
     m = spec if isinstance(spec, model.Model) else model.load(str(spec))
     return m, Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
-                      precision=precision, singular_rtol=singular_rtol, predictor=predictor)
+                      precision=precision, singular_rtol=singular_rtol, predictor=predictor,
+                      disturbance=disturbance, tau=tau)
 
 
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float | None = None,
-          max_memory: float | None = None, predictor: str | None = None) -> list[str]:
+          max_memory: float | None = None, predictor: str | None = None, disturbance: str | None = None,
+          tau: float | None = None) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
     compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
     raised before the derivation. Nothing is written."""
-    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor)
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor,
+                                 disturbance, tau)
     target = Path(out) / m.name
     if not target.is_dir():
         raise BuildError(f"{target}: missing (run `codegen build {spec if isinstance(spec, (str, Path)) else m.name}"
@@ -190,7 +162,8 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, force: bool = False,
           max_seconds: float | None = None, max_memory: float | None = None,
-          compile_check: bool = True, predictor: str | None = None) -> GeneratedModule:
+          compile_check: bool = True, predictor: str | None = None, disturbance: str | None = None,
+          tau: float | None = None) -> GeneratedModule:
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options and the output folder are checked before the derivation starts; the derivation runs
@@ -198,12 +171,14 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
     there is one) before it replaces the folder, atomically. `force` allows replacing files the
     toolkit did not write there. `predictor`: "held" (u held) or "brunovsky"; None: brunovsky, and
-    brunovsky with retrodict (the only one it can use)."""
+    brunovsky with retrodict (the only one it can use). `disturbance` ("random_walk" or
+    "gauss_markov", with its time constant `tau`): one disturbance state per chain."""
     if isinstance(out, str) and not out.strip():
         raise BuildError(f"--out {out!r}: an empty path (give a folder; . for the current one)")
     from dfeif_codegen.paths import writable_dir
     writable_dir(out, "--out")
-    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor)
+    m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor,
+                                 disturbance, tau)
     check_target(Path(out), m.name, force)
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
     compiles = (lambda folder: compile_check_folder(folder, m.name)) if compile_check else None

@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from dfeif_codegen.errors import CodegenError
+from dfeif_codegen.symbolic.disturbance import KINDS as DISTURBANCES, Disturbance
 from dfeif_codegen.symbolic.sampling import PREDICTORS, for_method
 
 MAX_LAG_LIMIT = 4096
@@ -30,7 +31,9 @@ class Options:
     fusion: str = "difference"
     precision: str = "double"
     singular_rtol: float = 1e-6  # control returns ERR_SINGULAR below this fraction of |det G| nominal
-    predictor: str | None = None  # u held, or (None) the chapter's Brunovsky chain or the chapter's Brunovsky chain
+    predictor: str | None = None  # u held, or (None) the default (held; brunovsky with retrodict)
+    disturbance: str | None = None  # one disturbance state per chain: random_walk or gauss_markov
+    tau: float | None = None        # the Gauss-Markov time constant [s]
 
     def __post_init__(self) -> None:
         ts = self.ts
@@ -55,3 +58,27 @@ class Options:
             raise BuildError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the "
                              f"transition over the lag, ill-conditioned for the {self.predictor} predictor's); "
                              "use --oosm replay")
+        self._check_disturbance()
+
+    def _check_disturbance(self) -> None:
+        kind, tau = self.disturbance, self.tau
+        if kind is None:
+            if tau is not None:
+                raise BuildError("--tau applies to --disturbance gauss_markov only")
+            return
+        if kind not in DISTURBANCES:
+            raise BuildError(f"--disturbance must be one of {', '.join(DISTURBANCES)}, got {kind!r}")
+        if self.predictor != "held":
+            raise BuildError(f"--disturbance needs --predictor held (the {self.predictor} predictor has no "
+                             "disturbance states)")
+        if kind == "gauss_markov":
+            if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau <= 0:
+                raise BuildError(f"--tau must be the Gauss-Markov time constant in seconds, > 0, got {tau!r}")
+            object.__setattr__(self, "tau", float(tau))
+        elif tau is not None:
+            raise BuildError("--tau applies to --disturbance gauss_markov only")
+
+    def disturbance_states(self) -> Disturbance | None:
+        """The disturbance model the constants are built for (its densities are runtime values,
+        the trailing entries of q; the unit one here only shapes the model)."""
+        return None if self.disturbance is None else Disturbance(self.disturbance, (1.0,), self.tau)

@@ -30,6 +30,7 @@ from dfeif_codegen.experiment.model_error import NONE as EXACT_MODEL, ParamError
 from dfeif_codegen.experiment.network import Link, Network
 from dfeif_codegen.experiment.recording import FilterBank, Recording, _Outputs
 from dfeif_codegen.reference import predictor as predictors
+from dfeif_codegen.symbolic.disturbance import Disturbance
 from dfeif_codegen.experiment.plant import Camera, Plant
 from dfeif_codegen.experiment.trajectory import Reference, flags
 from dfeif_codegen.experiment.trajectory_file import KIND as TRAJECTORY, Trajectory
@@ -132,7 +133,8 @@ def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndar
     the node filters in single precision: a second single-precision implementation to judge the C's."""
     flat = _flat(rec.model)
     bank = FilterBank(flat, rec.ts, rec.q, rec.R, rec.node_x0, rec.node_P0, rec.master_x0, rec.master_P0,
-                      rec.gains, rec.max_lag, rec.oosm, rec.fusion, node_dtype, rec.predictor)
+                      rec.gains, rec.max_lag, rec.oosm, rec.fusion, node_dtype, rec.predictor,
+                      Disturbance.from_json(rec.disturbance))
     K = rec.ref.shape[0]
     out = _Outputs(rec.nodes, K, rec.n, rec.m)
     late_at = np.searchsorted(rec.late_step, np.arange(K + 1))
@@ -316,7 +318,8 @@ def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, 
         late_step=late_step.copy(), late_node=late_node.copy(), late_lag=late_lag.copy(),
         late_z=frames[late_node, late_step - late_lag].reshape(-1, m),
         pkt_step=pk, pkt_node=pn, pkt_src=s.net.source.T[pk, pn],
-        late_applied=applied, node_x=node_x, node_P=node_P, x=x, P=P, u=u, v=v)
+        late_applied=applied, node_x=node_x, node_P=node_P, x=x, P=P, u=u, v=v,
+        disturbance="" if cfg.disturbance is None else cfg.disturbance.to_json())
     result = Result(cfg, s.t, zeta, x_true, s.net.lag.copy(), rec, counters)
     result.metrics = metrics(result)
     return result

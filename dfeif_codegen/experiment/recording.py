@@ -12,7 +12,7 @@ from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.control import FlatController
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.node import NodeFilter
-from dfeif_codegen.symbolic.disturbance import augment
+from dfeif_codegen.symbolic.disturbance import Disturbance, augment
 
 
 @dataclass
@@ -25,7 +25,8 @@ class Recording:
     ref (K, n + m). Late events in the order applied: late_step, late_node, late_lag, late_z
     (E, m). Packets fused by the master: pkt_step (master step), pkt_node, pkt_src (source step).
     Outputs: late_applied (E), node_x (M, K, n) and node_P after the step's updates, master x, P
-    after fuse, u, v.
+    after fuse, u, v. `disturbance`: the filters' disturbance states (Disturbance.to_json), ""
+    without; then x0, P0 and q here are the canonical ones and the outputs the canonical part.
     """
 
     model: str
@@ -64,6 +65,24 @@ class Recording:
     P: np.ndarray
     u: np.ndarray
     v: np.ndarray
+    disturbance: str = ""
+
+    @property
+    def filter_n(self) -> int:
+        """The filters' state dimension: n, plus one disturbance state per chain if any."""
+        return self.n + (self.m if self.disturbance else 0)
+
+    def filter_start(self) -> dict[str, np.ndarray]:
+        """node_x0, node_P0, q, master_x0, master_P0 as the filters take them: with disturbance
+        states the states extended (disturbances at 0 with their spread, symbolic/disturbance.py)
+        and q followed by the disturbances' densities."""
+        dist = Disturbance.from_json(self.disturbance)
+        nodes = [augment(x, P, dist, self.m) for x, P in zip(self.node_x0, self.node_P0)]
+        x0, P0 = augment(self.master_x0, self.master_P0, dist, self.m)
+        q = np.broadcast_to(np.asarray(self.q, dtype=float), (self.m,))
+        return {"node_x0": np.array([x for x, _ in nodes]), "node_P0": np.array([P for _, P in nodes]),
+                "q": q if dist is None else np.concatenate([q, dist.densities(self.m)]),
+                "master_x0": x0, "master_P0": P0}
 
     def save(self, path) -> None:
         np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
@@ -73,6 +92,7 @@ class Recording:
         with np.load(path) as data:
             values = {f.name: data[f.name] for f in fields(cls) if f.name in data}
         values.setdefault("predictor", np.asarray("brunovsky"))   # recorded before the held predictor
+        values["disturbance"] = str(values.get("disturbance", ""))
         for name in ("model", "method", "oosm", "fusion", "predictor"):
             values[name] = str(values[name])
         for name in ("n", "m", "nodes", "max_lag", "seed"):

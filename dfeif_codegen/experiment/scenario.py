@@ -108,11 +108,12 @@ class Scenario:
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
 
     def without_disturbance(self, command: str) -> None:
-        """The commands that run the generated C: disturbance states are in the reference only."""
+        """The commands whose C programs do not carry disturbance states yet (the library does:
+        codegen build --disturbance, codegen verify)."""
         if self.disturbance is not None:
-            raise ScenarioError(f"{self.where('disturbance')}: disturbance states are in the reference filters only, "
-                                f"not yet in the generated C that {command} runs; use codegen simulate --engine "
-                                "reference")
+            raise ScenarioError(f"{self.where('disturbance')}: disturbance states are in the reference and in the "
+                                f"generated library (codegen verify), not yet in the programs {command} runs; "
+                                "use codegen simulate --engine reference")
 
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""

@@ -8,6 +8,7 @@ the exponential of the augmented A; the Brunovsky chain has no place for them).
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,19 @@ class Disturbance:
             return np.broadcast_to(np.asarray(self.p0_std, dtype=float), (m,)).copy()
         span = self.tau / 2 if self.kind == "gauss_markov" else 1.0
         return np.sqrt(self.densities(m) * span)
+
+    def to_json(self) -> str:
+        """One line a Recording stores (and `from_json` reads back)."""
+        return json.dumps({"kind": self.kind, "q": list(self.q), "tau": self.tau,
+                           "p0_std": None if self.p0_std is None else list(self.p0_std)})
+
+    @staticmethod
+    def from_json(text: str) -> "Disturbance | None":
+        """The disturbance `to_json` wrote; None for "" (a recording without disturbance states)."""
+        if not text:
+            return None
+        d = json.loads(text)
+        return Disturbance(d["kind"], tuple(d["q"]), d["tau"], None if d["p0_std"] is None else tuple(d["p0_std"]))
 
     def scaled(self, factor: float) -> "Disturbance":
         """The same disturbance with every density times `factor` (calibration)."""

@@ -33,8 +33,12 @@ extern "C" {
 #endif
 
 /* ---- dimensions and build options ---------------------------------------------------------- */
-/** canonical state dimension n */
+/** the filters' state dimension: the canonical state, then disturbance states (if built with) */
 #define DC_MOTOR_LINK_NX 3
+/** canonical state dimension n (control gains, reference flags) */
+#define DC_MOTOR_LINK_NZ 3
+/** process-noise densities q: one per chain, then one per disturbance state */
+#define DC_MOTOR_LINK_NQ 1
 /** entries of an NX x NX matrix */
 #define DC_MOTOR_LINK_NXX (DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
 /** measured flat outputs (= inputs) m */
@@ -172,7 +176,7 @@ typedef struct {
     /** measurement covariance */
     dc_motor_link_real R[DC_MOTOR_LINK_NYY];
     /** process-noise density per chain */
-    dc_motor_link_real q[DC_MOTOR_LINK_NY];
+    dc_motor_link_real q[DC_MOTOR_LINK_NQ];
     dc_motor_link_real ring_x[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NX];
     dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING_NY];
     dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING_NY];
@@ -224,7 +228,7 @@ typedef struct {
     /** the master's own prediction into step k */
     dc_motor_link_real x_prior[DC_MOTOR_LINK_NX];
     dc_motor_link_real P_prior[DC_MOTOR_LINK_NXX];
-    dc_motor_link_real q[DC_MOTOR_LINK_NY];
+    dc_motor_link_real q[DC_MOTOR_LINK_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     dc_motor_link_real v[DC_MOTOR_LINK_NMAX_NY];
     uint32_t k;
@@ -244,7 +248,7 @@ size_t dc_motor_link_packet_size(void);
 int dc_motor_link_node_init(dc_motor_link_node* node, const dc_motor_link_real x0[DC_MOTOR_LINK_NX],
                             const dc_motor_link_real P0[DC_MOTOR_LINK_NXX],
                             const dc_motor_link_real R[DC_MOTOR_LINK_NYY],
-                            const dc_motor_link_real q[DC_MOTOR_LINK_NY]);
+                            const dc_motor_link_real q[DC_MOTOR_LINK_NQ]);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int dc_motor_link_node_update(dc_motor_link_node* node,
                               const dc_motor_link_real z[DC_MOTOR_LINK_NY], int gamma);
@@ -271,7 +275,7 @@ int dc_motor_link_node_health(const dc_motor_link_node* node, dc_motor_link_heal
 int dc_motor_link_master_init(dc_motor_link_master* master,
                               const dc_motor_link_real x0[DC_MOTOR_LINK_NX],
                               const dc_motor_link_real P0[DC_MOTOR_LINK_NXX],
-                              const dc_motor_link_real q[DC_MOTOR_LINK_NY]);
+                              const dc_motor_link_real q[DC_MOTOR_LINK_NQ]);
 /**
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
  * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
@@ -489,14 +493,14 @@ int dc_motor_link_announce_receive(dc_motor_link_command_rx* rx, const uint8_t* 
  */
 int dc_motor_link_control(const dc_motor_link_real x[DC_MOTOR_LINK_NX],
                           const dc_motor_link_real flags[DC_MOTOR_LINK_NFLAGS],
-                          const dc_motor_link_real gains[DC_MOTOR_LINK_NX],
+                          const dc_motor_link_real gains[DC_MOTOR_LINK_NZ],
                           const dc_motor_link_real params[DC_MOTOR_LINK_NP_SLOTS],
                           dc_motor_link_real u[DC_MOTOR_LINK_NU],
                           dc_motor_link_real v[DC_MOTOR_LINK_NY], uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int dc_motor_link_gains(const dc_motor_link_real lambda[DC_MOTOR_LINK_NY],
-                        dc_motor_link_real gains[DC_MOTOR_LINK_NX]);
+                        dc_motor_link_real gains[DC_MOTOR_LINK_NZ]);
 
 #ifdef __cplusplus
 }

@@ -30,8 +30,9 @@ const uint8_t dc_motor_link_chain_angle[NY] = DC_MOTOR_LINK_CHAIN_ANGLE;
 const uint8_t dc_motor_link_heads[NY] = DC_MOTOR_LINK_CHAIN_OFFSETS;
 
 int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAGS],
-                          const real gains[NX], const real params[DC_MOTOR_LINK_NP_SLOTS],
-                          real u[DC_MOTOR_LINK_NU], real v[NY], uint32_t* saturated)
+                          const real gains[DC_MOTOR_LINK_NZ],
+                          const real params[DC_MOTOR_LINK_NP_SLOTS], real u[DC_MOTOR_LINK_NU],
+                          real v[NY], uint32_t* saturated)
 {
     real ul[NY];
     real vl[NY];
@@ -42,7 +43,7 @@ int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAG
     if ((x == NULL) || (flags == NULL) || (gains == NULL) || (params == NULL) || (u == NULL)) {
         rc = DC_MOTOR_LINK_ERR_ARG;
     } else if (!dc_motor_link_finite(x, NX) || !dc_motor_link_finite(flags, DC_MOTOR_LINK_NFLAGS) ||
-               !dc_motor_link_finite(gains, NX) ||
+               !dc_motor_link_finite(gains, DC_MOTOR_LINK_NZ) ||
                !dc_motor_link_finite(params, DC_MOTOR_LINK_NP)) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     } else {
@@ -70,11 +71,11 @@ int dc_motor_link_control(const real x[NX], const real flags[DC_MOTOR_LINK_NFLAG
     return rc;
 }
 
-int dc_motor_link_gains(const real lambda[NY], real gains[NX])
+int dc_motor_link_gains(const real lambda[NY], real gains[DC_MOTOR_LINK_NZ])
 {
     static const int degree[NY] = DC_MOTOR_LINK_CHAIN_DEGREES;
     static const int offset[NY] = DC_MOTOR_LINK_CHAIN_OFFSETS;
-    real out[NX] = {0};
+    real out[DC_MOTOR_LINK_NZ] = {0};
     int j;
     int i;
     int rc = DC_MOTOR_LINK_OK;
@@ -99,7 +100,7 @@ int dc_motor_link_gains(const real lambda[NY], real gains[NX])
                 out[(offset[j] + i) - 1] = binom * power;
             }
         }
-        if (dc_motor_link_finite(out, NX) != 0) {
+        if (dc_motor_link_finite(out, DC_MOTOR_LINK_NZ) != 0) {
             (void)memcpy(gains, out, sizeof(out));
         } else { /* lambda^r overflowed */
             rc = DC_MOTOR_LINK_ERR_NONFINITE;

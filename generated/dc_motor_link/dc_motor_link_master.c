@@ -170,17 +170,17 @@ int dc_motor_link_packet_check(const dc_motor_link_packet* pk)
 }
 
 int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], const real P0[NXX],
-                              const real q[NY])
+                              const real q[DC_MOTOR_LINK_NQ])
 {
     int i;
     int rc = DC_MOTOR_LINK_OK;
     if ((master == NULL) || (x0 == NULL) || (P0 == NULL) || (q == NULL)) {
         rc = DC_MOTOR_LINK_ERR_ARG;
     } else if ((dc_motor_link_finite(x0, NX) == 0) || (dc_motor_link_finite(P0, NXX) == 0) ||
-               (dc_motor_link_finite(q, NY) == 0)) {
+               (dc_motor_link_finite(q, DC_MOTOR_LINK_NQ) == 0)) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     } else {
-        for (i = 0; i < NY; i++) {
+        for (i = 0; i < DC_MOTOR_LINK_NQ; i++) {
             if (q[i] < (real)0) {
                 rc = DC_MOTOR_LINK_ERR_ARG;
             }

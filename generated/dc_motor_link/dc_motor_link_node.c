@@ -170,7 +170,7 @@ int dc_motor_link_cov_ok(const real* A)
 }
 
 int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const real P0[NXX],
-                            const real R[DC_MOTOR_LINK_NYY], const real q[NY])
+                            const real R[DC_MOTOR_LINK_NYY], const real q[DC_MOTOR_LINK_NQ])
 {
     real xP[NXP];
     int i;
@@ -185,10 +185,10 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
     if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(R, DC_MOTOR_LINK_NYY) == 0)) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(q, NY) == 0)) {
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_finite(q, DC_MOTOR_LINK_NQ) == 0)) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
-    for (i = 0; (rc == DC_MOTOR_LINK_OK) && (i < NY); i++) {
+    for (i = 0; (rc == DC_MOTOR_LINK_OK) && (i < DC_MOTOR_LINK_NQ); i++) {
         if (q[i] < (real)0) {
             rc = DC_MOTOR_LINK_ERR_ARG;
         }

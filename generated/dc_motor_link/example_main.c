@@ -44,7 +44,7 @@ static real normal(void)
  * a model error. */
 static void plant(real zeta[NX], const real u[NY])
 {
-    real P[NX * NX], P1[NX * NX], x1[NX], q[NY], c[NY];
+    real P[NX * NX], P1[NX * NX], x1[NX], q[DC_MOTOR_LINK_NQ], c[NY];
     memset(P, 0, sizeof(P));
     memset(q, 0, sizeof(q));
     memset(c, 0, sizeof(c));
@@ -71,7 +71,8 @@ int main(void)
     static dc_motor_link_packet packets[DC_MOTOR_LINK_NNODES];
     static dc_motor_link_master master;
     uint8_t present[DC_MOTOR_LINK_NNODES];
-    real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[NY], lambda[NY], gains[NX];
+    real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[DC_MOTOR_LINK_NQ], lambda[NY];
+    real gains[DC_MOTOR_LINK_NZ];
     real flags[DC_MOTOR_LINK_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
     real late[LATE + 1][NY];
     const real* params = dc_motor_link_params_default;

@@ -44,7 +44,7 @@ static real normal(void)
  * a model error. */
 static void plant(real zeta[NX], const real u[NY])
 {
-    real P[NX * NX], P1[NX * NX], x1[NX], q[NY], c[NY];
+    real P[NX * NX], P1[NX * NX], x1[NX], q[PVTOL_NQ], c[NY];
     memset(P, 0, sizeof(P));
     memset(q, 0, sizeof(q));
     memset(c, 0, sizeof(c));
@@ -71,7 +71,8 @@ int main(void)
     static pvtol_packet packets[PVTOL_NNODES];
     static pvtol_master master;
     uint8_t present[PVTOL_NNODES];
-    real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[NY], lambda[NY], gains[NX];
+    real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[PVTOL_NQ], lambda[NY];
+    real gains[PVTOL_NZ];
     real flags[PVTOL_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
     real late[LATE + 1][NY];
     const real* params = pvtol_params_default;

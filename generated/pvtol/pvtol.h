@@ -34,8 +34,12 @@ extern "C" {
 #endif
 
 /* ---- dimensions and build options ---------------------------------------------------------- */
-/** canonical state dimension n */
+/** the filters' state dimension: the canonical state, then disturbance states (if built with) */
 #define PVTOL_NX 8
+/** canonical state dimension n (control gains, reference flags) */
+#define PVTOL_NZ 8
+/** process-noise densities q: one per chain, then one per disturbance state */
+#define PVTOL_NQ 2
 /** entries of an NX x NX matrix */
 #define PVTOL_NXX (PVTOL_NX * PVTOL_NX)
 /** measured flat outputs (= inputs) m */
@@ -163,7 +167,7 @@ typedef struct {
     /** measurement covariance */
     pvtol_real R[PVTOL_NYY];
     /** process-noise density per chain */
-    pvtol_real q[PVTOL_NY];
+    pvtol_real q[PVTOL_NQ];
     pvtol_real ring_x[PVTOL_NRING * PVTOL_NX];
     pvtol_real ring_z[PVTOL_NRING_NY];
     pvtol_real ring_v[PVTOL_NRING_NY];
@@ -215,7 +219,7 @@ typedef struct {
     /** the master's own prediction into step k */
     pvtol_real x_prior[PVTOL_NX];
     pvtol_real P_prior[PVTOL_NXX];
-    pvtol_real q[PVTOL_NY];
+    pvtol_real q[PVTOL_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     pvtol_real v[PVTOL_NMAX_NY];
     uint32_t k;
@@ -233,7 +237,7 @@ size_t pvtol_packet_size(void);
 /* ---- node ------------------------------------------------------------------------------- */
 /** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
 int pvtol_node_init(pvtol_node* node, const pvtol_real x0[PVTOL_NX], const pvtol_real P0[PVTOL_NXX],
-                    const pvtol_real R[PVTOL_NYY], const pvtol_real q[PVTOL_NY]);
+                    const pvtol_real R[PVTOL_NYY], const pvtol_real q[PVTOL_NQ]);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int pvtol_node_update(pvtol_node* node, const pvtol_real z[PVTOL_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */
@@ -251,7 +255,7 @@ int pvtol_node_health(const pvtol_node* node, pvtol_health* health);
 /* ---- master ----------------------------------------------------------------------------- */
 /** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
 int pvtol_master_init(pvtol_master* master, const pvtol_real x0[PVTOL_NX],
-                      const pvtol_real P0[PVTOL_NXX], const pvtol_real q[PVTOL_NY]);
+                      const pvtol_real P0[PVTOL_NXX], const pvtol_real q[PVTOL_NQ]);
 /**
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
  * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
@@ -455,11 +459,11 @@ int pvtol_announce_receive(pvtol_command_rx* rx, const uint8_t* buf, size_t len)
  * clamped.
  */
 int pvtol_control(const pvtol_real x[PVTOL_NX], const pvtol_real flags[PVTOL_NFLAGS],
-                  const pvtol_real gains[PVTOL_NX], const pvtol_real params[PVTOL_NP_SLOTS],
+                  const pvtol_real gains[PVTOL_NZ], const pvtol_real params[PVTOL_NP_SLOTS],
                   pvtol_real u[PVTOL_NU], pvtol_real v[PVTOL_NY], uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
-int pvtol_gains(const pvtol_real lambda[PVTOL_NY], pvtol_real gains[PVTOL_NX]);
+int pvtol_gains(const pvtol_real lambda[PVTOL_NY], pvtol_real gains[PVTOL_NZ]);
 
 /* ---- dynamic extension ------------------------------------------------------------------ */
 /** The controller's integrator states (T, T_d1): the model as written

@@ -24,7 +24,7 @@ const real pvtol_ts = PVTOL_TS;
 const uint8_t pvtol_chain_angle[NY] = PVTOL_CHAIN_ANGLE;
 const uint8_t pvtol_heads[NY] = PVTOL_CHAIN_OFFSETS;
 
-int pvtol_control(const real x[NX], const real flags[PVTOL_NFLAGS], const real gains[NX],
+int pvtol_control(const real x[NX], const real flags[PVTOL_NFLAGS], const real gains[PVTOL_NZ],
                   const real params[PVTOL_NP_SLOTS], real u[PVTOL_NU], real v[NY],
                   uint32_t* saturated)
 {
@@ -37,7 +37,7 @@ int pvtol_control(const real x[NX], const real flags[PVTOL_NFLAGS], const real g
     if ((x == NULL) || (flags == NULL) || (gains == NULL) || (params == NULL) || (u == NULL)) {
         rc = PVTOL_ERR_ARG;
     } else if (!pvtol_finite(x, NX) || !pvtol_finite(flags, PVTOL_NFLAGS) ||
-               !pvtol_finite(gains, NX) || !pvtol_finite(params, PVTOL_NP)) {
+               !pvtol_finite(gains, PVTOL_NZ) || !pvtol_finite(params, PVTOL_NP)) {
         rc = PVTOL_ERR_NONFINITE;
     } else {
         (void)pvtol_kern_control(x, flags, gains, params, ul, vl, det, nsat, w);
@@ -64,11 +64,11 @@ int pvtol_control(const real x[NX], const real flags[PVTOL_NFLAGS], const real g
     return rc;
 }
 
-int pvtol_gains(const real lambda[NY], real gains[NX])
+int pvtol_gains(const real lambda[NY], real gains[PVTOL_NZ])
 {
     static const int degree[NY] = PVTOL_CHAIN_DEGREES;
     static const int offset[NY] = PVTOL_CHAIN_OFFSETS;
-    real out[NX] = {0};
+    real out[PVTOL_NZ] = {0};
     int j;
     int i;
     int rc = PVTOL_OK;
@@ -93,7 +93,7 @@ int pvtol_gains(const real lambda[NY], real gains[NX])
                 out[(offset[j] + i) - 1] = binom * power;
             }
         }
-        if (pvtol_finite(out, NX) != 0) {
+        if (pvtol_finite(out, PVTOL_NZ) != 0) {
             (void)memcpy(gains, out, sizeof(out));
         } else { /* lambda^r overflowed */
             rc = PVTOL_ERR_NONFINITE;

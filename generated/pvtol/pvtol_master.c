@@ -148,17 +148,18 @@ int pvtol_packet_check(const pvtol_packet* pk)
     return rc;
 }
 
-int pvtol_master_init(pvtol_master* master, const real x0[NX], const real P0[NXX], const real q[NY])
+int pvtol_master_init(pvtol_master* master, const real x0[NX], const real P0[NXX],
+                      const real q[PVTOL_NQ])
 {
     int i;
     int rc = PVTOL_OK;
     if ((master == NULL) || (x0 == NULL) || (P0 == NULL) || (q == NULL)) {
         rc = PVTOL_ERR_ARG;
     } else if ((pvtol_finite(x0, NX) == 0) || (pvtol_finite(P0, NXX) == 0) ||
-               (pvtol_finite(q, NY) == 0)) {
+               (pvtol_finite(q, PVTOL_NQ) == 0)) {
         rc = PVTOL_ERR_NONFINITE;
     } else {
-        for (i = 0; i < NY; i++) {
+        for (i = 0; i < PVTOL_NQ; i++) {
             if (q[i] < (real)0) {
                 rc = PVTOL_ERR_ARG;
             }

@@ -170,7 +170,7 @@ int pvtol_cov_ok(const real* A)
 }
 
 int pvtol_node_init(pvtol_node* node, const real x0[NX], const real P0[NXX],
-                    const real R[PVTOL_NYY], const real q[NY])
+                    const real R[PVTOL_NYY], const real q[PVTOL_NQ])
 {
     real xP[NXP];
     int i;
@@ -184,10 +184,10 @@ int pvtol_node_init(pvtol_node* node, const real x0[NX], const real P0[NXX],
     if ((rc == PVTOL_OK) && (pvtol_finite(R, PVTOL_NYY) == 0)) {
         rc = PVTOL_ERR_NONFINITE;
     }
-    if ((rc == PVTOL_OK) && (pvtol_finite(q, NY) == 0)) {
+    if ((rc == PVTOL_OK) && (pvtol_finite(q, PVTOL_NQ) == 0)) {
         rc = PVTOL_ERR_NONFINITE;
     }
-    for (i = 0; (rc == PVTOL_OK) && (i < NY); i++) {
+    for (i = 0; (rc == PVTOL_OK) && (i < PVTOL_NQ); i++) {
         if (q[i] < (real)0) {
             rc = PVTOL_ERR_ARG;
         }

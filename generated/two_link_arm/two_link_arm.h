@@ -33,8 +33,12 @@ extern "C" {
 #endif
 
 /* ---- dimensions and build options ---------------------------------------------------------- */
-/** canonical state dimension n */
+/** the filters' state dimension: the canonical state, then disturbance states (if built with) */
 #define TWO_LINK_ARM_NX 6
+/** canonical state dimension n (control gains, reference flags) */
+#define TWO_LINK_ARM_NZ 6
+/** process-noise densities q: one per chain, then one per disturbance state */
+#define TWO_LINK_ARM_NQ 2
 /** entries of an NX x NX matrix */
 #define TWO_LINK_ARM_NXX (TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
 /** measured flat outputs (= inputs) m */
@@ -178,7 +182,7 @@ typedef struct {
     /** measurement covariance */
     two_link_arm_real R[TWO_LINK_ARM_NYY];
     /** process-noise density per chain */
-    two_link_arm_real q[TWO_LINK_ARM_NY];
+    two_link_arm_real q[TWO_LINK_ARM_NQ];
     two_link_arm_real ring_x[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NX];
     two_link_arm_real ring_z[TWO_LINK_ARM_NRING_NY];
     two_link_arm_real ring_v[TWO_LINK_ARM_NRING_NY];
@@ -230,7 +234,7 @@ typedef struct {
     /** the master's own prediction into step k */
     two_link_arm_real x_prior[TWO_LINK_ARM_NX];
     two_link_arm_real P_prior[TWO_LINK_ARM_NXX];
-    two_link_arm_real q[TWO_LINK_ARM_NY];
+    two_link_arm_real q[TWO_LINK_ARM_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     two_link_arm_real v[TWO_LINK_ARM_NMAX_NY];
     uint32_t k;
@@ -250,7 +254,7 @@ size_t two_link_arm_packet_size(void);
 int two_link_arm_node_init(two_link_arm_node* node, const two_link_arm_real x0[TWO_LINK_ARM_NX],
                            const two_link_arm_real P0[TWO_LINK_ARM_NXX],
                            const two_link_arm_real R[TWO_LINK_ARM_NYY],
-                           const two_link_arm_real q[TWO_LINK_ARM_NY]);
+                           const two_link_arm_real q[TWO_LINK_ARM_NQ]);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int two_link_arm_node_update(two_link_arm_node* node, const two_link_arm_real z[TWO_LINK_ARM_NY],
                              int gamma);
@@ -276,7 +280,7 @@ int two_link_arm_node_health(const two_link_arm_node* node, two_link_arm_health*
 int two_link_arm_master_init(two_link_arm_master* master,
                              const two_link_arm_real x0[TWO_LINK_ARM_NX],
                              const two_link_arm_real P0[TWO_LINK_ARM_NXX],
-                             const two_link_arm_real q[TWO_LINK_ARM_NY]);
+                             const two_link_arm_real q[TWO_LINK_ARM_NQ]);
 /**
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
  * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
@@ -493,14 +497,14 @@ int two_link_arm_announce_receive(two_link_arm_command_rx* rx, const uint8_t* bu
  */
 int two_link_arm_control(const two_link_arm_real x[TWO_LINK_ARM_NX],
                          const two_link_arm_real flags[TWO_LINK_ARM_NFLAGS],
-                         const two_link_arm_real gains[TWO_LINK_ARM_NX],
+                         const two_link_arm_real gains[TWO_LINK_ARM_NZ],
                          const two_link_arm_real params[TWO_LINK_ARM_NP_SLOTS],
                          two_link_arm_real u[TWO_LINK_ARM_NU], two_link_arm_real v[TWO_LINK_ARM_NY],
                          uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int two_link_arm_gains(const two_link_arm_real lambda[TWO_LINK_ARM_NY],
-                       two_link_arm_real gains[TWO_LINK_ARM_NX]);
+                       two_link_arm_real gains[TWO_LINK_ARM_NZ]);
 
 #ifdef __cplusplus
 }

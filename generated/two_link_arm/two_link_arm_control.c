@@ -33,8 +33,9 @@ const uint8_t two_link_arm_chain_angle[NY] = TWO_LINK_ARM_CHAIN_ANGLE;
 const uint8_t two_link_arm_heads[NY] = TWO_LINK_ARM_CHAIN_OFFSETS;
 
 int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS],
-                         const real gains[NX], const real params[TWO_LINK_ARM_NP_SLOTS],
-                         real u[TWO_LINK_ARM_NU], real v[NY], uint32_t* saturated)
+                         const real gains[TWO_LINK_ARM_NZ],
+                         const real params[TWO_LINK_ARM_NP_SLOTS], real u[TWO_LINK_ARM_NU],
+                         real v[NY], uint32_t* saturated)
 {
     real ul[NY];
     real vl[NY];
@@ -45,7 +46,8 @@ int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS]
     if ((x == NULL) || (flags == NULL) || (gains == NULL) || (params == NULL) || (u == NULL)) {
         rc = TWO_LINK_ARM_ERR_ARG;
     } else if (!two_link_arm_finite(x, NX) || !two_link_arm_finite(flags, TWO_LINK_ARM_NFLAGS) ||
-               !two_link_arm_finite(gains, NX) || !two_link_arm_finite(params, TWO_LINK_ARM_NP)) {
+               !two_link_arm_finite(gains, TWO_LINK_ARM_NZ) ||
+               !two_link_arm_finite(params, TWO_LINK_ARM_NP)) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     } else {
         (void)two_link_arm_kern_control(x, flags, gains, params, ul, vl, det, nsat, w);
@@ -72,11 +74,11 @@ int two_link_arm_control(const real x[NX], const real flags[TWO_LINK_ARM_NFLAGS]
     return rc;
 }
 
-int two_link_arm_gains(const real lambda[NY], real gains[NX])
+int two_link_arm_gains(const real lambda[NY], real gains[TWO_LINK_ARM_NZ])
 {
     static const int degree[NY] = TWO_LINK_ARM_CHAIN_DEGREES;
     static const int offset[NY] = TWO_LINK_ARM_CHAIN_OFFSETS;
-    real out[NX] = {0};
+    real out[TWO_LINK_ARM_NZ] = {0};
     int j;
     int i;
     int rc = TWO_LINK_ARM_OK;
@@ -101,7 +103,7 @@ int two_link_arm_gains(const real lambda[NY], real gains[NX])
                 out[(offset[j] + i) - 1] = binom * power;
             }
         }
-        if (two_link_arm_finite(out, NX) != 0) {
+        if (two_link_arm_finite(out, TWO_LINK_ARM_NZ) != 0) {
             (void)memcpy(gains, out, sizeof(out));
         } else { /* lambda^r overflowed */
             rc = TWO_LINK_ARM_ERR_NONFINITE;

@@ -172,17 +172,17 @@ int two_link_arm_packet_check(const two_link_arm_packet* pk)
 }
 
 int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], const real P0[NXX],
-                             const real q[NY])
+                             const real q[TWO_LINK_ARM_NQ])
 {
     int i;
     int rc = TWO_LINK_ARM_OK;
     if ((master == NULL) || (x0 == NULL) || (P0 == NULL) || (q == NULL)) {
         rc = TWO_LINK_ARM_ERR_ARG;
     } else if ((two_link_arm_finite(x0, NX) == 0) || (two_link_arm_finite(P0, NXX) == 0) ||
-               (two_link_arm_finite(q, NY) == 0)) {
+               (two_link_arm_finite(q, TWO_LINK_ARM_NQ) == 0)) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     } else {
-        for (i = 0; i < NY; i++) {
+        for (i = 0; i < TWO_LINK_ARM_NQ; i++) {
             if (q[i] < (real)0) {
                 rc = TWO_LINK_ARM_ERR_ARG;
             }

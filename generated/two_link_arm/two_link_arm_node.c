@@ -192,7 +192,7 @@ int two_link_arm_cov_ok(const real* A)
 }
 
 int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const real P0[NXX],
-                           const real R[TWO_LINK_ARM_NYY], const real q[NY])
+                           const real R[TWO_LINK_ARM_NYY], const real q[TWO_LINK_ARM_NQ])
 {
     real xP[NXP];
     int i;
@@ -207,10 +207,10 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
     if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_finite(R, TWO_LINK_ARM_NYY) == 0)) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
-    if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_finite(q, NY) == 0)) {
+    if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_finite(q, TWO_LINK_ARM_NQ) == 0)) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     }
-    for (i = 0; (rc == TWO_LINK_ARM_OK) && (i < NY); i++) {
+    for (i = 0; (rc == TWO_LINK_ARM_OK) && (i < TWO_LINK_ARM_NQ); i++) {
         if (q[i] < (real)0) {
             rc = TWO_LINK_ARM_ERR_ARG;
         }

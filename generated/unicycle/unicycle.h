@@ -33,8 +33,12 @@ extern "C" {
 #endif
 
 /* ---- dimensions and build options ---------------------------------------------------------- */
-/** canonical state dimension n */
+/** the filters' state dimension: the canonical state, then disturbance states (if built with) */
 #define UNICYCLE_NX 4
+/** canonical state dimension n (control gains, reference flags) */
+#define UNICYCLE_NZ 4
+/** process-noise densities q: one per chain, then one per disturbance state */
+#define UNICYCLE_NQ 2
 /** entries of an NX x NX matrix */
 #define UNICYCLE_NXX (UNICYCLE_NX * UNICYCLE_NX)
 /** measured flat outputs (= inputs) m */
@@ -156,7 +160,7 @@ typedef struct {
     /** measurement covariance */
     unicycle_real R[UNICYCLE_NYY];
     /** process-noise density per chain */
-    unicycle_real q[UNICYCLE_NY];
+    unicycle_real q[UNICYCLE_NQ];
     unicycle_real ring_x[UNICYCLE_NRING * UNICYCLE_NX];
     unicycle_real ring_z[UNICYCLE_NRING_NY];
     unicycle_real ring_v[UNICYCLE_NRING_NY];
@@ -208,7 +212,7 @@ typedef struct {
     /** the master's own prediction into step k */
     unicycle_real x_prior[UNICYCLE_NX];
     unicycle_real P_prior[UNICYCLE_NXX];
-    unicycle_real q[UNICYCLE_NY];
+    unicycle_real q[UNICYCLE_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
     unicycle_real v[UNICYCLE_NMAX_NY];
     uint32_t k;
@@ -227,7 +231,7 @@ size_t unicycle_packet_size(void);
 /** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
 int unicycle_node_init(unicycle_node* node, const unicycle_real x0[UNICYCLE_NX],
                        const unicycle_real P0[UNICYCLE_NXX], const unicycle_real R[UNICYCLE_NYY],
-                       const unicycle_real q[UNICYCLE_NY]);
+                       const unicycle_real q[UNICYCLE_NQ]);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int unicycle_node_update(unicycle_node* node, const unicycle_real z[UNICYCLE_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */
@@ -248,7 +252,7 @@ int unicycle_node_health(const unicycle_node* node, unicycle_health* health);
 /* ---- master ----------------------------------------------------------------------------- */
 /** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
 int unicycle_master_init(unicycle_master* master, const unicycle_real x0[UNICYCLE_NX],
-                         const unicycle_real P0[UNICYCLE_NXX], const unicycle_real q[UNICYCLE_NY]);
+                         const unicycle_real P0[UNICYCLE_NXX], const unicycle_real q[UNICYCLE_NQ]);
 /**
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
  * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
@@ -456,12 +460,12 @@ int unicycle_announce_receive(unicycle_command_rx* rx, const uint8_t* buf, size_
  * clamped.
  */
 int unicycle_control(const unicycle_real x[UNICYCLE_NX], const unicycle_real flags[UNICYCLE_NFLAGS],
-                     const unicycle_real gains[UNICYCLE_NX],
+                     const unicycle_real gains[UNICYCLE_NZ],
                      const unicycle_real params[UNICYCLE_NP_SLOTS], unicycle_real u[UNICYCLE_NU],
                      unicycle_real v[UNICYCLE_NY], uint32_t* saturated);
 /** Gains placing all poles of chain j at -lambda[j]:
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
-int unicycle_gains(const unicycle_real lambda[UNICYCLE_NY], unicycle_real gains[UNICYCLE_NX]);
+int unicycle_gains(const unicycle_real lambda[UNICYCLE_NY], unicycle_real gains[UNICYCLE_NZ]);
 
 /* ---- dynamic extension ------------------------------------------------------------------ */
 /** The controller's integrator states (v): the model as written

@@ -20,9 +20,9 @@ const real unicycle_ts = UNICYCLE_TS;
 const uint8_t unicycle_chain_angle[NY] = UNICYCLE_CHAIN_ANGLE;
 const uint8_t unicycle_heads[NY] = UNICYCLE_CHAIN_OFFSETS;
 
-int unicycle_control(const real x[NX], const real flags[UNICYCLE_NFLAGS], const real gains[NX],
-                     const real params[UNICYCLE_NP_SLOTS], real u[UNICYCLE_NU], real v[NY],
-                     uint32_t* saturated)
+int unicycle_control(const real x[NX], const real flags[UNICYCLE_NFLAGS],
+                     const real gains[UNICYCLE_NZ], const real params[UNICYCLE_NP_SLOTS],
+                     real u[UNICYCLE_NU], real v[NY], uint32_t* saturated)
 {
     real ul[NY];
     real vl[NY];
@@ -33,7 +33,7 @@ int unicycle_control(const real x[NX], const real flags[UNICYCLE_NFLAGS], const 
     if ((x == NULL) || (flags == NULL) || (gains == NULL) || (params == NULL) || (u == NULL)) {
         rc = UNICYCLE_ERR_ARG;
     } else if (!unicycle_finite(x, NX) || !unicycle_finite(flags, UNICYCLE_NFLAGS) ||
-               !unicycle_finite(gains, NX) || !unicycle_finite(params, UNICYCLE_NP)) {
+               !unicycle_finite(gains, UNICYCLE_NZ) || !unicycle_finite(params, UNICYCLE_NP)) {
         rc = UNICYCLE_ERR_NONFINITE;
     } else {
         (void)unicycle_kern_control(x, flags, gains, params, ul, vl, det, nsat, w);
@@ -60,11 +60,11 @@ int unicycle_control(const real x[NX], const real flags[UNICYCLE_NFLAGS], const 
     return rc;
 }
 
-int unicycle_gains(const real lambda[NY], real gains[NX])
+int unicycle_gains(const real lambda[NY], real gains[UNICYCLE_NZ])
 {
     static const int degree[NY] = UNICYCLE_CHAIN_DEGREES;
     static const int offset[NY] = UNICYCLE_CHAIN_OFFSETS;
-    real out[NX] = {0};
+    real out[UNICYCLE_NZ] = {0};
     int j;
     int i;
     int rc = UNICYCLE_OK;
@@ -89,7 +89,7 @@ int unicycle_gains(const real lambda[NY], real gains[NX])
                 out[(offset[j] + i) - 1] = binom * power;
             }
         }
-        if (unicycle_finite(out, NX) != 0) {
+        if (unicycle_finite(out, UNICYCLE_NZ) != 0) {
             (void)memcpy(gains, out, sizeof(out));
         } else { /* lambda^r overflowed */
             rc = UNICYCLE_ERR_NONFINITE;

@@ -149,17 +149,17 @@ int unicycle_packet_check(const unicycle_packet* pk)
 }
 
 int unicycle_master_init(unicycle_master* master, const real x0[NX], const real P0[NXX],
-                         const real q[NY])
+                         const real q[UNICYCLE_NQ])
 {
     int i;
     int rc = UNICYCLE_OK;
     if ((master == NULL) || (x0 == NULL) || (P0 == NULL) || (q == NULL)) {
         rc = UNICYCLE_ERR_ARG;
     } else if ((unicycle_finite(x0, NX) == 0) || (unicycle_finite(P0, NXX) == 0) ||
-               (unicycle_finite(q, NY) == 0)) {
+               (unicycle_finite(q, UNICYCLE_NQ) == 0)) {
         rc = UNICYCLE_ERR_NONFINITE;
     } else {
-        for (i = 0; i < NY; i++) {
+        for (i = 0; i < UNICYCLE_NQ; i++) {
             if (q[i] < (real)0) {
                 rc = UNICYCLE_ERR_ARG;
             }

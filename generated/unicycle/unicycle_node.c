@@ -179,7 +179,7 @@ int unicycle_cov_ok(const real* A)
 }
 
 int unicycle_node_init(unicycle_node* node, const real x0[NX], const real P0[NXX],
-                       const real R[UNICYCLE_NYY], const real q[NY])
+                       const real R[UNICYCLE_NYY], const real q[UNICYCLE_NQ])
 {
     real xP[NXP];
     int i;
@@ -194,10 +194,10 @@ int unicycle_node_init(unicycle_node* node, const real x0[NX], const real P0[NXX
     if ((rc == UNICYCLE_OK) && (unicycle_finite(R, UNICYCLE_NYY) == 0)) {
         rc = UNICYCLE_ERR_NONFINITE;
     }
-    if ((rc == UNICYCLE_OK) && (unicycle_finite(q, NY) == 0)) {
+    if ((rc == UNICYCLE_OK) && (unicycle_finite(q, UNICYCLE_NQ) == 0)) {
         rc = UNICYCLE_ERR_NONFINITE;
     }
-    for (i = 0; (rc == UNICYCLE_OK) && (i < NY); i++) {
+    for (i = 0; (rc == UNICYCLE_OK) && (i < UNICYCLE_NQ); i++) {
         if (q[i] < (real)0) {
             rc = UNICYCLE_ERR_ARG;
         }

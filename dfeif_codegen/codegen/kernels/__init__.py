@@ -85,7 +85,7 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     s = Chains(flat, opts)
     name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
     info = node.info(s, name("info"))
-    h = held.Held(flat, opts.ts) if opts.predictor == "held" else None
+    h = held.Held(flat, opts.ts, opts.disturbance_states()) if opts.predictor == "held" else None
     if h is not None:
         node_predict = held.node_predict(h, name("node_predict"))
         filt = [held.predict(h, name("predict")), node_predict, node.update(s, name("update")), info]
@@ -115,6 +115,6 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     loopable += [("advance", f, lambda s, _, f=f: fusion_loops.advance_loop(s, f)) for f in fus[2:]
                  if f.name() == name("advance")]
     looped = {f.name(): loop(s, f.name()) for key, f, loop in loopable if f.n_instructions() > LOOP_OPS[key]}
-    return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"), h and h.H)]},
+    return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"), h and h.law)]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
                      wrappers={name("predict"): name("node_predict")}, loops=looped)

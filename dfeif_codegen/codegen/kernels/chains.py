@@ -27,7 +27,9 @@ class Chains:
 
     def __init__(self, flat, opts: Options):
         self.flat, self.opts = flat, opts
-        self.n, self.m = flat.n, flat.m
+        # the filters' state: the canonical one, then one disturbance state per chain if built with them
+        self.nz, self.m = flat.n, flat.m
+        self.n = flat.n + (flat.m if opts.disturbance else 0)
         self.degrees = flat.degrees
         self.heads = flat.heads
         self.angles = [c.angle for c in flat.chains]

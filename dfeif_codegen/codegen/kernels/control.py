@@ -4,6 +4,8 @@ The model's F-bar and G-bar (sympy, from `symbolic.flatness`) are converted here
 `symbolic.numeric.to_casadi`, the one sympy -> CasADi bridge, and CasADi's common-subexpression
 elimination shares their terms. With the held-input predictor (`held`: its build-time constants)
 u is the input to hold over the period (symbolic/sampling.py `held_input_sx`), the reference's law.
+With disturbance states the estimate x carries them after the canonical state, and u cancels the
+estimated disturbance d as the reference's law does (u - G⁻¹ d before the clamp).
 """
 
 from __future__ import annotations
@@ -29,8 +31,9 @@ def _clamp(flat, u: ca.SX) -> tuple[ca.SX, ca.SX]:
 
 def control(s: Chains, name: str, held: sampling.HeldSampling | None = None) -> ca.Function:
     """u and v = F + G u from the estimate, reference flags and gains (algorithms.md)."""
-    flat, n, m = s.flat, s.n, s.m
-    x, flags, gains = sym("x", n), sym("flags", n + m), sym("gains", n)
+    flat, n, m = s.flat, s.nz, s.m
+    xd, flags, gains = sym("x", s.n), sym("flags", n + m), sym("gains", n)
+    x = xd[:n]
     p = sym("params", len(flat.params))
     table = dict(zip(flat.zeta, [x[i] for i in range(n)]))
     table.update(zip(flat.params, [p[i] for i in range(len(flat.params))]))
@@ -56,11 +59,14 @@ def control(s: Chains, name: str, held: sampling.HeldSampling | None = None) -> 
         u = sampling.held_input_sx(flat, held, x, v, p)[0]
     else:
         u = (v - F) / G if m == 1 else ca.solve(G, v - F)
+    if s.n > n:                                   # the estimated disturbance cancelled
+        d = xd[n:]
+        u = u - (d / G if m == 1 else ca.solve(G, d))
     # declared actuator limits: clamp u, count the clamped inputs, and broadcast the v the
     # clamped u really produces (v = F + G u), so the filters predict what the plant does
     nsat = ca.SX(0)
     if any(w.bounded for w in flat.model.inputs):
         u, nsat = _clamp(flat, u)
         v = F + ca.mtimes(G, u)
-    return ca.Function(name, [x, flags, gains, p], [u, v, det, nsat],
+    return ca.Function(name, [xd, flags, gains, p], [u, v, det, nsat],
                        ["x", "flags", "gains", "params"], ["u", "v", "det", "nsat"], {"cse": True})

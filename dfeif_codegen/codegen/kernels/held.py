@@ -10,6 +10,10 @@ embedding) and add the reference's increment (sampling.held_increment_sx, evalua
 absolute state z = x + Hc) to the relative x: the ETD2RK step of the reference minus Hc, the
 stored values keeping their resolution in single precision. The model's parameters are baked in
 at their values: L₀ is taken with them at build time.
+
+With disturbance states (`codegen build --disturbance`, symbolic/disturbance.py) the state is the
+canonical one followed by one disturbance per chain, q the chains' densities followed by the
+disturbances': the same increment and E, U of the extended A (sampling.augmented).
 """
 
 from __future__ import annotations
@@ -24,9 +28,12 @@ from dfeif_codegen.symbolic import sampling
 class Held:
     """The held predictor's constants for one flat system and period, and its SX pieces."""
 
-    def __init__(self, flat, ts: float):
-        self.flat, self.n, self.m = flat, flat.n, flat.m
-        self.H = sampling.held_sampling(flat, ts)
+    def __init__(self, flat, ts: float, disturbance=None):
+        self.flat, self.m = flat, flat.m
+        self.H = sampling.held_sampling(flat, ts, disturbance=disturbance)
+        self.n, self.nq = len(self.H.A), len(self.H.U)     # state and densities, disturbances included
+        # the control law's constants: the canonical model's (the reference's law)
+        self.law = self.H if disturbance is None else sampling.held_sampling(flat, ts)
         self.p = ca.DM(flat.param_vector)
         self.embed = np.zeros((self.n, self.m))
         self.embed[flat.heads, np.arange(self.m)] = 1.0
@@ -39,7 +46,7 @@ class Held:
         """Φ₀ P Φ₀ᵀ + Q₀ (Q₀ = Σ_j q_j U_j) from the upper triangle of P."""
         E = dm(self.H.E)
         out = ca.mtimes(ca.mtimes(E, symmetric(P)), E.T)
-        for j in range(self.m):
+        for j in range(self.nq):
             out = out + q[j] * dm(self.H.U[j])
         return out
 
@@ -47,7 +54,7 @@ class Held:
 def node_predict(h: Held, name: str) -> ca.Function:
     """The node's prediction of its state (x, then P packed: one argument) with the applied u."""
     n, m, npp = h.n, h.m, h.n * (h.n + 1) // 2
-    post, u, q, c = sym("post", n + npp), sym("u", m), sym("q", m), sym("centre", m)
+    post, u, q, c = sym("post", n + npp), sym("u", m), sym("q", h.nq), sym("centre", m)
     P1 = h.covariance(unpack(post[n:], n), q)
     return ca.Function(name, [post, u, q, c], [h.mean(post[:n], u, c), pack(P1)], ["post", "u", "q", "centre"],
                        ["x1", "P1"])
@@ -55,12 +62,12 @@ def node_predict(h: Held, name: str) -> ca.Function:
 
 def node_predict_P(h: Held, name: str) -> ca.Function:
     """The covariance alone (a replay's checkpoints: P reads neither x nor u)."""
-    P, q = sym("P", h.n * (h.n + 1) // 2), sym("q", h.m)
+    P, q = sym("P", h.n * (h.n + 1) // 2), sym("q", h.nq)
     return ca.Function(name, [P, q], [pack(h.covariance(unpack(P, h.n), q))], ["P", "q"], ["P1"])
 
 
 def predict(h: Held, name: str) -> ca.Function:
     """The master's prediction (x, P full): printed as node_predict on packed copies."""
-    x, P, u, q, c = sym("x", h.n), sym("P", h.n, h.n), sym("u", h.m), sym("q", h.m), sym("centre", h.m)
+    x, P, u, q, c = sym("x", h.n), sym("P", h.n, h.n), sym("u", h.m), sym("q", h.nq), sym("centre", h.m)
     P1 = symmetric(h.covariance(symmetric(P), q))
     return ca.Function(name, [x, P, u, q, c], [h.mean(x, u, c), P1], ["x", "P", "u", "q", "centre"], ["x1", "P1"])
