@@ -300,6 +300,26 @@ int main(void)
     tmp = c;
     tmp.health.late_rejected++;
     CHECK(F(node_update_delayed)(&c, z, 1) == K(ERR_LAG) && SAME(c, tmp));  /* lag > k */
+    /* started mid-run (node_mid_run): no late frame of a step before the first measurement */
+    for (i = 0; i < 2; i++) {
+        init(&c, 1);
+        CHECK(F(node_mid_run)(NULL) == K(ERR_ARG));
+        CHECK(i == 0 || F(node_mid_run)(&c) == K(OK));
+        CHECK(F(node_update)(&c, NULL, 0) == K(OK) && F(node_predict)(&c, v) == K(OK));  /* step 0 lost */
+        CHECK(F(node_update)(&c, z, 1) == K(OK));                                       /* step 1 */
+        CHECK(F(node_mid_run)(&c) == K(ERR_SEQUENCE));
+        snap = c;
+        tmp = c;
+        tmp.health.late_rejected++;
+        if (i == 1) {   /* step 0 holds the prior alone */
+            CHECK(F(node_update_delayed)(&c, z, 1) == K(ERR_LAG) && SAME(c, tmp));
+        } else {        /* a node started at step 0 takes it */
+            CHECK(F(node_update_delayed)(&c, z, 1) == K(OK) && c.health.late_applied == 1);
+        }
+        CHECK(F(node_predict)(&c, v) == K(OK) && F(node_update)(&c, NULL, 0) == K(OK));  /* step 2 lost */
+        CHECK(F(node_predict)(&c, v) == K(OK) && F(node_update)(&c, z, 1) == K(OK));     /* step 3 */
+        CHECK(F(node_update_delayed)(&c, z, 1) == K(OK) && c.health.late_applied == 2u - (uint32_t)i);
+    }
 
     /* init validates before touching the node */
     memset(x0, 0, sizeof(x0)); memset(P0, 0, sizeof(P0)); memset(R, 0, sizeof(R));

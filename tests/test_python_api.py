@@ -181,6 +181,34 @@ def test_cache_reuses_the_library_and_float_builds_use_float32(tmp_path, host_cc
     assert dc.load(other, cache=tmp_path / "cache").path != first.path
 
 
+def test_node_started_mid_run_refuses_frames_before_its_first_measurement(lib):
+    """`Node(..., mid_run=True)` (`<model>_node_mid_run`) against the reference's
+    `NodeFilter(mid_run=True)`: step 0 lost, step 1 measured, the late frame of step 0 refused
+    (the node's prior alone there), that of step 2 taken at step 3; the same frames taken by a
+    node started at step 0. Estimates equal to RTOL."""
+    from dfeif_codegen.check import loader
+    flat = flatness.derive(dc.load_model("dc_motor_link"))
+    x0, P0, R, q = np.array([0.1, 0.0, 0.0]), np.diag([1e-2, 1e-1, 1.0]), np.array([[1e-6]]), np.array([1.0])
+    for mid_run in (True, False):
+        c = lib.Node(x0, P0, R, q, mid_run=mid_run)
+        r = NodeFilter(flat, 0.01, q, R, x0, P0, mid_run=mid_run)
+        for k, z in enumerate([None, [0.12], None, [0.15]]):
+            c.update(z, gamma=int(z is not None))
+            r.update(z, gamma=z is not None)
+            if k in (1, 3):
+                taken = r.update_delayed([0.11 + 0.01 * k], lag=1)
+                assert taken == (k == 3 or not mid_run)
+                if taken:
+                    c.update_delayed([0.11 + 0.01 * k], lag=1)
+                else:
+                    with pytest.raises(loader.LagError):
+                        c.update_delayed([0.11 + 0.01 * k], lag=1)
+            x, P = c.estimate()
+            assert rel(x, r.x) < RTOL and rel(P, r.P) < RTOL
+            c.predict([0.2])
+            r.predict([0.2])
+
+
 def test_build_check_and_inspect_are_api_functions():
     """`codegen build --check` and `codegen inspect` as functions: the committed output is what
     the build writes (the golden test's claim, by the other route), and inspect's A_d at another

@@ -220,13 +220,17 @@ class Node(_Filter):
 
     _kind = "node"
 
-    def __init__(self, x0, P0, R, q):
+    def __init__(self, x0, P0, R, q, mid_run: bool = False):
+        """`mid_run`: the node starts after step 0 with the prior of step 0 (a restart;
+        `<model>_node_mid_run`): it takes no late frame of a step before its first measurement."""
         lib = self._library
         n, m = lib.nx, lib.ny
         args = (lib.array(x0, (n,), "Node: x0"), lib.array(P0, (n, n), "Node: P0"),
                 lib.array(R, (m, m), "Node: R"), lib.array(q, (m,), "Node: q"))
         self._state = lib.state("node")
         lib.call("node_init", self._state, *map(lib.ptr, args))
+        if mid_run:
+            lib.call("node_mid_run", self._state)
 
     def update(self, z, gamma: int = 1) -> None:
         """The measurement of this step (gamma = 1), or its loss (gamma = 0, z may be None)."""
@@ -240,7 +244,8 @@ class Node(_Filter):
         z = lib.array(z_late, (lib.ny,), "Node.update_delayed: z_late")
         lib.call("node_update_delayed", self._state, lib.ptr(z), ctypes.c_int32(int(lag)),
                  detail=f"lag {int(lag)}: the window is 1..{lib.dims['NMAX']} steps back, not before the "
-                        "node's first step, and a step without a measurement yet")
+                        "node's first step (a node started mid_run: its first measurement), and a step "
+                        "without a measurement yet")
 
     def packet(self) -> Packet:
         lib = self._library

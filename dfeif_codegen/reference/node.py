@@ -74,11 +74,14 @@ class NodeFilter:
     predictor) or v = F + G u (`brunovsky`)."""
 
     def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay",
-                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
+                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None,
+                 mid_run: bool = False):
         """`dtype` is the precision of every stored value and operation: float64 for the
         reference; float32 gives a second single-precision implementation (numpy and LAPACK
         instead of the generated C), to tell the method's conditioning from the C's rounding
-        (the held predictor's mean map is evaluated in double and rounded)."""
+        (the held predictor's mean map is evaluated in double and rounded). `mid_run`: the node
+        starts later than step 0 with the prior of step 0 (a restart; the C's node_mid_run):
+        late frames of steps before its first measurement are refused (`update_delayed`)."""
         if oosm not in ("replay", "retrodict"):
             raise ValueError(f"oosm must be 'replay' or 'retrodict', not {oosm!r}")
         predictors.check(predictor, oosm, disturbance)
@@ -102,6 +105,7 @@ class NodeFilter:
         self._ring: list[_Slot | None] = [None] * (max_lag + 1)
         self._ring[0] = _Slot(self.x, self.P)
         self._updated = False
+        self.first: int | None = None if mid_run else 0   # the first step a late frame may be of
 
     # protocol ---------------------------------------------------------------------------------
     def update(self, z, gamma: bool) -> None:
@@ -114,15 +118,24 @@ class NodeFilter:
         slot.z = self._z(z) if gamma else np.full(self.flat.m, np.nan, dtype=self.dtype)
         self.x, self.P = self._correct(slot)
         self.counters["updates" if gamma else "drops"] += 1
+        if gamma and self.first is None:
+            self.first = self.k
         self._updated = True
 
     def update_delayed(self, z, lag: int) -> bool:
         """Apply the measurement taken at step k - lag. False (and counted) if it is outside the
-        window, from the future or the present, or its step already has a measurement."""
+        window, from the future or the present, its step already has a measurement, or (a node
+        started `mid_run`) it is of a step before the first measurement `update` applied: there
+        the node holds the prior of step 0 alone. After a restart that prior was 18 sigma from
+        the plant (`codegen network`'s node-restart fault), a late frame there corrected it by
+        0.89 rad, the held predictor's mean over that correction departed from the Φ₀ the
+        master's difference rule assumes, and the master's θ'' went 28 sigma off
+        (docs/mathematics.md section 3)."""
         if not self._updated:
             raise RuntimeError(f"update_delayed before update at step {self.k}")
         lag = int(lag)
-        if lag < 1 or lag > self.max_lag or lag > self.k or self._slot(self.k - lag).gamma:
+        if (lag < 1 or lag > self.max_lag or lag > self.k or self.first is None or self.k - lag < self.first
+                or self._slot(self.k - lag).gamma):
             self.counters["late_rejected"] += 1
             return False
         slot = self._slot(self.k - lag)
