@@ -188,6 +188,10 @@ typedef struct {
     uint16_t slot;
     uint16_t hist;
     dc_motor_link_health health;
+    /** after node_mid_run(), 0 until update() applies a measurement, at step `first`: late
+     * frames of steps before it are refused (a replay there corrects the start-up prior alone) */
+    uint32_t first;
+    uint8_t measured;
     /** update() done for step k */
     uint8_t updated;
     /** per step, at step % NHIST: bit 0 has a measurement, bit 1 used by the filter */
@@ -249,6 +253,10 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const dc_motor_link_real x
                             const dc_motor_link_real P0[DC_MOTOR_LINK_NXX],
                             const dc_motor_link_real R[DC_MOTOR_LINK_NYY],
                             const dc_motor_link_real q[DC_MOTOR_LINK_NQ]);
+/** Right after init, for a node started mid-run (its prior is the one of step 0, not of the
+ * step it starts at): late frames of steps before its first measurement are then refused
+ * (ERR_LAG). ERR_SEQUENCE after the first update. */
+int dc_motor_link_node_mid_run(dc_motor_link_node* node);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int dc_motor_link_node_update(dc_motor_link_node* node,
                               const dc_motor_link_real z[DC_MOTOR_LINK_NY], int gamma);

@@ -204,6 +204,7 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
         (void)memcpy(xP, x0, sizeof(real) * (size_t)NX);
         pack(P0, &xP[NX]);
         (void)memset(node, 0, sizeof(*node));
+        node->measured = 1u; /* the prior is of step 0: every step may be replayed */
         (void)memcpy(node->post, xP, sizeof(xP));
         (void)memcpy(node->pred, xP, sizeof(xP));
         (void)memcpy(node->ring_x, x0, sizeof(real) * (size_t)NX);
@@ -212,6 +213,23 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
         recentre(node, node->post);
+    }
+    return rc;
+}
+
+/* A node started mid-run holds the prior of step 0 for a later step, perhaps far from the plant
+ * (a restart): a replay through that prior alone corrects it by as much, and the held mean over
+ * that correction departs from the Phi the master's difference rule assumes (docs/algorithms.md,
+ * node). Its window starts at its first measurement. */
+int dc_motor_link_node_mid_run(dc_motor_link_node* node)
+{
+    int rc = DC_MOTOR_LINK_OK;
+    if (node == NULL) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else if ((node->k != 0u) || (node->updated != 0u)) {
+        rc = DC_MOTOR_LINK_ERR_SEQUENCE;
+    } else {
+        node->measured = 0u;
     }
     return rc;
 }
@@ -259,6 +277,10 @@ int dc_motor_link_node_update(dc_motor_link_node* node, const real z[NY], int ga
         node->updated = 1;
         if (gamma == 1) {
             node->health.updates++;
+            if (node->measured == 0u) {
+                node->measured = 1u;
+                node->first = node->k;
+            }
         } else {
             node->health.drops++;
         }
@@ -396,6 +418,12 @@ int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs
     }
     if ((rc == DC_MOTOR_LINK_OK) &&
         ((lag < 1) || (lag > DC_MOTOR_LINK_NMAX) || ((uint32_t)lag > node->k))) {
+        node->health.late_rejected++;
+        rc = DC_MOTOR_LINK_ERR_LAG;
+    }
+    /* started mid-run: a step before the first measurement holds the start-up prior alone */
+    if ((rc == DC_MOTOR_LINK_OK) &&
+        ((node->measured == 0u) || ((node->k - (uint32_t)lag) < node->first))) {
         node->health.late_rejected++;
         rc = DC_MOTOR_LINK_ERR_LAG;
     }

@@ -179,6 +179,10 @@ typedef struct {
     uint16_t slot;
     uint16_t hist;
     pvtol_health health;
+    /** after node_mid_run(), 0 until update() applies a measurement, at step `first`: late
+     * frames of steps before it are refused (a replay there corrects the start-up prior alone) */
+    uint32_t first;
+    uint8_t measured;
     /** update() done for step k */
     uint8_t updated;
     /** per step, at step % NHIST: bit 0 has a measurement, bit 1 used by the filter */
@@ -238,6 +242,10 @@ size_t pvtol_packet_size(void);
 /** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
 int pvtol_node_init(pvtol_node* node, const pvtol_real x0[PVTOL_NX], const pvtol_real P0[PVTOL_NXX],
                     const pvtol_real R[PVTOL_NYY], const pvtol_real q[PVTOL_NQ]);
+/** Right after init, for a node started mid-run (its prior is the one of step 0, not of the
+ * step it starts at): late frames of steps before its first measurement are then refused
+ * (ERR_LAG). ERR_SEQUENCE after the first update. */
+int pvtol_node_mid_run(pvtol_node* node);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int pvtol_node_update(pvtol_node* node, const pvtol_real z[PVTOL_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */

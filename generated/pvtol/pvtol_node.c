@@ -209,6 +209,7 @@ int pvtol_node_init(pvtol_node* node, const real x0[NX], const real P0[NXX],
         (void)memcpy(xP, x0, sizeof(real) * (size_t)NX);
         pack(P0, &xP[NX]);
         (void)memset(node, 0, sizeof(*node));
+        node->measured = 1u; /* the prior is of step 0: every step may be replayed */
         (void)memcpy(node->post, xP, sizeof(xP));
         (void)memcpy(node->pred, xP, sizeof(xP));
         (void)memcpy(node->ring_x, x0, sizeof(real) * (size_t)NX);
@@ -217,6 +218,23 @@ int pvtol_node_init(pvtol_node* node, const real x0[NX], const real P0[NXX],
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
         recentre(node, node->post);
+    }
+    return rc;
+}
+
+/* A node started mid-run holds the prior of step 0 for a later step, perhaps far from the plant
+ * (a restart): a replay through that prior alone corrects it by as much, and the held mean over
+ * that correction departs from the Phi the master's difference rule assumes (docs/algorithms.md,
+ * node). Its window starts at its first measurement. */
+int pvtol_node_mid_run(pvtol_node* node)
+{
+    int rc = PVTOL_OK;
+    if (node == NULL) {
+        rc = PVTOL_ERR_ARG;
+    } else if ((node->k != 0u) || (node->updated != 0u)) {
+        rc = PVTOL_ERR_SEQUENCE;
+    } else {
+        node->measured = 0u;
     }
     return rc;
 }
@@ -264,6 +282,10 @@ int pvtol_node_update(pvtol_node* node, const real z[NY], int gamma)
         node->updated = 1;
         if (gamma == 1) {
             node->health.updates++;
+            if (node->measured == 0u) {
+                node->measured = 1u;
+                node->first = node->k;
+            }
         } else {
             node->health.drops++;
         }
@@ -400,6 +422,11 @@ int pvtol_node_update_delayed(pvtol_node* node, const real z_abs[NY], int32_t la
         rc = PVTOL_ERR_NONFINITE;
     }
     if ((rc == PVTOL_OK) && ((lag < 1) || (lag > PVTOL_NMAX) || ((uint32_t)lag > node->k))) {
+        node->health.late_rejected++;
+        rc = PVTOL_ERR_LAG;
+    }
+    /* started mid-run: a step before the first measurement holds the start-up prior alone */
+    if ((rc == PVTOL_OK) && ((node->measured == 0u) || ((node->k - (uint32_t)lag) < node->first))) {
         node->health.late_rejected++;
         rc = PVTOL_ERR_LAG;
     }

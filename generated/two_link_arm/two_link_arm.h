@@ -194,6 +194,10 @@ typedef struct {
     uint16_t slot;
     uint16_t hist;
     two_link_arm_health health;
+    /** after node_mid_run(), 0 until update() applies a measurement, at step `first`: late
+     * frames of steps before it are refused (a replay there corrects the start-up prior alone) */
+    uint32_t first;
+    uint8_t measured;
     /** update() done for step k */
     uint8_t updated;
     /** per step, at step % NHIST: bit 0 has a measurement, bit 1 used by the filter */
@@ -255,6 +259,10 @@ int two_link_arm_node_init(two_link_arm_node* node, const two_link_arm_real x0[T
                            const two_link_arm_real P0[TWO_LINK_ARM_NXX],
                            const two_link_arm_real R[TWO_LINK_ARM_NYY],
                            const two_link_arm_real q[TWO_LINK_ARM_NQ]);
+/** Right after init, for a node started mid-run (its prior is the one of step 0, not of the
+ * step it starts at): late frames of steps before its first measurement are then refused
+ * (ERR_LAG). ERR_SEQUENCE after the first update. */
+int two_link_arm_node_mid_run(two_link_arm_node* node);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int two_link_arm_node_update(two_link_arm_node* node, const two_link_arm_real z[TWO_LINK_ARM_NY],
                              int gamma);

@@ -232,6 +232,7 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
         (void)memcpy(xP, x0, sizeof(real) * (size_t)NX);
         pack(P0, &xP[NX]);
         (void)memset(node, 0, sizeof(*node));
+        node->measured = 1u; /* the prior is of step 0: every step may be replayed */
         (void)memcpy(node->post, xP, sizeof(xP));
         (void)memcpy(node->pred, xP, sizeof(xP));
         (void)memcpy(node->ring_x, x0, sizeof(real) * (size_t)NX);
@@ -240,6 +241,23 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
         recentre(node, node->post);
+    }
+    return rc;
+}
+
+/* A node started mid-run holds the prior of step 0 for a later step, perhaps far from the plant
+ * (a restart): a replay through that prior alone corrects it by as much, and the held mean over
+ * that correction departs from the Phi the master's difference rule assumes (docs/algorithms.md,
+ * node). Its window starts at its first measurement. */
+int two_link_arm_node_mid_run(two_link_arm_node* node)
+{
+    int rc = TWO_LINK_ARM_OK;
+    if (node == NULL) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else if ((node->k != 0u) || (node->updated != 0u)) {
+        rc = TWO_LINK_ARM_ERR_SEQUENCE;
+    } else {
+        node->measured = 0u;
     }
     return rc;
 }
@@ -287,6 +305,10 @@ int two_link_arm_node_update(two_link_arm_node* node, const real z[NY], int gamm
         node->updated = 1;
         if (gamma == 1) {
             node->health.updates++;
+            if (node->measured == 0u) {
+                node->measured = 1u;
+                node->first = node->k;
+            }
         } else {
             node->health.drops++;
         }
@@ -424,6 +446,12 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
     }
     if ((rc == TWO_LINK_ARM_OK) &&
         ((lag < 1) || (lag > TWO_LINK_ARM_NMAX) || ((uint32_t)lag > node->k))) {
+        node->health.late_rejected++;
+        rc = TWO_LINK_ARM_ERR_LAG;
+    }
+    /* started mid-run: a step before the first measurement holds the start-up prior alone */
+    if ((rc == TWO_LINK_ARM_OK) &&
+        ((node->measured == 0u) || ((node->k - (uint32_t)lag) < node->first))) {
         node->health.late_rejected++;
         rc = TWO_LINK_ARM_ERR_LAG;
     }

@@ -172,6 +172,10 @@ typedef struct {
     uint16_t slot;
     uint16_t hist;
     unicycle_health health;
+    /** after node_mid_run(), 0 until update() applies a measurement, at step `first`: late
+     * frames of steps before it are refused (a replay there corrects the start-up prior alone) */
+    uint32_t first;
+    uint8_t measured;
     /** update() done for step k */
     uint8_t updated;
     /** per step, at step % NHIST: bit 0 has a measurement, bit 1 used by the filter */
@@ -232,6 +236,10 @@ size_t unicycle_packet_size(void);
 int unicycle_node_init(unicycle_node* node, const unicycle_real x0[UNICYCLE_NX],
                        const unicycle_real P0[UNICYCLE_NXX], const unicycle_real R[UNICYCLE_NYY],
                        const unicycle_real q[UNICYCLE_NQ]);
+/** Right after init, for a node started mid-run (its prior is the one of step 0, not of the
+ * step it starts at): late frames of steps before its first measurement are then refused
+ * (ERR_LAG). ERR_SEQUENCE after the first update. */
+int unicycle_node_mid_run(unicycle_node* node);
 /** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
 int unicycle_node_update(unicycle_node* node, const unicycle_real z[UNICYCLE_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */
