@@ -223,30 +223,40 @@ def test_build_check_and_inspect_are_api_functions():
         inspect_model.inspect("dc_motor_link", ts=-1.0)
 
 
-@pytest.mark.parametrize("oosm, predictor", [("retrodict", "brunovsky"), ("replay", "held")])
-def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc, oosm, predictor):
+@pytest.mark.parametrize("oosm, predictor, kind", [("retrodict", "brunovsky", None), ("replay", "held", None),
+                                                   ("replay", "held", "gauss_markov")])
+def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc, oosm, predictor, kind):
     """Any flat model: a user's two-input model (relative degrees 2 and 3), three nodes, covariance
     intersection and retrodiction (Brunovsky predictor, predicting with v) or replay (held
-    predictor, with u), driven through the API for six steps with a drop, late frames and a
-    missing packet, against the reference (RTOL: the same argument as for the README; the CI
-    weights come from at most 8 Newton steps on a 3 x 3 system that is well conditioned here)."""
+    predictor, with u; also with Gauss-Markov disturbance states, whose densities follow the
+    chains' in q and whose estimate the control law cancels), driven through the API for six
+    steps with a drop, late frames and a missing packet, against the reference (RTOL: the same
+    argument as for the README; the CI weights come from at most 8 Newton steps on a 3 x 3
+    system that is well conditioned here)."""
+    from dfeif_codegen.symbolic.disturbance import Disturbance, augment
+
     from test_user_models import MIXED
 
     path = tmp_path / "mixed.toml"
     path.write_text(MIXED)
     mdl = dc.load_model(str(path))
-    lib = dc.load(dc.build(mdl, tmp_path / "out", nodes=3, oosm=oosm, fusion="ci", max_lag=4, predictor=predictor),
-                  cache=tmp_path / "cache")
+    dist = None if kind is None else Disturbance(kind, (3.0, 7.0), 0.5)
+    lib = dc.load(dc.build(mdl, tmp_path / "out", nodes=3, oosm=oosm, fusion="ci", max_lag=4, predictor=predictor,
+                           disturbance=kind, tau=dist and dist.tau), cache=tmp_path / "cache")
     flat = flatness.derive(mdl)
     n, m, ts = flat.n, flat.m, mdl.ts
-    assert (lib.nx, lib.ny, lib.nodes) == (n, m, 3)
+    nx = n + (m if dist else 0)
+    assert (lib.nx, lib.nz, lib.ny, lib.nq, lib.nodes) == (nx, n, m, nx - n + m, 3)
     rng = np.random.default_rng(3)
     x0, P0, q = np.zeros(n), np.diag(rng.uniform(0.5, 2.0, n)), np.array([2.0, 5.0])
+    x0, P0 = augment(x0, P0, dist, m)
+    q_c = q if dist is None else np.concatenate([q, dist.densities(m)])
     Rs = [np.diag(rng.uniform(1e-4, 4e-4, m)) for _ in range(3)]
-    c_nodes = [lib.Node(x0, P0, R, q) for R in Rs]
-    r_nodes = [NodeFilter(flat, ts, q, R, x0, P0, max_lag=4, oosm=oosm, predictor=predictor) for R in Rs]
-    c_master = lib.Master(x0, P0, q)
-    r_master = Master(flat, ts, q, x0, P0, n_nodes=3, rule="ci", max_lag=4, predictor=predictor)
+    c_nodes = [lib.Node(x0, P0, R, q_c) for R in Rs]
+    r_nodes = [NodeFilter(flat, ts, q, R, x0, P0, max_lag=4, oosm=oosm, predictor=predictor, disturbance=dist)
+               for R in Rs]
+    c_master = lib.Master(x0, P0, q_c)
+    r_master = Master(flat, ts, q, x0, P0, n_nodes=3, rule="ci", max_lag=4, predictor=predictor, disturbance=dist)
     gains = lib.gains([3.0, 4.0])
     ctrl = FlatController(flat, gains=gains, held=held_sampling(flat, ts) if predictor == "held" else None)
     frames = rng.normal(0.0, 0.05, (6, 3, m))
@@ -263,7 +273,7 @@ def test_a_user_model_with_other_options_matches_the_reference(tmp_path, host_cc
         r_master.fuse([r.packet() if p else None for r, p in zip(r_nodes, present)])
         flags = np.concatenate([[0.1 * k, 0.1, 0.0], [0.05, 0.0, 0.0, 0.0]])
         u, v = lib.control(c_master.estimate()[0], flags, gains)
-        u_ref, v_ref = ctrl(r_master.x, flags)
+        u_ref, v_ref = ctrl(r_master.x[:n], flags, disturbance=r_master.x[n:] if dist else None)
         assert rel(c_master.estimate()[0], r_master.x) < RTOL and rel(c_master.estimate()[1], r_master.P) < RTOL
         assert rel(u, u_ref) < RTOL and rel(v, v_ref) < RTOL
         w = v_ref if predictor == "brunovsky" else u_ref

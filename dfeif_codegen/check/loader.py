@@ -60,7 +60,7 @@ class SequenceError(CError):
 ERRORS = {"ERR_ARG": ArgError, "ERR_LAG": LagError, "ERR_NONFINITE": NonFiniteError,
           "ERR_SINGULAR": SingularError, "ERR_DUPLICATE": DuplicateError, "ERR_SEQUENCE": SequenceError}
 
-DIMENSIONS = ("NX", "NY", "NU", "NP", "NFLAGS", "NMAX", "NNODES")
+DIMENSIONS = ("NX", "NZ", "NY", "NQ", "NU", "NP", "NFLAGS", "NMAX", "NNODES")
 
 
 def cache_dir() -> Path:
@@ -119,6 +119,8 @@ class Library:
         self.dims, self.codes = header_facts((folder.path / f"{folder.name}.h").read_text(), P)
         self.nx, self.ny, self.nu, self.np = (self.dims[k] for k in ("NX", "NY", "NU", "NP"))
         self.nflags, self.nodes = self.dims["NFLAGS"], self.dims["NNODES"]
+        # the canonical state (gains) and the densities q: NX and NY unless built with disturbance states
+        self.nz, self.nq = self.dims["NZ"], self.dims["NQ"]
         self.saturated = 0   # inputs clamped to their declared limits by `control`, over all calls
         self._lib = ctypes.CDLL(str(path))
         self._real = ctypes.c_float if self.dtype == np.float32 else ctypes.c_double
@@ -169,7 +171,7 @@ class Library:
         are counted in `self.saturated`."""
         x = self.array(x, (self.nx,), "control: x")
         flags = self.array(flags, (self.nflags,), "control: flags")
-        gains = self.array(gains, (self.nx,), "control: gains")
+        gains = self.array(gains, (self.nz,), "control: gains")
         params = self.array(self.params_default if params is None else params, (self.np,), "control: params")
         u, v = self.output(self.nu), self.output(self.ny)
         count = ctypes.c_uint32(0)
@@ -180,7 +182,7 @@ class Library:
     def gains(self, lam) -> np.ndarray:
         """Gains placing every pole of chain j at -lam[j] (`<model>_gains`)."""
         lam = self.array(np.broadcast_to(np.asarray(lam, float), (self.ny,)), (self.ny,), "gains: lambda")
-        out = self.output(self.nx)
+        out = self.output(self.nz)
         self.call("gains", self.ptr(lam), self.ptr(out))
         return out
 
@@ -226,7 +228,7 @@ class Node(_Filter):
         lib = self._library
         n, m = lib.nx, lib.ny
         args = (lib.array(x0, (n,), "Node: x0"), lib.array(P0, (n, n), "Node: P0"),
-                lib.array(R, (m, m), "Node: R"), lib.array(q, (m,), "Node: q"))
+                lib.array(R, (m, m), "Node: R"), lib.array(q, (lib.nq,), "Node: q"))
         self._state = lib.state("node")
         lib.call("node_init", self._state, *map(lib.ptr, args))
         if mid_run:
@@ -270,7 +272,7 @@ class Master(_Filter):
         lib = self._library
         n = lib.nx
         args = (lib.array(x0, (n,), "Master: x0"), lib.array(P0, (n, n), "Master: P0"),
-                lib.array(q, (lib.ny,), "Master: q"))
+                lib.array(q, (lib.nq,), "Master: q"))
         self._state = lib.state("master")
         lib.call("master_init", self._state, *map(lib.ptr, args))
 
