@@ -96,7 +96,7 @@ def render_peers(spec: str, md: harness.ModelDir, work: Path) -> Path:
     src = work / "peers.c"
     src.write_text(env.get_template("harness/peers.c.j2").render(
         p=md.name, P=md.name.upper(), straight=flat.n == 3 and flat.m == 1, precision=md.precision, held=held,
-        heads=flat.heads, angles=[int(c.angle) for c in flat.chains], **consts,
+        heads=flat.heads, angles=[int(c.angle) for c in flat.chains], input_nominal=md.input_nominal, **consts,
         banner=render.banner("harness/peers.c.j2", md.name, __version__)))
     return src
 

@@ -20,7 +20,8 @@ def render_harness(md: harness.ModelDir, template: str, work: Path) -> Path:
     work.mkdir(parents=True, exist_ok=True)
     src = work / f"{md.name}_{template}.c"
     src.write_text(render.environment(md.precision).get_template(f"harness/{template}.c.j2").render(
-        p=md.name, P=md.name.upper(), banner=render.banner(f"harness/{template}.c.j2", md.name, __version__)))
+        p=md.name, P=md.name.upper(), banner=render.banner(f"harness/{template}.c.j2", md.name, __version__),
+        input_nominal=md.input_nominal))
     return src
 
 

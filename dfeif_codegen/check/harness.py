@@ -116,6 +116,7 @@ class ModelDir:
     path: Path
     name: str
     options: dict
+    input_nominal: tuple = ()     # the held predictor's linearization input (manifest), () without
 
     @classmethod
     def open(cls, path: Path) -> "ModelDir":
@@ -124,7 +125,7 @@ class ModelDir:
         if not manifest.is_file():
             raise SetupError(f"{path} is not a folder written by `codegen build` (no manifest.json)")
         data = json.loads(manifest.read_text())
-        return cls(path, data["model"], data.get("options", {}))
+        return cls(path, data["model"], data.get("options", {}), tuple(data.get("input_nominal", ())))
 
     @property
     def precision(self) -> str:

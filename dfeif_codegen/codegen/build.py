@@ -22,6 +22,7 @@ import jinja2
 
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
+from dfeif_codegen.symbolic.sampling import nominal_point
 from dfeif_codegen.codegen import kernels, layout, provenance, render
 from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
@@ -82,6 +83,8 @@ def context(flat, opts: Options) -> dict:
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
+        # the held predictor's linearization input (benchmarks drive the filters with it)
+        "input_nominal": [float(u) for u in nominal_point(flat)[1]] if opts.predictor == "held" else [],
         "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
         # the CI Hessian's data: H (M x M), or its factor G (M x n^2) when that step is cheaper
         "ci_factor": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_grad"), 0),
