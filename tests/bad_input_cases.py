@@ -130,9 +130,6 @@ def generated() -> dict:
     c["disturbance with the Brunovsky predictor"] = (
         "scenario field", ["simulate", *S, "--engine", "reference", "--predictor", "brunovsky"],
         {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--predictor held"])
-    c["disturbance in the C engine"] = (
-        "scenario field", ["simulate", *S, "--predictor", "held"],
-        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--engine reference"])
     c["verify disturbance with the Brunovsky predictor"] = (
         "scenario field", ["verify", *S, "--predictor", "brunovsky"],
         {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--disturbance", "--predictor held"])
@@ -145,7 +142,7 @@ def generated() -> dict:
     for cmd in ("network",):
         c[f"{cmd} with disturbance states"] = (
             "scenario field", [cmd, *S], {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'},
-            ["disturbance", f"codegen {cmd}", "--engine reference"])
+            ["disturbance", f"codegen {cmd}", "codegen simulate"])
     c |= _opt("option: not a choice", "scenario", "--disturbance", ["walk", ""])
     c |= _opt("option: out of range", "scenario", "--tau", ["0", "-1", "nan"], extra=("--disturbance", "gauss_markov"))
     c |= _opt("option: not a number", "bench", "--repeat", INT_BAD)

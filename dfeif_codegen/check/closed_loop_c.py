@@ -27,11 +27,11 @@ import casadi as ca
 import numpy as np
 
 from dfeif_codegen.check import driver_io, harness, loader
-from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation, divergence
 from dfeif_codegen.experiment.plant import Camera, Plant, _fixed, parametric_step
 from dfeif_codegen.symbolic import numeric
+from dfeif_codegen.symbolic.disturbance import Disturbance, augment
 
 FAILED_PLANT = 7        # failed_call of the closed-loop driver: the plant's state is not finite
 ERR_NONFINITE = -3      # <P>_ERR_NONFINITE of every generated library (templates/model.h.j2)
@@ -54,7 +54,8 @@ def build_key(cfg: ex.Config) -> tuple:
     flat = ex._flat(cfg.model)
     ts = float(cfg.ts or flat.model.ts)
     oosm = cfg.method if cfg.method in ex.OOSM else "replay"
-    return (cfg.model, ts, int(cfg.substeps), len(cfg.sensor), int(cfg.max_lag), oosm, cfg.fusion, cfg.predictor)
+    dist = None if cfg.disturbance is None else (cfg.disturbance.kind, cfg.disturbance.tau)   # what the C bakes in
+    return (cfg.model, ts, int(cfg.substeps), len(cfg.sensor), int(cfg.max_lag), oosm, cfg.fusion, cfg.predictor, dist)
 
 
 def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]:
@@ -101,11 +102,12 @@ def compile_loop(key: tuple) -> Compiled:
     from dfeif_codegen import __version__
     from dfeif_codegen.codegen import render
 
-    spec, ts, substeps, nodes, max_lag, oosm, fusion, predictor = key
+    spec, ts, substeps, nodes, max_lag, oosm, fusion, predictor, dist = key
     flat = ex._flat(spec)
     with tempfile.TemporaryDirectory(prefix="codegen-loop-") as tmp:
         work = Path(tmp)
-        md = harness.build_model(spec, work / "model", "double", oosm, fusion, nodes, max_lag, ts, predictor)
+        md = harness.build_model(spec, work / "model", "double", oosm, fusion, nodes, max_lag, ts, predictor,
+                                 None if dist is None else Disturbance(dist[0], (1.0,), dist[1]))
         harness.render_driver(md, work)
         plant, plant_w = plant_source(flat, ts, substeps, md.name)
         (work / f"{md.name}_plant.c").write_text(plant)
@@ -216,7 +218,13 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     flat, K, M = s.flat, s.K, len(cfg.sensor)
     n, m = flat.n, flat.m
     f64, i32 = np.float64, np.int32
-    init = [_c(a, f64) for a in (s.node_x0, s.node_P0, s.R, s.q, s.x_hat0, s.P0, s.gains, flat.param_vector)]
+    # the filters' start: with disturbance states, extended as the reference's FilterBank does
+    nodes0 = [augment(x, P, cfg.disturbance, m) for x, P in zip(s.node_x0, s.node_P0)]
+    master0 = augment(s.x_hat0, s.P0, cfg.disturbance, m)
+    q = s.q if cfg.disturbance is None else np.concatenate([s.q, cfg.disturbance.densities(m)])
+    N = len(master0[0])
+    init = [_c(a, f64) for a in (np.array([x for x, _ in nodes0]), np.array([P for _, P in nodes0]), s.R, q,
+                                 master0[0], master0[1], s.gains, flat.param_vector)]
     state = (ctypes.c_uint8 * loop.harness_size)()
     rc = getattr(lib, f"{p}_harness_init")(state, *(ctypes.c_void_p(a.ctypes.data) for a in init))
     if rc != 0:
@@ -229,8 +237,8 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     params = None if s.plant_p is None else _c(s.plant_p, f64)   # NULL: the model's own
     E = late.shape[0]
     out: dict[str, np.ndarray] = {"x_true": np.zeros((K, n)), "zeta": np.zeros((K, n)), "frames": np.zeros((M, K, m)),
-           "late_z": np.zeros((E, m)), "node_x": np.zeros((M, K, n)), "node_P": np.zeros((M, K, n, n)),
-           "x": np.zeros((K, n)), "P": np.zeros((K, n, n)), "u": np.zeros((K, m)), "v": np.zeros((K, m)),
+           "late_z": np.zeros((E, m)), "node_x": np.zeros((M, K, N)), "node_P": np.zeros((M, K, N, N)),
+           "x": np.zeros((K, N)), "P": np.zeros((K, N, N)), "u": np.zeros((K, m)), "v": np.zeros((K, m)),
            "late_applied": np.zeros(E, dtype=i32)}
     scen = loop.Scenario(K, E, *(inputs[k].ctypes.data for k in ("x0", "noise", "upd", "late_step", "late_node",
                                                                    "late_lag", "source", "ref")),
@@ -238,6 +246,7 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     res = loop.Results(*(out[k].ctypes.data for k in ("x_true", "zeta", "frames", "late_z")),
                        loop.Outputs(*(out[k].ctypes.data for k in harness.Harness._RESULTS), -1, 0))
     err = getattr(lib, f"{p}_loop_run")(state, ctypes.byref(scen), ctypes.byref(res))
+    out = driver_io.canonical(out, n)       # the filters' canonical part, as the reference records it
     if err != 0:
         step, call = res.out.failed_step, res.out.failed_call
         if call == FAILED_PLANT or err == ERR_NONFINITE:   # where numpy's loop sees the plant diverge
@@ -260,10 +269,6 @@ class CEngine:
     name = "c"
 
     def key(self, cfg: ex.Config) -> tuple:
-        if cfg.disturbance is not None:   # checked while the runs are listed, before any compile
-            raise ScenarioError("[disturbance]: disturbance states are in the reference and the generated library "
-                                "(codegen verify), not yet in the compiled closed loop --engine c runs; use "
-                                "--engine reference")
         return build_key(cfg)
 
     def compile(self, keys: list) -> dict:

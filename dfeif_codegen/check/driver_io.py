@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dfeif_codegen.errors import SetupError
+from dfeif_codegen.symbolic.disturbance import Disturbance, augment
 
 if TYPE_CHECKING:
     from dfeif_codegen.check.harness import ModelDir
@@ -26,14 +27,13 @@ def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
     """The driver's inputs, C-contiguous, reals in the build's precision, integers int32;
     `v_in` is the reference's broadcast input (u for the held predictor, v for the Brunovsky one),
     for runs that predict with the recorded inputs. With disturbance states the initial states and
-    q are the filters' (Recording.filter_start)."""
+    q are the filters' (`filter_start`)."""
     K = rec.ref.shape[0]
     source = np.full((K, rec.nodes), -1, dtype=np.int32)
     source[np.asarray(rec.pkt_step, int), np.asarray(rec.pkt_node, int)] = rec.pkt_src
     real = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
     int32 = lambda a: np.ascontiguousarray(a, dtype=np.int32)  # noqa: E731
-    start = rec.filter_start() if hasattr(rec, "filter_start") else \
-        {k: getattr(rec, k) for k in ("node_x0", "node_P0", "q", "master_x0", "master_P0")}
+    start = filter_start(rec)
     return {
         "node_x0": real(start["node_x0"]), "node_P0": real(start["node_P0"]), "R": real(rec.R), "q": real(start["q"]),
         "master_x0": real(start["master_x0"]), "master_P0": real(start["master_P0"]), "gains": real(rec.gains),
@@ -57,7 +57,20 @@ def output_arrays(rec, dtype) -> dict[str, np.ndarray]:
 
 def filter_size(rec) -> int:
     """The C filters' state dimension for a recording (disturbance states after the canonical)."""
-    return getattr(rec, "filter_n", rec.n)
+    return rec.n + (rec.m if getattr(rec, "disturbance", "") else 0)
+
+
+def filter_start(rec) -> dict[str, np.ndarray]:
+    """node_x0, node_P0, q, master_x0, master_P0 of a recording as the filters take them: with
+    disturbance states (`rec.disturbance`, Disturbance.to_json) the states extended as the
+    reference's FilterBank extends them (symbolic/disturbance.py `augment`) and q followed by the
+    disturbances' densities."""
+    dist = Disturbance.from_json(getattr(rec, "disturbance", ""))
+    nodes = [augment(x, P, dist, rec.m) for x, P in zip(rec.node_x0, rec.node_P0)]
+    x0, P0 = augment(rec.master_x0, rec.master_P0, dist, rec.m)
+    q = np.broadcast_to(np.asarray(rec.q, dtype=float), (rec.m,))
+    return {"node_x0": np.array([x for x, _ in nodes]), "node_P0": np.array([P for _, P in nodes]),
+            "q": q if dist is None else np.concatenate([q, dist.densities(rec.m)]), "master_x0": x0, "master_P0": P0}
 
 
 def canonical(out: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:

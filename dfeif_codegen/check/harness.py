@@ -297,11 +297,9 @@ def filter_bank(library: Library):
         def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
                      node_dtype=None, predictor=None, disturbance=None):
             del node_dtype, predictor   # the library's build fixed both (it predicts with <P>_PREDICTS_WITH_U's input)
-            if disturbance is not None:
-                raise SetupError("the compiled closed loop does not carry disturbance states yet (codegen verify "
-                                 "does): run [disturbance] with --engine reference")
             opts = library.model.options
-            for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R))):
+            for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R)),
+                              ("disturbance", None if disturbance is None else disturbance.kind)):
                 if key in opts and opts[key] != want:
                     raise SetupError(f"the C was built with {key} = {opts[key]}, the run needs {want}")
             init = SimpleNamespace(nodes=len(R), n=flat.n, m=flat.m, ref=np.zeros((0, flat.n + flat.m)),
@@ -309,7 +307,8 @@ def filter_bank(library: Library):
                                    gamma=np.zeros((len(R), 0)), late_step=[], late_node=[], late_lag=[],
                                    late_z=np.zeros((0, flat.m)), v=np.zeros((0, flat.m)), node_x0=node_x0, node_P0=node_P0, R=R, q=q,
                                    master_x0=master_x0, master_P0=master_P0, gains=gains,
-                                   params=flat.param_vector)
+                                   params=flat.param_vector,
+                                   disturbance="" if disturbance is None else disturbance.to_json())
             self.harness = Harness(library, init)
             self.nodes = [_Node(self.harness, i) for i in range(len(R))]
 

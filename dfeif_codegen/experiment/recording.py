@@ -12,7 +12,7 @@ from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.control import FlatController
 from dfeif_codegen.reference.fusion import Master
 from dfeif_codegen.reference.node import NodeFilter
-from dfeif_codegen.symbolic.disturbance import Disturbance, augment
+from dfeif_codegen.symbolic.disturbance import augment
 
 
 @dataclass
@@ -66,23 +66,6 @@ class Recording:
     u: np.ndarray
     v: np.ndarray
     disturbance: str = ""
-
-    @property
-    def filter_n(self) -> int:
-        """The filters' state dimension: n, plus one disturbance state per chain if any."""
-        return self.n + (self.m if self.disturbance else 0)
-
-    def filter_start(self) -> dict[str, np.ndarray]:
-        """node_x0, node_P0, q, master_x0, master_P0 as the filters take them: with disturbance
-        states the states extended (disturbances at 0 with their spread, symbolic/disturbance.py)
-        and q followed by the disturbances' densities."""
-        dist = Disturbance.from_json(self.disturbance)
-        nodes = [augment(x, P, dist, self.m) for x, P in zip(self.node_x0, self.node_P0)]
-        x0, P0 = augment(self.master_x0, self.master_P0, dist, self.m)
-        q = np.broadcast_to(np.asarray(self.q, dtype=float), (self.m,))
-        return {"node_x0": np.array([x for x, _ in nodes]), "node_P0": np.array([P for _, P in nodes]),
-                "q": q if dist is None else np.concatenate([q, dist.densities(self.m)]),
-                "master_x0": x0, "master_P0": P0}
 
     def save(self, path) -> None:
         np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})

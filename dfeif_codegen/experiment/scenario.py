@@ -109,11 +109,11 @@ class Scenario:
 
     def without_disturbance(self, command: str) -> None:
         """The commands whose C programs do not carry disturbance states yet (the library does:
-        codegen build --disturbance, codegen verify)."""
+        codegen build --disturbance, verify, simulate's compiled loop)."""
         if self.disturbance is not None:
-            raise ScenarioError(f"{self.where('disturbance')}: disturbance states are in the reference and in the "
-                                f"generated library (codegen verify), not yet in the programs {command} runs; "
-                                "use codegen simulate --engine reference")
+            raise ScenarioError(f"{self.where('disturbance')}: disturbance states are in the reference and the "
+                                "generated library (codegen verify, codegen simulate), not yet in the programs "
+                                f"{command} runs")
 
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
