@@ -123,6 +123,27 @@ def test_looped_filter_kernels_grow_as_n_squared(tmp_path):
     assert size[10] / size[7] < (10 / 7) ** 2
 
 
+def test_looped_held_node_predict_grows_as_n_squared(tmp_path):
+    """The default (held) build's node_predict and node_predict_P are loops from a chain of 10
+    integrators on (kernels.LOOP_OPS["held_covariance"]; 9 stays straight-line): parts of O(n^2)
+    code each (E times a column, a band of its rows; P unpacked; P1 packed plus Q0; the mean),
+    O(1) loops and calls, so their Cortex-M4F .text from n = 10 to 12 grows by less than
+    (12/10)^2 = 1.44 (lower-order terms only lower the ratio; 1.37 measured), where the
+    straight-line code, Theta(n^3) bytes, grew by 1.72."""
+    require_tool("arm-none-eabi-gcc", "gcc-arm-none-eabi")
+    from dfeif_codegen.check import kernel_text
+    from dfeif_codegen.codegen import kernels
+
+    looped = {}
+    for n in (9, 10):
+        flat = flatness.derive(model_mod.load(str(_chain(n, tmp_path))))
+        ks = kernels.build(flat, Options(ts=flat.model.ts), f"chain{n}")
+        looped[n] = {k for k in ks.loops if "node_predict" in k}
+    assert looped == {9: set(), 10: {"chain10_kern_node_predict", "chain10_kern_node_predict_P"}}
+    size = {n: kernel_text.chain_kernels(n, tmp_path / "k", predictor=None)[0]["node_predict"] for n in (10, 12)}
+    assert size[12] / size[10] < (12 / 10) ** 2
+
+
 def test_looped_fusion_kernels_grow_as_n_squared(tmp_path):
     """The master's kernels of the default build (difference rule: master_gain, fuse_finish) are
     loops from n = 7 (kernels.LOOP_OPS, kernels.fusion_loops), each around one sum written out:

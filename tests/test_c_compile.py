@@ -55,6 +55,8 @@ VARIANTS = {
     # a dynamic extension: the controller's integrators (extension_step)
     "pvtol-float": ("pvtol", {"precision": "float"}),
     "unicycle-double": ("unicycle", {}),
+    # a chain of 10 integrators (bench_peers.chain_model(10)): the held node_predict as loops
+    "chain10-float": (str(Path(__file__).parent / "data" / "chain10.toml"), {"precision": "float"}),
 }
 FLOAT_VARIANTS = [k for k, (_, o) in VARIANTS.items() if o.get("precision") == "float"]
 
@@ -946,3 +948,66 @@ def test_looped_fusion_kernels_equal_the_straight_line_ones(tmp_path, monkeypatc
                 got[loop_ops == 0] = out
             for a, b in zip(got[True], got[False]):
                 assert np.all(np.isfinite(a)) and np.array_equal(a, b), (precision, rule)
+
+
+@pytest.mark.parametrize("model_name, n, opts", [("chain10", 10, {}), ("two_link_arm", 6, {}),
+                                               ("two_link_arm", 8, {"disturbance": "gauss_markov", "tau": 0.5})])
+def test_looped_held_predictions_equal_the_straight_line_ones(tmp_path, monkeypatch, model_name, n, opts):
+    """The held predictor's node_predict, node_predict_P and the master's predict (node_predict on
+    packed copies) printed as loops over parts (kernels.held.node_predict_loop) and as
+    straight-line code, double and float: a chain of 10 integrators, looped by default (its
+    covariance's operations above kernels.LOOP_OPS["held_covariance"]; E upper triangular), and
+    two_link_arm with the limit at 0 (two chains, E's rows coupled by the held law: other bands),
+    also with Gauss-Markov disturbance states (8 states, q of 4 densities).
+    The mean is the same expressions either way, so x1 is bit-equal (no -ffp-contract in the
+    library's flags); each entry of E P E' sums the straight line's products, in its order where
+    CasADi keeps E's rows as they are (measured bit-equal on the chain and two_link_arm), else in
+    another: each of two evaluations of (E P E')_ij, nested sums of at most n products, is within
+    2 n u (|E| |P| |E|')_ij <= 2 n u |E|_inf^2 max|P| of the exact value (u the unit roundoff,
+    first order), and the nq + 1 additions of Q0 add u max|P1| each: the bound checked."""
+    from dfeif_codegen.check import bench_peers
+    from dfeif_codegen.codegen import kernels
+    from dfeif_codegen.symbolic import sampling
+
+    spec = "two_link_arm"
+    if model_name.startswith("chain"):
+        spec = str(tmp_path / f"{model_name}.toml")
+        Path(spec).write_text(bench_peers.chain_model(n))
+    flat = flatness.derive(model.load(spec))
+    m, nq, npk = flat.m, flat.m * (2 if opts else 1), n * (n + 1) // 2   # a disturbance per chain
+    rng = np.random.default_rng(25)
+    G = rng.standard_normal((n, n))
+    P = G @ G.T + n * np.eye(n)
+    x, u, q, centre = rng.standard_normal(n), rng.standard_normal(m), rng.uniform(0.5, 2.0, nq), rng.standard_normal(m)
+    Pp = np.array([P[i, j] for j in range(n) for i in range(j + 1)])
+    default = kernels.LOOP_OPS["held_covariance"]
+    for precision, dtype in (("double", np.float64), ("float", np.float32)):
+        got = {}
+        for limit in (None, 10 ** 9) if model_name.startswith("chain") else (0, 10 ** 9):
+            limit_ops = default if limit is None else limit
+            monkeypatch.setattr(kernels, "LOOP_OPS", {**kernels.LOOP_OPS, "held_covariance": limit_ops})
+            folder = tmp_path / f"{precision}{limit}"
+            mod = build.build(spec, folder, precision=precision, **opts)
+            text = next(Path(mod.path).glob("*_kernels_filter.c")).read_text()
+            lib = Lib(shared_library(mod.path, folder), flat.model.name)
+            calls = [("kern_node_predict", [np.concatenate([x, Pp]), u, q, centre], [n, npk]),
+                     ("kern_node_predict_P", [Pp, q], [npk]),
+                     ("kern_predict", [x, P.ravel(), u, q, centre], [n, n * n])]
+            out = []
+            for kern, ins, sizes in calls:
+                args = [a.astype(dtype) for a in ins] + [np.zeros(k, dtype) for k in sizes]
+                assert lib(kern, *args) == 0
+                out += [a.astype(float) for a in args[len(ins):]]
+            looped = f"{flat.model.name}_kern_node_predict_bot0(" in text
+            assert looped == (limit != 10 ** 9), (precision, limit)   # the default loops the chain
+            got[looped] = out
+        E = np.abs(sampling.held_sampling(flat, flat.model.ts, disturbance=Options(
+            ts=flat.model.ts, **opts).disturbance_states()).E)
+        u_r = np.finfo(dtype).eps / 2
+        for k, (a, b) in enumerate(zip(got[True], got[False])):
+            assert np.all(np.isfinite(a)), precision
+            if k in (0, 3):   # x1 of node_predict and predict
+                assert np.array_equal(a, b), precision
+            else:
+                tol = u_r * (4 * n * np.abs(E).sum(axis=1).max() ** 2 * np.abs(P).max() + (nq + 1) * np.abs(b).max())
+                np.testing.assert_allclose(a, b, rtol=0, atol=tol, err_msg=precision)

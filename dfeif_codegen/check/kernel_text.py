@@ -2,10 +2,11 @@
 (`bench_peers.chain_model`, n = 2..12) as `codegen bench` sizes them (Cortex-M4F, float, -Os, a
 replay build with the Brunovsky predictor, whose node_predict is looped: predict, node_predict,
 update, info), with the fitted growth of each and of their sum, and optionally the node step's
-host instructions (callgrind, double). With --fusion the same for the fusion kernels of the
-default build (the scaling table's) and the master fuse's instructions (two packets).
+host instructions (callgrind, double); --predictor held: of the default build instead (the
+scaling table's, whose node_predict is the held predictor's). With --fusion the same for the
+fusion kernels of the default build and the master fuse's instructions (two packets).
 
-    python -m dfeif_codegen.check.kernel_text [--fusion] [--steps] [WORK]
+    python -m dfeif_codegen.check.kernel_text [--fusion] [--steps] [--predictor held] [WORK]
 """
 
 from __future__ import annotations
@@ -48,11 +49,13 @@ def chain_kernels(n: int, work: Path, group: str = "filter", predictor: str | No
     return per, target.sizes([obj])[obj.name].text
 
 
-def table(work: Path, ns=bench_peers.CHAINS, steps: bool = False, group: str = "filter") -> str:
+def table(work: Path, ns=bench_peers.CHAINS, steps: bool = False, group: str = "filter",
+          predictor: str | None = "brunovsky") -> str:
     """The markdown table of per-kernel bytes per n, and the fitted exponents: the filter kernels
-    of a Brunovsky replay build (`steps`: with the node step's instructions), or the fusion
-    kernels of the default build (`steps`: with the master fuse's, two packets)."""
-    predictor, section = ("brunovsky", "node step") if group == "filter" else (None, "master fuse")
+    of a replay build with `predictor` (None: the default's; `steps`: with the node step's
+    instructions), or the fusion kernels of the default build (`steps`: with the master fuse's,
+    two packets)."""
+    predictor, section = (predictor, "node step") if group == "filter" else (None, "master fuse")
     rows, totals, kernels, step = [], [], None, []
     for n in ns:
         per, text = chain_kernels(n, work, group, predictor)
@@ -85,9 +88,12 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", action="store_true",
                     help="also count the node step's (--fusion: the master fuse's) instructions (valgrind)")
     ap.add_argument("--fusion", action="store_true", help="the fusion kernels of the default build instead")
+    ap.add_argument("--predictor", choices=("brunovsky", "held"), default="brunovsky",
+                    help="the filter kernels' predictor (held: the default build's, the scaling table's)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
-        print(table(Path(args.work or tmp), steps=args.steps, group="fusion" if args.fusion else "filter"), end="")
+        print(table(Path(args.work or tmp), steps=args.steps, group="fusion" if args.fusion else "filter",
+                    predictor=None if args.predictor == "held" else "brunovsky"), end="")
     return 0
 
 

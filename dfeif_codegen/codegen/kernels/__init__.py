@@ -55,8 +55,18 @@ LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_f
 # 398), and so advance (Brunovsky builds: 629 at n = 7, 431 at n = 6, pvtol 458): their .text grows
 # as n^1.97 over n = 2..12 (n^1.87 with advance; straight-line n^2.6), the built-in models but
 # pvtol's master_gain, master_info and fuse_finish (n = 8) stay straight-line.
+# The held predictor's node_predict and node_predict_P (the default build's) are loops when the
+# covariance step alone (held.covariance_ops: the mean is printed straight-line either way) has
+# more operations than "held_covariance": held.node_predict_loop, 1.15-1.26x the straight line's
+# instructions (n = 6..12), O(n^2) code. Chains of n: 951 operations at n = 9, 1,272 at 10
+# (two_link_arm 560, 1,124 with disturbance states, pvtol 705 with them: every built-in model
+# straight-line with any options). Looped from n = 10, the node step
+# (update + node_predict) grows at most 1.53x per n over n = 2..12 (1.38x from n = 9 to 10; 1.51x
+# on the Cortex-M4F), the filter kernels' .text as n^1.75 (straight-line n^2.03: 19,344 B at
+# n = 12, now 10,452). Looped from n = 9 the Cortex-M4F's node step jumped 1.59x, from n = 8
+# the host's 1.60x: too close to the limit.
 LOOP_OPS = {"node_predict": 2500, "info": 500, "master_gain": 1000, "fuse_finish_difference": 900,
-            "master_info": 500, "fuse_finish": 500, "advance": 500}
+            "master_info": 500, "fuse_finish": 500, "advance": 500, "held_covariance": 1200}
 
 # A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
 # canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
@@ -106,8 +116,7 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     if opts.predictor != "held":   # the held master predicts stale packets step by step
         fus += [fusion.advance(s, name("advance")), fusion.input_step(s, name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
-    # so its Theta(n^3) straight-line code is not printed twice. The held node_predict stays
-    # straight-line (its loops would need the mean map split out: not done)
+    # so its Theta(n^3) straight-line code is not printed twice (nor its loops: it calls them)
     loopable = [("info", info, loops.info_loop)]
     if opts.predictor != "held":
         loopable.append(("node_predict", node_predict, loops.node_predict_loop))
@@ -115,6 +124,10 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     loopable += [("advance", f, lambda s, _, f=f: fusion_loops.advance_loop(s, f)) for f in fus[2:]
                  if f.name() == name("advance")]
     looped = {f.name(): loop(s, f.name()) for key, f, loop in loopable if f.n_instructions() > LOOP_OPS[key]}
+    if h is not None and held.covariance_ops(h) > LOOP_OPS["held_covariance"]:
+        looped[name("node_predict")] = held.node_predict_loop(h, name("node_predict"))
+        if opts.oosm == "replay":   # the replay's covariance steps: the same loops, node_predict's parts
+            looped[name("node_predict_P")] = held.node_predict_P_loop(h, name("node_predict"))
     return KernelSet({"filter": filt, "fusion": fus, "control": [control.control(s, name("control"), h and h.law)]},
                      local_work={"fusion"}, own_work={name(k) for k in LOCAL_WORK},
                      wrappers={name("predict"): name("node_predict")}, loops=looped)

@@ -1,6 +1,8 @@
 """The held-input predictor's kernels (`--predictor held`, the default; docs/mathematics.md
 section 3; the reference's is reference/predictor.py): the node's and the master's prediction,
-and the covariance-only step a node's replay carries its checkpoints with.
+and the covariance-only step a node's replay carries its checkpoints with; above
+kernels.LOOP_OPS["held_covariance"] the node's two printed as loops over small parts
+(`node_predict_loop`, the master's calls the node's).
 
 The C stores the chain heads relative to a centre (docs/algorithms.md, "Centred storage"). The
 Brunovsky A maps a vector that is zero off the heads to itself, so its prediction commutes with
@@ -21,6 +23,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from dfeif_codegen.codegen.kernels.csource import Loop, for_lines
 from dfeif_codegen.codegen.kernels.linalg import dm, pack, sym, symmetric, unpack
 from dfeif_codegen.symbolic import sampling
 
@@ -71,3 +74,89 @@ def predict(h: Held, name: str) -> ca.Function:
     x, P, u, q, c = sym("x", h.n), sym("P", h.n, h.n), sym("u", h.m), sym("q", h.nq), sym("centre", h.m)
     P1 = symmetric(h.covariance(symmetric(P), q))
     return ca.Function(name, [x, P, u, q, c], [h.mean(x, u, c), P1], ["x", "P", "u", "q", "centre"], ["x1", "P1"])
+
+
+# The covariance loops' bands: G = E P and E Gᵀ are computed a band of columns (rows) at a time
+# by one part, which computes only the rows of E the band needs, E's structural zeros folded
+# away; more bands waste fewer products (E upper triangular, a chain: about 1/(2 BANDS) of the
+# straight line's) for more parts (each O(nnz E) code). Measured on chains, n = 6..12 (host,
+# node_predict alone): 4 bands take 1.15-1.26x the straight line's instructions, 6 bands
+# 1.08-1.17x for a tenth more filter code (Cortex-M4F, n = 12).
+BANDS = 4
+
+
+def _bands(E: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """(s, e, t, c) per band of rows and columns [s, e): pass 1 computes rows 0..t-1 of E P's
+    columns s..e-1, pass 2 reads columns c..n-1 of E P's rows s..e-1 (where E[s:, :] has
+    nonzeros), into rows s..n-1 of E (E P)ᵀ. Each (i, k) pass 2 reads, pass 1 computed: t is the
+    end of every band whose c is within [0, e)."""
+    n = E.shape[0]
+    bounds = sorted({round(b * n / BANDS) for b in range(BANDS + 1)})
+    spans = list(zip(bounds, bounds[1:]))
+    cols = [min((k for k in range(n) if np.any(E[s:, k] != 0)), default=n) for s, _ in spans]
+    return [(s, e, max([e] + [e2 for (_, e2), c in zip(spans, cols) if c < e]), c)
+            for (s, e), c in zip(spans, cols)]
+
+
+def _parts(h: Held, name: str) -> list[ca.Function]:
+    """The looped form's parts (`node_predict_loop`), each O(n^2) code: `mean` (x1), `unpack`
+    (P, both triangles), `top<t>` (rows 0..t-1 of E times a column), `bot<s>` (rows s..n-1 of
+    it, from a row of E P read with stride n in E P's columns; E's structural zeros folded away
+    in both) and `q` (P1 packed from E P Eᵀ by rows plus Q₀)."""
+    n, m, E = h.n, h.m, h.H.E
+    x, u, c, col, q = sym("x", n), sym("u", m), sym("centre", m), sym("col", n), sym("q", h.nq)
+    P, M, row = sym("P", n * (n + 1) // 2), sym("EPE", n * n), sym("EProw", (n - 1) * n + 1)
+    out = ca.reshape(M, n, n).T   # row i of E P Eᵀ at M[i n ...]: entry (i, j) as the straight line's
+    for j in range(h.nq):
+        out = out + q[j] * dm(h.H.U[j])
+    bands = _bands(E)
+    strided = ca.vertcat(*[row[k * n] for k in range(n)])   # row i of E P, read in its columns
+    parts = {f"{name}_top{t}": ca.Function(f"{name}_top{t}", [col], [ca.mtimes(dm(E[:t, :]), col)], ["col"], ["Ecol"])
+             for _, _, t, _ in bands}
+    parts.update({f"{name}_bot{s}": ca.Function(f"{name}_bot{s}", [row], [ca.mtimes(dm(E[s:, :]), strided)],
+                                                ["EProw"], ["Erow"]) for s, _, _, _ in bands})
+    return [ca.Function(f"{name}_mean", [x, u, c], [h.mean(x, u, c)], ["x", "u", "centre"], ["x1"]),
+            ca.Function(f"{name}_unpack", [P], [ca.reshape(unpack(P, n), n * n, 1)], ["P"], ["S"]),
+            *parts.values(), ca.Function(f"{name}_q", [M, q], [pack(out)], ["EPE", "q"], ["P1"])]
+
+
+def _covariance_lines(E: np.ndarray, parts: str, packed: str, out: str) -> list[str]:
+    """C of P1 = E P Eᵀ + Q₀ (`packed`: P's upper triangle, packed_index order; into `out`,
+    packed) by the parts of `parts` (`_parts`): P unpacked into S, G = E P column by column
+    into G, then row i of E P Eᵀ = E (row i of G)ᵀ into S, band by band (`_bands`), each entry
+    the straight line's sum in its order. bot<s> reads G from &G[i] with stride n: the entries
+    (n - 1) n + 1 it is declared with are within G for i < n."""
+    n = E.shape[0]
+    lines = [f"(void){parts}_unpack({packed}, S);"]
+    for s, e, t, _ in _bands(E):
+        lines += for_lines(f"i = {s}; i < {e}; i++", [f"(void){parts}_top{t}(&S[i * {n}], &G[i * {n}]);"])
+    for s, e, _, _ in _bands(E):
+        at = f"(i * {n}) + {s}" if s else f"i * {n}"   # no `+ 0` (MISRA 2.2)
+        lines += for_lines(f"i = {s}; i < {e}; i++", [f"(void){parts}_bot{s}(&G[i], &S[{at}]);"])
+    return lines + [f"(void){parts}_q(S, q, {out});"]
+
+
+def _decls(n: int) -> list[str]:
+    return [f"casadi_real S[{n * n}]; /* P, then E P E' by rows (the entries q reads) */",
+            f"casadi_real G[{n * n}]; /* E P by columns (the entries bot<s> reads) */", "int i;"]
+
+
+def node_predict_loop(h: Held, name: str) -> Loop:
+    """node_predict as the mean's straight-line part and the covariance's loops over parts
+    (`_parts`, `_bands`): O(n^2) code instead of Theta(n^3), with about 1/BANDS more products
+    than the straight line's (a chain's E, upper triangular: 11% more at n = 8, 15% at 12),
+    and O(n^2) copies (P unpacked, E P and E P Eᵀ through memory) and 2 n + 3 calls."""
+    body = [f"(void){name}_mean(post, u, centre, x1);"] + _covariance_lines(h.H.E, name, f"&post[{h.n}]", "P1")
+    return Loop(_parts(h, name), _decls(h.n), body)
+
+
+def node_predict_P_loop(h: Held, parts: str) -> Loop:
+    """node_predict_P as the covariance loops of `node_predict_loop`, calling its parts (the
+    kernel `parts`, looped in the same file)."""
+    return Loop([], _decls(h.n), _covariance_lines(h.H.E, parts, "P", "P1"))
+
+
+def covariance_ops(h: Held) -> int:
+    """CasADi's operation count of the straight-line covariance (the loops' threshold's measure:
+    the mean's code is the same either way)."""
+    return node_predict_P(h, "covariance").n_instructions()
