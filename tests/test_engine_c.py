@@ -190,6 +190,23 @@ def test_resume_continues_without_recomputing(host_cc, tmp_path, capsys, monkeyp
     assert sorted((c.seed, c.method, c.sensor[0].p) for c in calls) == [(0, "replay", 0.0), (0, "replay", 0.8)]
 
 
+def test_one_worker_records_each_run_before_the_next(host_cc, tmp_path, capsys, monkeypatch):
+    """--workers 1 --results: each run's line is in the file (flushed) before the next run starts,
+    so an interrupted one-process sweep keeps every run it finished (the file has k lines when
+    run k + 1 starts; 15 distinct runs as in the test above)."""
+    path = tmp_path / "r.jsonl"
+    seen = []
+    one = sweep.one
+
+    def counting(cfg, *a):
+        seen.append(len(path.read_text().splitlines()) if path.exists() else 0)
+        return one(cfg, *a)
+
+    monkeypatch.setattr(sweep, "one", counting)
+    _simulate(tmp_path, capsys, "--workers", "1", "--results", str(path))
+    assert seen == list(range(15))
+
+
 def test_csv_rows_average_to_the_tables(host_cc, tmp_path, capsys):
     import csv
 

@@ -209,6 +209,10 @@ def test_builtin_scenario_is_the_paper_grid():
         cfg = make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[0], "replay", "difference", 0, predictor)
         assert cfg.q == (want,) and cfg.q_brunovsky == (60.0,)
     assert make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[0], "retrodict", "difference", 0).q == (60.0,)
+    # the EKF's and UKF's q (--filters) is the loop's unless the scenario gives q_ekf
+    assert cfg.q_ekf == ()
+    sc.q_ekf = [5.0]
+    assert make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[0], "replay", "difference", 0).q_ekf == (5.0,)
 
 
 def test_simulate_json_end_to_end(tmp_path, capsys):
@@ -229,6 +233,8 @@ def test_simulate_json_end_to_end(tmp_path, capsys):
     ("[filter]\nq = -1.0\n", "filter.q"),
     ("[filter]\nq_brunovsky = [1.0, 2.0]\n", "filter.q_brunovsky"),   # the motor has one chain
     ("[filter]\nq_brunovsky = 0.0\n", "filter.q_brunovsky"),
+    ("[filter]\nq_ekf = [1.0, 2.0]\n", "filter.q_ekf"),
+    ("[filter]\nq_ekf = -3.0\n", "filter.q_ekf"),
     ("[[grid]]\nd = [2, 3]\np = 1.5\n", "grid[1]"),
     ("[[nodes]]\nnoise_scale = 1.0\ncolour = 2\n", "nodes[1].colour"),
     ("[scenario]\nfusion = [\"average\"]\n", "scenario.fusion"),

@@ -104,6 +104,9 @@ class Config:
     # the chapter's filter's q where the comparison re-runs it on the recordings (--filters
     # brunovsky; empty: q): its q covers what the held filter's model leaves out
     q_brunovsky: tuple = field(default=(), repr=False)
+    # the EKF's and UKF's q where the comparison runs them (--filters ekf,ukf; empty: q): a
+    # held filter with disturbance states is consistent at a q far below what theirs needs
+    q_ekf: tuple = field(default=(), repr=False)
     # the filters' disturbance states (symbolic/disturbance.py), None: none; out of repr as above
     disturbance: object = field(default=None, repr=False)
     # reference "trajectory": the user's CSV (experiment/trajectory_file.py); out of repr like

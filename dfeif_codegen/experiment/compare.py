@@ -169,7 +169,8 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None
     rec = res.recording
     try:
         with np.errstate(all="raise"):
-            q = res.config.q_brunovsky if kind == "brunovsky" else None
+            q = {"brunovsky": res.config.q_brunovsky, "ekf": res.config.q_ekf,
+                 "ukf": res.config.q_ekf}.get(kind)
             out = run_on_recording(rec, kind, res.config.substeps, compiled, disturbance, q)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return {"failed": f"{kind}: {type(exc).__name__}: {exc}"}

@@ -41,7 +41,8 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         noise_std=tuple(None if _pick(sc.noise_std, i) is None else tuple(_pick(sc.noise_std, i)) for i in range(nodes)),
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
-        predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")), disturbance=sc.disturbance,
+        predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")),
+        q_ekf=tuple(sc.q_ekf or ()), disturbance=sc.disturbance,
         trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
 
 

@@ -45,6 +45,8 @@ def _settings(p: Plan, o: Outcome) -> dict:
     if p.filters:
         from dfeif_codegen.experiment import compare
         out["filters"] = ["df", *p.filters]
+        if sc.q_ekf:
+            out["q_ekf"] = sc.q_ekf
         out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
                                                out["filters"], predictors.for_method(p.predictor, "replay"),
                                                sc.disturbance)

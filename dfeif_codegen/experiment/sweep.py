@@ -171,9 +171,11 @@ def execute(items: list, engine: Engine, shipped: dict, workers: int, client, do
                 for rid, value in fut.result():
                     done(rid, value)
             return f"Dask cluster {scheduler} ({cores} threads)", [fut.result() for fut in extra]
-    if workers == 1:
-        for rid, value in batch(items, engine, shipped):
-            done(rid, value)
+    if workers == 1:       # one run at a time, each recorded (--results) before the next starts
+        _init_worker(shipped)
+        for item in items:
+            for rid, value in batch([item], engine):
+                done(rid, value)
         return "1 process", [_side(fn, args) for fn, args in side]
     with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(shipped,)) as pool:
         extra = [pool.submit(_side, fn, args) for fn, args in side]
