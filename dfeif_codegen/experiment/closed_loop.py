@@ -108,7 +108,7 @@ class Config:
     # held filter with disturbance states is consistent at a q far below what theirs needs
     q_ekf: tuple = field(default=(), repr=False)
     # the filters' disturbance states (symbolic/disturbance.py), None: none; out of repr as above
-    disturbance: object = field(default=None, repr=False)
+    disturbance: Disturbance | None = field(default=None, repr=False)
     # reference "trajectory": the user's CSV (experiment/trajectory_file.py); out of repr like
     # plant_error (sweep.run_id adds it when set)
     trajectory: Trajectory | None = field(default=None, repr=False)
