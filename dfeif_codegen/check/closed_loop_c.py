@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -31,7 +32,7 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation, divergence
 from dfeif_codegen.experiment.plant import Camera, Plant, _fixed, parametric_step
 from dfeif_codegen.symbolic import numeric
-from dfeif_codegen.symbolic.disturbance import Disturbance, augment
+from dfeif_codegen.symbolic.disturbance import Disturbance
 
 FAILED_PLANT = 7        # failed_call of the closed-loop driver: the plant's state is not finite
 ERR_NONFINITE = -3      # <P>_ERR_NONFINITE of every generated library (templates/model.h.j2)
@@ -218,13 +219,13 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     flat, K, M = s.flat, s.K, len(cfg.sensor)
     n, m = flat.n, flat.m
     f64, i32 = np.float64, np.int32
-    # the filters' start: with disturbance states, extended as the reference's FilterBank does
-    nodes0 = [augment(x, P, cfg.disturbance, m) for x, P in zip(s.node_x0, s.node_P0)]
-    master0 = augment(s.x_hat0, s.P0, cfg.disturbance, m)
-    q = s.q if cfg.disturbance is None else np.concatenate([s.q, cfg.disturbance.densities(m)])
-    N = len(master0[0])
-    init = [_c(a, f64) for a in (np.array([x for x, _ in nodes0]), np.array([P for _, P in nodes0]), s.R, q,
-                                 master0[0], master0[1], s.gains, flat.param_vector)]
+    # the filters' start as the driver takes it (with disturbance states: extended, q their densities too)
+    start = driver_io.filter_start(SimpleNamespace(
+        m=m, q=s.q, node_x0=s.node_x0, node_P0=s.node_P0, master_x0=s.x_hat0, master_P0=s.P0,
+        disturbance="" if cfg.disturbance is None else cfg.disturbance.to_json()))
+    N = len(start["master_x0"])
+    init = [_c(a, f64) for a in (start["node_x0"], start["node_P0"], s.R, start["q"], start["master_x0"],
+                                 start["master_P0"], s.gains, flat.param_vector)]
     state = (ctypes.c_uint8 * loop.harness_size)()
     rc = getattr(lib, f"{p}_harness_init")(state, *(ctypes.c_void_p(a.ctypes.data) for a in init))
     if rc != 0:
