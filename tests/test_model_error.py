@@ -118,6 +118,31 @@ def test_draws_are_per_seed_reproducible_and_within_their_bounds():
     assert only.values(model, 9)[i] == spec.values(model, 9)[i]
 
 
+@pytest.mark.parametrize("draw, spread, second", [("uniform", (("*", 0.2),), 0.2 ** 2 / 3),
+                                                    ("normal", (("m2", 0.05), ("l1", 0.1)), None)])
+def test_design_averages_any_quadratic_to_its_expectation(draw, spread, second):
+    """`codegen scenario` calibrates on ParamError.design's fixed errors: the average over them
+    of any quadratic in the relative change δ equals its expectation under the draw, a closed
+    form: E[c + bᵀδ + δᵀAδ] = c + Σ A_ii E[δ_i²] (mean 0, independent). Exact up to the rounding
+    of a few dozen additions (1e-12 relative)."""
+    flat = ex._flat("two_link_arm")
+    spec = me.ParamError(relative=(("m1", 0.1),), draw=draw, spread=spread)
+    design = spec.design(flat.model)
+    rel = np.array([e.values(flat.model, 0) for e in design]) / flat.param_vector - 1
+    assert all(e.draw == "none" for e in design) and len(design) >= 8
+    var = np.zeros(len(flat.params))
+    for name, s in spread:
+        for i, q in enumerate(flat.model.parameters):
+            if name in ("*", q.name):
+                var[i] = second if second is not None else s ** 2
+    delta = rel - np.where(np.array([q.name for q in flat.model.parameters]) == "m1", 0.1, 0.0)
+    rng = np.random.default_rng(3)
+    A, b, c = rng.standard_normal((len(var),) * 2), rng.standard_normal(len(var)), 1.7
+    g = c + delta @ b + np.einsum("ki,ij,kj->k", delta, A, delta)
+    assert g.mean() == pytest.approx(c + np.sum(np.diag(A) * var), rel=1e-12)
+    assert np.all(np.abs(delta[:, var == 0]) < 1e-15)    # without a spread: at the offset (p(1 + r)/p - 1 - r rounds)
+
+
 def test_filters_keep_the_nominal_model():
     """The EKF/UKF predict with the model's parameters whatever the plant's."""
     flat = ex._flat("dc_motor_link")
