@@ -28,6 +28,7 @@ Scenario TOML:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,8 +109,9 @@ class ParamError:
     def design(self, model, at_least: int = 8) -> list["ParamError"]:
         """Fixed errors standing in for the draw when a mean over runs is wanted from few of them
         (`codegen scenario`'s calibration): the rows of a two-level orthogonal array (a
-        Sylvester-Hadamard matrix's columns 1..d, d the perturbed parameters) at levels +-1
-        (normal) or +-1/sqrt(3) (uniform), times the spread. Balanced columns, orthogonal pairs
+        Sylvester-Hadamard matrix's columns 1..d, d the perturbed parameters) at the draw's
+        standard deviation, +-1/sqrt(3) (uniform) or +-0.987 (normal truncated at 3), times the
+        spread. Balanced columns, orthogonal pairs
         and the draw's second moment: the average over the rows of any function quadratic in the
         draw is its expectation. Why: a run's NEES under a drawn error is close to quadratic in
         the draw and spans decades (motor, +-5%: 1.1 to 12.6 between the 5% and 95% points), so
@@ -121,7 +123,7 @@ class ParamError:
             return [self]
         size = max(at_least, 1 << len(moved).bit_length())       # a power of two above d
         signs = _hadamard(size)[:, 1:len(moved) + 1]
-        level = 1.0 if self.draw == "normal" else 1.0 / np.sqrt(3.0)
+        level = np.sqrt(TRUNCATED_VARIANCE) if self.draw == "normal" else 1.0 / np.sqrt(3.0)
         out = []
         for row in signs:
             r = rel.copy()
@@ -142,6 +144,8 @@ class ParamError:
 
 
 NONE = ParamError()
+# variance of a standard normal truncated at +-3 (what _delta draws): 1 - 6 phi(3) / (2 Phi(3) - 1)
+TRUNCATED_VARIANCE = 1.0 - 6.0 * math.exp(-4.5) / math.sqrt(2.0 * math.pi) / math.erf(3.0 / math.sqrt(2.0))
 
 
 def _hadamard(size: int) -> np.ndarray:

@@ -150,7 +150,8 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             # a model error drawn per run makes each run's NEES another (1.1 to 12.6 between the 5%
             # and 95% points at 5% on the motor): the draw's orthogonal-array design stands in for
             # it (model_error.ParamError.design), the fixed model takes its two runs
-            errors = cfg.plant_error.design(flat.model) if cfg.plant_error.draw != "none" else [cfg.plant_error] * NEES_RUNS
+            drawn = cfg.plant_error.draw != "none"
+            errors = cfg.plant_error.design(flat.model) if drawn else [cfg.plant_error] * NEES_RUNS
             seeds = [seed + i for i in range(len(errors))]
             loops = [ex.run(dataclasses.replace(config(q, s, NEES_SECONDS), plant_error=e))
                      for s, e in zip(seeds, errors)]
