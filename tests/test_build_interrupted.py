@@ -7,6 +7,7 @@ the next build."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -114,7 +115,6 @@ def test_sigint_between_the_renames_keeps_the_output(tmp_path):
     only the hidden .old folder survived). Run in a fresh interpreter with Python's own SIGINT
     handler: inside the whole suite the KeyboardInterrupt twice did not come (the output intact;
     the state earlier tests leave in the process, not found)."""
-    import json
     proc = subprocess.run([sys.executable, "-c", SIGINT_SCRIPT, str(tmp_path), MODEL], capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]

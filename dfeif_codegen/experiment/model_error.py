@@ -65,7 +65,7 @@ class ParamError:
         if self.active and not known:
             raise ScenarioError(f"{where('model_error')}: model {model.name} has no parameters to perturb")
         rel, _, spread = self._vectors(model)
-        reach = np.abs(rel) + (3.0 if self.draw == "normal" else 1.0) * spread * (self.draw != "none")
+        reach = np.abs(rel) + (TRUNCATION if self.draw == "normal" else 1.0) * spread * (self.draw != "none")
         if np.any(reach >= 1.0):
             i = int(np.argmax(reach))
             raise ScenarioError(f"{where('relative' if rel[i] else 'spread')}: parameter {known[i]} could change "
@@ -101,8 +101,8 @@ class ParamError:
         if self.draw == "uniform":
             return rng.uniform(-1.0, 1.0, count)
         z = rng.standard_normal(count)
-        while np.any(np.abs(z) > 3.0):
-            bad = np.abs(z) > 3.0
+        while np.any(np.abs(z) > TRUNCATION):
+            bad = np.abs(z) > TRUNCATION
             z[bad] = rng.standard_normal(int(bad.sum()))
         return z
 
@@ -144,8 +144,10 @@ class ParamError:
 
 
 NONE = ParamError()
-# variance of a standard normal truncated at +-3 (what _delta draws): 1 - 6 phi(3) / (2 Phi(3) - 1)
-TRUNCATED_VARIANCE = 1.0 - 6.0 * math.exp(-4.5) / math.sqrt(2.0 * math.pi) / math.erf(3.0 / math.sqrt(2.0))
+TRUNCATION = 3.0   # a normal draw is redrawn beyond this many standard deviations (_delta)
+# its variance once truncated: 1 - 2c phi(c) / (2 Phi(c) - 1) at c = TRUNCATION
+TRUNCATED_VARIANCE = 1.0 - (2.0 * TRUNCATION * math.exp(-TRUNCATION ** 2 / 2) / math.sqrt(2.0 * math.pi)
+                            / math.erf(TRUNCATION / math.sqrt(2.0)))
 
 
 def _hadamard(size: int) -> np.ndarray:
