@@ -85,9 +85,9 @@ def render_peers(spec: str, md: harness.ModelDir, work: Path) -> Path:
 
         H = sampling.held_sampling(flat, ts)
         Ac, Bc, _ = flat.canonical()
-        model_c, work_size = _model_function(flat, md.precision)
+        model_c, work_size, n_trig = _model_function(flat, md.precision)
         consts = {"Q": arr(H.Q(np.ones(flat.m))), "E": arr(H.E), "Psi": arr(H.Psi), "Ac": arr(Ac), "Bc": arr(Bc),
-                  "G2": arr(H.G2), "L0": arr(H.L0), "model_c": model_c, "model_work": work_size}
+                  "G2": arr(H.G2), "L0": arr(H.L0), "model_c": model_c, "model_work": work_size, "n_trig": n_trig}
     else:
         A, B, _ = flat.discrete(ts)
         consts = {"A": arr(A), "B": arr(B), "Q": arr(flat.process_noise(ts, np.ones(flat.m)))}
@@ -101,19 +101,33 @@ def render_peers(spec: str, md: harness.ModelDir, work: Path) -> Path:
     return src
 
 
-def _model_function(flat, precision: str) -> tuple[str, int]:
-    """The model's top derivatives v = F(z) + G(z) u at the default parameters as C
-    (`peer_v(z, u, v, w)`, w its work array): what a user of a filter library writes for it."""
+def _model_function(flat, precision: str) -> tuple[str, int, int]:
+    """The model's top derivatives v = F(z) + G(z) u at the default parameters as C: what a user
+    of a filter library writes for it, in the two forms the ETD2RK step calls, the second
+    stage's sines and cosines carried from the first's as the generated filter carries them
+    (sampling.TrigCarry), so the peers run the same arithmetic: `peer_v(z, u, v, T, w)` also
+    returns T (sin and cos of each argument at z), `peer_v2(z, a, u, T, v, w)` is v at a. Also
+    the work size and T's length."""
     import casadi as ca
 
     from dfeif_codegen.codegen.kernels import csource
     from dfeif_codegen.symbolic import sampling
 
-    z, u = ca.SX.sym("z", flat.n), ca.SX.sym("u", flat.m)
-    top = sampling.remainder_function(flat)(z, u, ca.DM(flat.param_vector))[0]
-    text, _ = csource.c_source([ca.Function("peer_v", [z, u], [top], ["z", "u"], ["v"])], "real", precision)
-    text = text.replace("int peer_v(", "static int peer_v(")
-    return text, int(re.search(r"real w\[(\d+)\]", text).group(1))
+    z, a, u, p = ca.SX.sym("z", flat.n), ca.SX.sym("a", flat.n), ca.SX.sym("u", flat.m), ca.DM(flat.param_vector)
+    first = sampling.TrigCarry(flat.zeta)
+    v0 = sampling.remainder_sx(flat, z, u, p, first.first)
+    T = ca.SX.sym("T", max(1, 2 * len(first.at_start)))     # one unused entry without sines: no T[0] in C
+    second = sampling.TrigCarry(flat.zeta)
+    second.at_start = {arg: (alpha, T[2 * k], T[2 * k + 1]) for k, (arg, (alpha, _, _)) in
+                       enumerate(first.at_start.items())}
+    v1 = sampling.remainder_sx(flat, a, u, p, second.second)
+    trig = ca.vertcat(*[ca.vertcat(s, c) for _, s, c in first.at_start.values()]) if first.at_start else ca.SX.zeros(1)
+    text, _ = csource.c_source([ca.Function("peer_v", [z, u], [v0, trig], ["z", "u"], ["v", "T"]),
+                                ca.Function("peer_v2", [z, a, u, T], [v1], ["z", "a", "u", "T"], ["v"])],
+                               "real", precision)
+    text = text.replace("int peer_v(", "static int peer_v(").replace("int peer_v2(", "static int peer_v2(")
+    work = max(int(n) for n in re.findall(r"real w\[(\d+)\]", text))
+    return text, work, T.numel()
 
 
 def peers(spec: str, md: harness.ModelDir, work: Path) -> Measure:

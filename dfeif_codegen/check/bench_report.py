@@ -144,7 +144,8 @@ def _peers(sections: list[dict]) -> list[str]:
            "Host, double. C instruction counts from callgrind; wall time median of 7 timed loops of "
            "20,000 steps (C) or of 5 loops of 2,000 steps (Python). Each C peer predicts as the generated filter it "
            "is compared with (held: the mean by one ETD2RK step with the input held, calling the model's "
-           "top derivatives `F + G u` as a user's model function, `P = E P E' + Q`; brunovsky: the chapter's "
+           "top derivatives `F + G u` as a user's model function, the second stage's sines carried from the first's "
+           "as the generated filter carries them, `P = E P E' + Q`; brunovsky: the chapter's "
            "linear chain) and is checked to give that filter's estimate (1e-9) before it is reported.", "",
            "| model | predictor | filter | instructions | x generated | ns per step | x generated |",
            "|---|---|---|---:|---:|---:|---:|"]

@@ -71,10 +71,12 @@ def _hypot_args(e: sp.Pow):
     return None
 
 
-def to_casadi(expr: sp.Expr, table: dict, where: str = "expression", ops=_CasADi):
+def to_casadi(expr: sp.Expr, table: dict, where: str = "expression", ops=_CasADi, trig=None):
     """Convert a sympy expression to a CasADi SX scalar by walking its tree (never by printing
     and evaluating); shared subtrees stay shared. `where` names the expression in errors. With
-    `ops=Float32` and float32 arrays in `table`, the same walk computes it in single precision."""
+    `ops=Float32` and float32 arrays in `table`, the same walk computes it in single precision.
+    `trig(func, arg, value)`, if given, computes sin and cos (func: sp.sin or sp.cos) of the
+    sympy argument `arg`, whose converted value is `value` (sampling.TrigCarry's use)."""
     memo: dict = {}
 
     def walk(e: sp.Basic) -> ca.SX:
@@ -116,6 +118,8 @@ def to_casadi(expr: sp.Expr, table: dict, where: str = "expression", ops=_CasADi
                 out = 1 / ops.sqrt(b)
             else:
                 out = ops.power(b, walk(exp))
+        elif trig is not None and e.func in (sp.sin, sp.cos):
+            out = trig(e.func, e.args[0], walk(e.args[0]))
         elif e.func in ops.unary:
             out = ops.unary[e.func](walk(e.args[0]))
         elif e.func == sp.atan2:

@@ -49,7 +49,7 @@ int dc_motor_link_kern_fuse_finish(const dc_motor_link_real Pc[9], const dc_moto
                                    dc_motor_link_real piv[6]);
 
 /* dc_motor_link_kern_control:(x[3],flags[4],gains[3],params[8])->(u,v,det,nsat) */
-#define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 22
+#define DC_MOTOR_LINK_KERN_CONTROL_SZ_W 27
 int dc_motor_link_kern_control(const dc_motor_link_real x[3], const dc_motor_link_real flags[4],
                                const dc_motor_link_real gains[3],
                                const dc_motor_link_real params[8], dc_motor_link_real u[1],

@@ -48,7 +48,7 @@ int two_link_arm_kern_fuse_finish(const two_link_arm_real Pc[36], const two_link
                                   two_link_arm_real piv[12]);
 
 /* two_link_arm_kern_control:(x[6],flags[8],gains[6],params[11])->(u[2],v[2],det,nsat) */
-#define TWO_LINK_ARM_KERN_CONTROL_SZ_W 81
+#define TWO_LINK_ARM_KERN_CONTROL_SZ_W 95
 int two_link_arm_kern_control(const two_link_arm_real x[6], const two_link_arm_real flags[8],
                               const two_link_arm_real gains[6], const two_link_arm_real params[11],
                               two_link_arm_real u[2], two_link_arm_real v[2],
