@@ -117,11 +117,8 @@ def _model_function(flat, precision: str) -> tuple[str, int, int]:
     first = sampling.TrigCarry(flat.zeta)
     v0 = sampling.remainder_sx(flat, z, u, p, first.first)
     T = ca.SX.sym("T", max(1, 2 * len(first.at_start)))     # one unused entry without sines: no T[0] in C
-    second = sampling.TrigCarry(flat.zeta)
-    second.at_start = {arg: (alpha, T[2 * k], T[2 * k + 1]) for k, (arg, (alpha, _, _)) in
-                       enumerate(first.at_start.items())}
-    v1 = sampling.remainder_sx(flat, a, u, p, second.second)
-    trig = ca.vertcat(*[ca.vertcat(s, c) for _, s, c in first.at_start.values()]) if first.at_start else ca.SX.zeros(1)
+    v1 = sampling.remainder_sx(flat, a, u, p, first.starting_from(T).second)
+    trig = first.values() if first.at_start else ca.SX.zeros(1)
     text, _ = csource.c_source([ca.Function("peer_v", [z, u], [v0, trig], ["z", "u"], ["v", "T"]),
                                 ca.Function("peer_v2", [z, a, u, T], [v1], ["z", "a", "u", "T"], ["v"])],
                                "real", precision)

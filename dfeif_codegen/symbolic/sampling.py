@@ -192,6 +192,19 @@ class TrigCarry:
         self.at_start: dict = {}    # sympy argument -> (α, sin α, cos α)
         self.at_end: dict = {}      # sympy argument -> (sin(α + δ), cos(α + δ))
 
+    def starting_from(self, values: ca.SX) -> "TrigCarry":
+        """A carry for a second stage evaluated apart from the first (the bench's model
+        function peer_v2): this carry's arguments, their sines and cosines read from `values`
+        (sin, cos per argument, in the order the first stage met them)."""
+        out = TrigCarry(self.states)
+        out.at_start = {arg: (alpha, values[2 * k], values[2 * k + 1])
+                        for k, (arg, (alpha, _, _)) in enumerate(self.at_start.items())}
+        return out
+
+    def values(self) -> ca.SX:
+        """The first stage's sines and cosines, (sin, cos) per argument (`starting_from`'s order)."""
+        return ca.vertcat(*[ca.vertcat(s, c) for _, s, c in self.at_start.values()])
+
     def first(self, func, arg, value):
         if arg not in self.at_start:
             self.at_start[arg] = (value, ca.sin(value), ca.cos(value))
