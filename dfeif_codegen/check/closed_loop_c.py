@@ -252,6 +252,7 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
         step, call = res.out.failed_step, res.out.failed_call
         if call == FAILED_PLANT or err == ERR_NONFINITE:   # where numpy's loop sees the plant diverge
             divergence.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"], steps=step)  # an earlier cause
+            divergence.check_tracking_at(s, out["zeta"], step)   # the watch's first check at this step
             raise divergence.Diverged(f"diverged at t = {s.t[step]:.2f} s: the state is not finite")
         raise CEngineError(driver_io.failure({"failed_step": step, "failed_call": call, "status": err}))
     counters = []

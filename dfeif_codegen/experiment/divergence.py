@@ -44,12 +44,16 @@ class DivergenceWatch:
         self.bound = np.full(len(self.outputs), np.inf) if bound is None else np.asarray(bound, dtype=float)
         self.high = 0
 
-    def step(self, t: float, x, err, P, track=None) -> None:
+    def tracking(self, t: float, track) -> None:
+        """Raises Diverged when an output strays beyond its bound (the first check of `step`)."""
         if track is not None and np.any(np.abs(track) > self.bound):
             j = int(np.argmax(np.abs(track) > self.bound))
             raise Diverged(f"stopped tracking at t = {t:.2f} s: output {self.outputs[j]} is {track[j]:.4g} from its "
                            f"reference, beyond the tracking bound {self.bound[j]:.4g} (default twice the "
                            "reference's amplitude; [reference] tracking_bound)")
+
+    def step(self, t: float, x, err, P, track=None) -> None:
+        self.tracking(t, track)
         if not np.all(np.isfinite(x)):
             raise Diverged(f"diverged at t = {t:.2f} s: the state is not finite")
         outside = np.nonzero((x < self.lo) | (x > self.hi))[0]
@@ -96,6 +100,15 @@ def check_divergence(s: "Setup", x_true, zeta, x, P, steps: int | None = None) -
         return
     for k in range(max(0, first - NEES_STEPS + 1), first + 1):   # raises at `first`
         watch.step(s.t[k], x_true[k + 1], _errors(s.flat, x[k], zeta[k]), P[k], track[k])
+
+
+def check_tracking_at(s: "Setup", zeta, step: int) -> None:
+    """The watch's first check at `step` alone, from the plant's canonical state there: an engine
+    whose step failed (a non-finite estimate or plant) reports what the numpy engine's watch
+    reports first at that step, a lost track, before the non-finite state."""
+    watch = DivergenceWatch(s.flat.model, False, tracking_bound(s.cfg, s.flat.m))
+    watch.tracking(s.t[step], tracking_errors(s.flat, np.asarray(zeta[step:step + 1], dtype=float),
+                                              s.ref[step:step + 1])[0])
 
 
 def _batch_nees(err, P) -> np.ndarray:
