@@ -117,7 +117,9 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     _filter_options(p, many=True)
     p.add_argument("--reference", choices=["sinusoid", "seesaw", "trajectory"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
-                   help="df,ekf,ukf: also run the EKF and UKF on the replay + difference recordings (Table VI)")
+                   help="df,ekf,ukf,brunovsky,offsets: also run these filters on the replay + difference "
+                        "recordings (Table VI); offsets (the held filter estimating the parameter offsets "
+                        "of the scenario's [offsets] table) is reference only")
     p.add_argument("--param-error", metavar="SPREAD|NAME=REL,...", default=None,
                    help="model error, replacing the scenario's [model_error]: 0.2 draws each of the plant's "
                         "parameters per run within +-20%% of the model's; R=0.2,J=-0.1 fixed relative offsets; "

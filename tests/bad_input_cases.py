@@ -133,6 +133,16 @@ def generated() -> dict:
     c["verify disturbance with the Brunovsky predictor"] = (
         "scenario field", ["verify", *S, "--predictor", "brunovsky"],
         {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--disturbance", "--predictor held"])
+    # --- parameter offsets of the comparison's `offsets` filter ---------------------------------
+    for label, table, words in [("unknown parameter", 'params = ["R", "Rx"]', ["offsets.params", "Rx"]),
+                                ("zero std", 'params = ["R"]\nstd = 0', ["offsets.std", "> 0"]),
+                                ("negative density", 'params = ["R"]\nq = -1.0', ["offsets.q", ">= 0"])]:
+        c[f"scenario offsets {label}"] = ("scenario field", ["simulate", *S, "--engine", "reference",
+                                                             "--filters", "df,offsets"],
+                                          {"s.toml": SMALL + f"\n[offsets]\n{table}\n"}, words)
+    c["offsets filter without its table"] = ("scenario field", ["simulate", *S, "--engine", "reference",
+                                                                "--filters", "df,offsets"],
+                                             {"s.toml": SMALL}, ["--filters offsets", "[offsets]"])
     c |= _opt("option: not a choice", "build", "--disturbance", ["walk", ""], words=["--disturbance"])
     c["build disturbance with the Brunovsky predictor"] = (
         "option: not a choice", ["build", "--disturbance", "random_walk", "--predictor", "brunovsky"], {},

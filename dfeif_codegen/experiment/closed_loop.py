@@ -30,6 +30,7 @@ from dfeif_codegen.experiment.model_error import NONE as EXACT_MODEL, ParamError
 from dfeif_codegen.experiment.network import Link, Network
 from dfeif_codegen.experiment.recording import FilterBank, Recording, _Outputs
 from dfeif_codegen.reference import predictor as predictors
+from dfeif_codegen.reference.offsets import Offsets
 from dfeif_codegen.symbolic.disturbance import Disturbance
 from dfeif_codegen.experiment.plant import Camera, Plant
 from dfeif_codegen.experiment.trajectory import Reference, flags
@@ -112,6 +113,9 @@ class Config:
     # reference "trajectory": the user's CSV (experiment/trajectory_file.py); out of repr like
     # plant_error (sweep.run_id adds it when set)
     trajectory: Trajectory | None = field(default=None, repr=False)
+    # what the comparison's "offsets" filter estimates (reference/offsets.py), None: no such
+    # filter asked for; out of repr (sweep.run_id adds it for that filter's runs)
+    offsets: Offsets | None = field(default=None, repr=False)
 
 
 @dataclass

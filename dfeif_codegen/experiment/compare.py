@@ -34,6 +34,7 @@ from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import divergence
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
+from dfeif_codegen.reference.offsets import OffsetFilter, OffsetModel
 from dfeif_codegen.reference.physical import PhysicalMaster, PhysicalModel, ReplayNode
 from dfeif_codegen.reference.ukf import UKF
 from dfeif_codegen.symbolic.disturbance import augment
@@ -42,7 +43,9 @@ FILTERS = {"ekf": EKF, "ukf": UKF}
 # filters on the canonical model, fed the controller's v: "df" is the project's derivative-free
 # filter, "brunovsky" the chapter's (v held over Ts, Brunovsky A_d); today they are the same
 CANONICAL = ("df", "brunovsky")
-KINDS = (*CANONICAL, *FILTERS)
+# the held filter with parameter-offset states (reference/offsets.py: a candidate, not generated)
+OFFSETS = "offsets"
+KINDS = (*CANONICAL, OFFSETS, *FILTERS)
 
 
 class CanonicalModel:
@@ -59,6 +62,7 @@ class CanonicalModel:
         self.disturbance, self.canonical_n = disturbance, flat.n
         C = np.hstack([flat.discrete(ts)[2], np.zeros((flat.m, len(pred.Phi) - flat.n))])
         self.n, self.m, self.ts = len(pred.Phi), flat.m, float(ts)
+        self.inputs = flat.m
         self.angle_out = np.array([c.angle for c in flat.chains])
         self.Qd, self.transition = pred.Q, pred.Phi
         x, w = ca.SX.sym("x", self.n), ca.SX.sym("w", self.m)
@@ -94,12 +98,16 @@ class DerivativeFree(EKF):
 
 @lru_cache(maxsize=None)
 def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled: bool = False,
-              predictor: str = predictors.DEFAULT, disturbance=None):
-    """The filter `kind` ("df", "ekf", "ukf") of one model, built once per process (building its
+              predictor: str = predictors.DEFAULT, disturbance=None, offsets=None):
+    """The filter `kind` (one of KINDS) of one model, built once per process (building its
     CasADi functions costs far more than a run); `compiled`: its predict and update as compiled C
     (physical.compiled_function: the same results, and CPU time per step then measures compiled
-    arithmetic rather than CasADi's interpreter); `predictor`: the derivative-free filter's."""
+    arithmetic rather than CasADi's interpreter); `predictor`: the derivative-free filter's;
+    `offsets` (reference/offsets.Offsets): what the "offsets" filter estimates."""
     flat = ex._flat(spec)
+    if kind == OFFSETS:
+        q = offsets.chains_q or q
+        return OffsetFilter(OffsetModel(flat, ts, ex._per_chain(q, flat.m), offsets), compiled)
     if kind in CANONICAL:   # "brunovsky" is the chapter's filter whatever the recording's predictor
         return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky",
                                              disturbance if kind == "df" else None), compiled)
@@ -107,7 +115,7 @@ def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled
 
 
 def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled: bool = False,
-                     disturbance=None, q=None) -> dict:
+                     disturbance=None, q=None, offsets=None) -> dict:
     """Nodes and master of `kind` over a recording: node and master estimates and covariances in
     canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and the CPU seconds of the
     filter loop alone (process time; the maps to canonical coordinates after it are not counted).
@@ -115,7 +123,7 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     the filter's process-noise densities when not the recording's (the chapter's filter's own)."""
     q = tuple(np.asarray(rec.q if q is None or len(q) == 0 else ex._per_chain(q, rec.m), float))
     filt = filter_of(rec.model, float(rec.ts), q, substeps, kind, compiled,
-                     rec.predictor, disturbance)
+                     rec.predictor, disturbance, offsets)
     pm = filt.model
     brunovsky = kind == "brunovsky" or (kind == "df" and rec.predictor == "brunovsky")
     inputs = rec.v if brunovsky else rec.u
@@ -144,9 +152,10 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
         for i, nd in enumerate(nodes):
             phys["node_x"][i, k], phys["node_P"][i, k] = nd.x, nd.P
         phys["x"][k], phys["P"][k] = master.x, master.P
+        w = pm.input(inputs[k], master.x) if kind == OFFSETS else inputs[k]   # with the point S_k is taken at
         for nd in nodes:
-            nd.predict(inputs[k])
-        master.predict(inputs[k])
+            nd.predict(w)
+        master.predict(w)
     seconds = time.process_time() - started
     out = {"seconds": seconds, "rejected": sum(nd.rejected for nd in nodes),
            "applied": sum(nd.applied for nd in nodes)}
@@ -162,7 +171,7 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     return out
 
 
-def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None) -> dict:
+def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None, offsets=None) -> dict:
     """closed_loop.metrics of `kind`'s estimates on `res`'s recording (the plant's tracking error
     is the run's own), plus `us_per_step`, the CPU microseconds per step of the filter loop; a
     run whose filter fails or diverges gives {"failed": reason}."""
@@ -171,7 +180,7 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None
         with np.errstate(all="raise"):
             q = {"brunovsky": res.config.q_brunovsky, "ekf": res.config.q_ekf,
                  "ukf": res.config.q_ekf}.get(kind)
-            out = run_on_recording(rec, kind, res.config.substeps, compiled, disturbance, q)
+            out = run_on_recording(rec, kind, res.config.substeps, compiled, disturbance, q, offsets)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return {"failed": f"{kind}: {type(exc).__name__}: {exc}"}
     mine = dataclasses.replace(rec, node_x=out["node_x"], node_P=out["node_P"], x=out["x"], P=out["P"])
@@ -189,11 +198,12 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None
 
 
 def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTERS),
-               predictor: str = predictors.DEFAULT, disturbance=None) -> dict:
+               predictor: str = predictors.DEFAULT, disturbance=None, offsets=None) -> dict:
     """Elementary operations of one predict and one update of each filter (CasADi's instruction
     count of the SX functions after common-subexpression elimination): a machine-independent
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
     return {kind: filter_of(spec, float(ts), q, substeps, kind, predictor=predictor,
-                            disturbance=disturbance if kind == "df" else None).operations()
+                            disturbance=disturbance if kind == "df" else None,
+                            offsets=offsets if kind == OFFSETS else None).operations()
             for kind in kinds}

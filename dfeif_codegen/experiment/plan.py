@@ -15,7 +15,7 @@ from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.symbolic.flatness import FlatSystem
 
-FILTERS = ("df", "ekf", "ukf", "brunovsky")
+FILTERS = ("df", "ekf", "ukf", "brunovsky", "offsets")
 
 
 def _pick(values, i):
@@ -42,7 +42,7 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
         predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")),
-        q_ekf=tuple(sc.q_ekf or ()), disturbance=sc.disturbance,
+        q_ekf=tuple(sc.q_ekf or ()), disturbance=sc.disturbance, offsets=sc.offsets,
         trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
 
 
@@ -161,6 +161,9 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
         from dfeif_codegen.experiment import figures as figs
         figs.pyplot()
     sc.check_model(flat)
+    if "offsets" in kinds and sc.offsets is None:
+        raise ScenarioError(f"--filters offsets: {sc.source} has no [offsets] table (the parameters whose "
+                            f"offsets the filter estimates, e.g. params = [\"R\", \"m\"], std = 0.2)")
     nodes, runs = _counts(sc, nodes, max_lag, runs)
     refs = list(reference or sc.references)
     if ex.TRAJECTORY in refs and sc.trajectory is None:

@@ -21,6 +21,7 @@ from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.experiment import model_error
 from dfeif_codegen.experiment import trajectory_file
 from dfeif_codegen.experiment.trajectory import KINDS
+from dfeif_codegen.reference import offsets as offset_states
 from dfeif_codegen.symbolic import disturbance as disturbances
 
 BUILTIN = ("paper", "unicycle", "pvtol")
@@ -37,6 +38,7 @@ _ALLOWED = {
     "grid": {"d", "p", "p_drop"},
     "model_error": model_error.KEYS,
     "disturbance": disturbances.KEYS,
+    "offsets": offset_states.KEYS,
 }
 
 
@@ -89,6 +91,7 @@ class Scenario:
     grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
     model_error: model_error.ParamError = model_error.NONE    # the plant's parameters against the model's
     disturbance: disturbances.Disturbance | None = None        # the filters' disturbance states, if any
+    offsets: offset_states.Offsets | None = None   # what `--filters offsets` estimates (reference/offsets.py)
     trajectory: trajectory_file.Trajectory | None = None     # [reference] file: the reference "trajectory"
     _lines: dict = field(default_factory=dict, repr=False)
 
@@ -132,6 +135,14 @@ class Scenario:
             return self.where(key if key == "model_error" else f"model_error.{key}")
 
         self.model_error.check(flat.model, at)
+        if self.offsets is not None:
+            try:
+                self.offsets.indices(flat)
+            except ValueError as exc:
+                fail("offsets.params", str(exc))
+            if len(self.offsets.chains_q) not in (0, 1, m):
+                fail("offsets.chains_q", f"needs 1 or {m} values (one per flat output) for model "
+                                         f"{flat.model.name}, got {len(self.offsets.chains_q)}")
         ts = self.ts or flat.model.ts
         if self.runs > MAX_RUNS:
             fail("scenario.runs", f"{self.runs} runs: at most {MAX_RUNS} (each is a closed-loop simulation)")
@@ -382,4 +393,6 @@ def loads(text: str, source: str = "<string>") -> Scenario:
         r.sc.model_error = model_error.from_table(data["model_error"], r.fail)
     if "disturbance" in data:
         r.sc.disturbance = disturbances.from_table(data["disturbance"], r.fail)
+    if "offsets" in data:
+        r.sc.offsets = offset_states.from_table(data["offsets"], r.fail)
     return r.sc

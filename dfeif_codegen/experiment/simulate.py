@@ -49,7 +49,7 @@ def _settings(p: Plan, o: Outcome) -> dict:
             out["q_ekf"] = sc.q_ekf
         out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
                                                out["filters"], predictors.for_method(p.predictor, "replay"),
-                                               sc.disturbance)
+                                               sc.disturbance, sc.offsets)
     return out
 
 

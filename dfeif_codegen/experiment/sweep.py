@@ -77,6 +77,8 @@ def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
         key = (*key, cfg.disturbance)
     if cfg.trajectory is not None:      # the same: path, content digest and smoothing of the CSV
         key = (*key, cfg.trajectory)
+    if kind.split("-")[0] == "offsets":  # what that filter estimates
+        key = (*key, cfg.offsets)
     return hashlib.sha256(repr(key).encode()).hexdigest()[:20]
 
 
@@ -93,7 +95,8 @@ def one(cfg: ex.Config, engine: Engine, codes: dict, series, kind: str = "df"):
     if kind != "df":
         from dfeif_codegen.experiment import compare
         base = kind.split("-")[0]      # the derivative-free filter with the run's disturbance states
-        m = compare.evaluate(res, base, disturbance=cfg.disturbance if base == "df" else None)
+        m = compare.evaluate(res, base, disturbance=cfg.disturbance if base == "df" else None,
+                             offsets=cfg.offsets if base == compare.OFFSETS else None)
         return (m["failed"] if "failed" in m else m), None
     return res.metrics, (series(res) if series else None)
 

@@ -49,6 +49,7 @@ class PhysicalModel:
         vals = model.param_values
         n, m = model.n, model.m
         self.n, self.m, self.ts = n, m, float(ts)
+        self.inputs = m          # the length of what `predict` takes (the applied input)
         self.angle_out = np.array([c.angle for c in flat.chains])
         x, u, z = ca.SX.sym("x", n), ca.SX.sym("u", m), ca.SX.sym("z", n)
         xs, us = list(model.x), list(model.u)
@@ -137,7 +138,7 @@ class FusedFilter:
     def __init__(self, model: PhysicalModel, compiled: bool = False):
         self.model = model
         n, m = model.n, model.m
-        x, P, u = ca.SX.sym("x", n), ca.SX.sym("P", n, n), ca.SX.sym("u", m)
+        x, P, u = ca.SX.sym("x", n), ca.SX.sym("P", n, n), ca.SX.sym("u", model.inputs)
         z, R = ca.SX.sym("z", m), ca.SX.sym("R", m, m)
         xn, Pn = self.predict_sx(x, P, u)
         xu, Pu = self.update_sx(x, P, z, R)
