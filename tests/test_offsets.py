@@ -13,6 +13,7 @@ from dfeif_codegen.experiment import compare, model_error as me
 from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.offsets import OffsetModel, Offsets
+from test_model_error import _write
 
 MODEL = "dc_motor_link"
 # loops closed by the chapter's filter, whose q = 20 covers a 20% parameter error (test_model_error.py)
@@ -96,13 +97,6 @@ def test_offsets_learn_a_fixed_parameter_error():
     chapter = compare.evaluate(res, "df")            # the loop's own filter: Brunovsky, q = 20
     assert "diverged" in without["failed"]           # the held filter at q = 1 cannot ignore the error
     assert with_offsets["rmse_master"][2] < 0.1 * chapter["rmse_master"][2]   # measured: 0.0096 against 2.79
-
-
-def _write(tmp_path, text):
-    path = tmp_path / "s.toml"
-    path.write_text("[scenario]\nduration = 1.0\nruns = 1\nmetrics_from = 0.2\nreferences = [\"seesaw\"]\n"
-                    "fusion = [\"difference\"]\nbaselines = []\n[[grid]]\nd = [0, 0]\n" + text)
-    return str(path)
 
 
 BAD = {

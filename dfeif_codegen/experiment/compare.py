@@ -35,7 +35,7 @@ from dfeif_codegen.experiment import divergence
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.offsets import OffsetFilter, OffsetModel
-from dfeif_codegen.reference.physical import PhysicalMaster, PhysicalModel, ReplayNode
+from dfeif_codegen.reference.physical import CanonicalMaps, PhysicalMaster, PhysicalModel, ReplayNode
 from dfeif_codegen.reference.ukf import UKF
 from dfeif_codegen.symbolic.disturbance import augment
 
@@ -48,7 +48,7 @@ OFFSETS = "offsets"
 KINDS = (*CANONICAL, OFFSETS, *FILTERS)
 
 
-class CanonicalModel:
+class CanonicalModel(CanonicalMaps):
     """The derivative-free filter's own model (the canonical state, the predictor's mean map and
     its constant Φ, Q, C) in the shape of a PhysicalModel, so that `DerivativeFree` on it *is* the
     derivative-free filter and runs on the same driver (ReplayNode, PhysicalMaster) and the same
@@ -73,14 +73,6 @@ class CanonicalModel:
         self.step_sx = ca.Function("step", [x, w], [mean])
         self.h_sx = ca.Function("h", [x], [ca.DM(C) @ x])
         self.Qx_sx = ca.Function("Qx", [x], [ca.DM(self.Qd)])
-        self.wrap_sx = PhysicalModel.wrap_sx.__get__(self)
-
-    def phi(self, x):
-        x = np.asarray(x, float)
-        return x[:self.canonical_n], np.eye(self.n)[:self.canonical_n]
-
-    def phi_inv(self, x):
-        return np.asarray(x, float), np.eye(self.canonical_n)
 
     def start(self, x0, P0):
         """The filter's initial (x, P) from the canonical ones (disturbances at 0, their spread)."""

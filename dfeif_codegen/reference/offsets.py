@@ -25,7 +25,7 @@ import numpy as np
 
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
-from dfeif_codegen.reference.physical import PhysicalModel
+from dfeif_codegen.reference.physical import CanonicalMaps
 
 KEYS = {"params", "std", "q", "chains_q"}
 
@@ -81,7 +81,7 @@ def _positive(v) -> bool:
     return _number(v) and v > 0
 
 
-class OffsetModel:
+class OffsetModel(CanonicalMaps):
     """The held filter's model with offset states, in the shape of compare.CanonicalModel (the
     filter's own state, h, Q; Phi the identity on the canonical part) so that it runs on the
     comparison's driver. What `predict` takes is (u, x̂): the applied input and the master's
@@ -116,18 +116,10 @@ class OffsetModel:
         C = np.hstack([flat.discrete(ts)[2], np.zeros((m, k))])
         self.h_sx = ca.Function("h", [x], [ca.DM(C) @ x])
         self.Qx_sx = ca.Function("Qx", [x], [ca.DM(Q)])
-        self.wrap_sx = PhysicalModel.wrap_sx.__get__(self)
 
     def input(self, u, master_x) -> np.ndarray:
         """What `predict` takes at a step: the applied input and the master's fused estimate."""
         return np.concatenate([np.atleast_1d(np.asarray(u, float)), np.asarray(master_x, float)])
-
-    def phi(self, x):
-        x = np.asarray(x, float)
-        return x[:self.canonical_n], np.eye(self.n)[:self.canonical_n]
-
-    def phi_inv(self, x):
-        return np.asarray(x, float), np.eye(self.canonical_n)
 
     def start(self, x0, P0):
         """(ζ0, 0) and P0 with the offsets' prior spread, independent of ζ."""

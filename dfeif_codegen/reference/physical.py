@@ -86,6 +86,22 @@ class PhysicalModel:
                             for i, a in enumerate(self.angle_out)])
 
 
+class CanonicalMaps:
+    """`phi`, `phi_inv` and `wrap_sx` of a filter whose state is the canonical one, possibly
+    extended by states after it (disturbances, parameter offsets): the identity on the canonical
+    part, so that the comparison's driver maps its estimates as it maps a PhysicalModel's.
+    Needs `n` (the filter's state), `canonical_n` and `angle_out`."""
+
+    wrap_sx = PhysicalModel.wrap_sx
+
+    def phi(self, x):
+        x = np.asarray(x, float)
+        return x[:self.canonical_n], np.eye(self.n)[:self.canonical_n]
+
+    def phi_inv(self, x):
+        return np.asarray(x, float), np.eye(self.canonical_n)
+
+
 def _packed(name: str, inputs: list, vec: ca.SX, mat: ca.SX) -> numeric.Numeric:
     """`vec` and `mat` as one column (vec, then mat column-major), called through Numeric's buffer."""
     return numeric.Numeric(ca.Function(name, inputs, [ca.densify(ca.vertcat(vec, ca.vec(mat)))], {"cse": True}))
