@@ -4,6 +4,8 @@ estimate."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -106,7 +108,7 @@ BAD = {
     "repeated": ("[offsets]\nparams = [\"R\", \"R\"]\n", ["offsets.params", "distinct"]),
     "bad std": ("[offsets]\nparams = [\"R\", \"m\"]\nstd = [0.1, 0.2, 0.3]\n", ["s.toml:12", "offsets.std"]),
     "negative q": ("[offsets]\nparams = [\"R\"]\nq = -1\n", ["s.toml:12", "offsets.q", ">= 0"]),
-    "chains_q": ("[offsets]\nparams = [\"R\"]\nchains_q = [1, 2]\n", ["offsets.chains_q", "1 or 1"]),
+    "chains_q": ("[offsets]\nparams = [\"R\"]\nchains_q = [1, 2]\n", ["offsets.chains_q", "needs 1 value", "got 2"]),
     "no table": ("", ["--filters offsets", "no [offsets] table"]),
 }
 
@@ -120,3 +122,17 @@ def test_bad_offsets_exit_2_before_any_run(case, tmp_path, capsys):
     assert code == 2 and len(err) == 1, err
     for word in words:
         assert word in err[0], (word, err[0])
+
+
+def test_simulate_records_the_offsets_it_ran(tmp_path):
+    """End to end through the CLI: the JSON names the [offsets] spec the filter ran with (read
+    back from the scenario file) and pairs the filter with the held one on the same seed."""
+    out = tmp_path / "o.json"
+    table = "[offsets]\nparams = [\"R\", \"m\"]\nstd = [0.2, 0.1]\nq = 1e-6\nchains_q = 2.0\n"
+    code = cli.main(["simulate", MODEL, "--scenario", _write(tmp_path, table), "--engine", "reference", "--quiet",
+                     "--runs", "1", "--filters", "df,offsets", "--json", str(out)])
+    doc = json.loads(out.read_text())
+    assert code == 0
+    assert doc["settings"]["offsets"] == {"params": ["R", "m"], "std": [0.2, 0.1], "q": 1e-6, "chains_q": [2.0]}
+    (pair,) = [p for p in doc["paired"] if p["filter"] == "offsets"]
+    assert pair["pairs"] == 1 and all(np.isfinite(pair["mean"]))

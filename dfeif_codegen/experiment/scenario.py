@@ -140,9 +140,6 @@ class Scenario:
                 self.offsets.indices(flat)
             except ValueError as exc:
                 fail("offsets.params", str(exc))
-            if len(self.offsets.chains_q) not in (0, 1, m):
-                fail("offsets.chains_q", f"needs 1 or {m} values (one per flat output) for model "
-                                         f"{flat.model.name}, got {len(self.offsets.chains_q)}")
         ts = self.ts or flat.model.ts
         if self.runs > MAX_RUNS:
             fail("scenario.runs", f"{self.runs} runs: at most {MAX_RUNS} (each is a closed-loop simulation)")
@@ -156,10 +153,12 @@ class Scenario:
                             ("control.poles", self.poles),
                             ("reference.amplitude", self.amplitude), ("reference.offset", self.offset),
                             ("reference.phase", self.phase), ("reference.cycles", self.cycles),
-                            *((("reference.tracking_bound", self.tracking_bound),) if self.tracking_bound else ())):
+                            *((("reference.tracking_bound", self.tracking_bound),) if self.tracking_bound else ()),
+                            *((("offsets.chains_q", self.offsets.chains_q),)
+                              if self.offsets is not None and self.offsets.chains_q else ())):
             if len(values) not in (1, m):
-                fail(key, f"needs 1 or {m} values (one per flat output) for model {flat.model.name}, "
-                          f"got {len(values)}")
+                needs = "1 value (its one flat output)" if m == 1 else f"1 or {m} values (one per flat output)"
+                fail(key, f"needs {needs} for model {flat.model.name}, got {len(values)}")
         if self.trajectory is not None:
             K = int(round(self.duration / ts))
             trajectory_file.check(self.trajectory, [o.name for o in flat.model.outputs], flat.degrees,

@@ -16,6 +16,7 @@ text and the JSON made from it. `dc.simulate` (dfeif_codegen/api.py) picks the e
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +48,8 @@ def _settings(p: Plan, o: Outcome) -> dict:
         out["filters"] = ["df", *p.filters]
         if sc.q_ekf:
             out["q_ekf"] = sc.q_ekf
+        if sc.offsets is not None and "offsets" in p.filters:
+            out["offsets"] = dataclasses.asdict(sc.offsets)
         out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,
                                                out["filters"], predictors.for_method(p.predictor, "replay"),
                                                sc.disturbance, sc.offsets)

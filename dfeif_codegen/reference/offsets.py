@@ -11,9 +11,9 @@ the cause instead of chasing it.
 The filter's state is (ζ, δ). The mean is the held predictor's ETD2RK step at p; the covariance
 moves by Φ_k = [[Φ₀, S_k], [0, I]], S_k = ∂ζ⁺/∂δ at the estimate and the applied input: a
 parameter sensitivity, the one derivative evaluated at run time (Φ₀ stays the build-time
-transition of the canonical block). Since S_k depends on the estimate, nodes and master no longer
-share one covariance recursion and the information-difference fusion is approximate, as the EKF's
-is; making it exact again needs the master to broadcast the point S_k is taken at.
+transition of the canonical block). S_k is taken at the master's fused estimate, which the master
+would broadcast with u: nodes and master then share one covariance recursion, so the nodes' replay
+and the information-difference fusion stay exact.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import numpy as np
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.physical import CanonicalMaps
+from dfeif_codegen.symbolic.disturbance import finite_number, numbers
 
 KEYS = {"params", "std", "q", "chains_q"}
 
@@ -59,26 +60,14 @@ def from_table(table: dict, fail) -> Offsets:
     if not (isinstance(params, list) and params and all(isinstance(p, str) and p for p in params)) \
             or len(set(params)) != len(params):
         fail("offsets.params", f"must be a non-empty list of distinct parameter names, got {params!r}")
-    std = table.get("std", 0.2)
-    stds = std if isinstance(std, list) else [std]
-    if not stds or len(stds) not in (1, len(params)) or not all(_positive(v) for v in stds):
-        fail("offsets.std", f"must be a number > 0 or one per parameter ({len(params)}), got {std!r}")
+    stds = numbers(table.get("std", 0.2), "offsets.std", fail, allow_zero=False, per="parameter")
+    if len(stds) not in (1, len(params)):
+        fail("offsets.std", f"needs 1 or {len(params)} values (one per parameter), got {len(stds)}")
     q = table.get("q", 0.0)
-    if not (_number(q) and q >= 0):
+    if not (finite_number(q) and q >= 0):
         fail("offsets.q", f"must be a number >= 0 (the offsets' random-walk density), got {q!r}")
-    chains = table.get("chains_q", [])
-    chains = chains if isinstance(chains, list) else [chains]
-    if not all(_positive(v) for v in chains):
-        fail("offsets.chains_q", f"must be a number > 0 or one per chain, got {table.get('chains_q')!r}")
-    return Offsets(tuple(params), tuple(float(v) for v in stds), float(q), tuple(float(v) for v in chains))
-
-
-def _number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and abs(v) != float("inf")
-
-
-def _positive(v) -> bool:
-    return _number(v) and v > 0
+    chains = numbers(table["chains_q"], "offsets.chains_q", fail, allow_zero=False) if "chains_q" in table else ()
+    return Offsets(tuple(params), stds, float(q), chains)
 
 
 class OffsetModel(CanonicalMaps):

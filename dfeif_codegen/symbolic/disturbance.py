@@ -74,25 +74,28 @@ def from_table(table: dict, fail) -> Disturbance:
     kind = table.get("kind")
     if kind not in KINDS:
         fail("disturbance.kind", f"must be one of {', '.join(KINDS)}, got {kind!r}")
-    q = _numbers(table.get("q"), "disturbance.q", fail, allow_zero=True)
+    q = numbers(table.get("q"), "disturbance.q", fail, allow_zero=True)
     tau = table.get("tau")
     if kind == "gauss_markov":
-        if not _number(tau) or tau <= 0:
+        if not finite_number(tau) or tau <= 0:
             fail("disturbance.tau", f"the Gauss-Markov time constant must be a number > 0 [s], got {tau!r}")
         tau = float(tau)
     elif tau is not None:
         fail("disturbance.tau", "applies to kind = \"gauss_markov\" only")
-    p0 = _numbers(table["p0_std"], "disturbance.p0_std", fail, allow_zero=False) if "p0_std" in table else None
+    p0 = numbers(table["p0_std"], "disturbance.p0_std", fail, allow_zero=False) if "p0_std" in table else None
     return Disturbance(kind, q, tau, p0)
 
 
-def _number(v) -> bool:
+def finite_number(v) -> bool:
+    """A finite TOML number (a bool is an int to Python, not a number to a scenario)."""
     return isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and abs(v) != float("inf")
 
 
-def _numbers(value, key: str, fail, allow_zero: bool) -> tuple:
+def numbers(value, key: str, fail, allow_zero: bool, per: str = "chain") -> tuple:
+    """A scenario field holding one number or a non-empty list of them (one per `per`), each > 0
+    (or >= 0); `fail(key, message)` raises the one-line error."""
     items = value if isinstance(value, list) else [value]
     bound = ">= 0" if allow_zero else "> 0"
-    if not items or not all(_number(v) and (v > 0 or (allow_zero and v == 0)) for v in items):
-        fail(key, f"must be a number {bound} or a non-empty list of them (one per chain), got {value!r}")
+    if not items or not all(finite_number(v) and (v > 0 or (allow_zero and v == 0)) for v in items):
+        fail(key, f"must be a number {bound} or a non-empty list of them (one per {per}), got {value!r}")
     return tuple(float(v) for v in items)
