@@ -25,7 +25,8 @@ ON_TIME = (Link(0.0, 0), Link(0.0, 0))
 
 
 def test_sensitivity_column_equals_a_finite_difference():
-    """S_k = ∂ζ⁺/∂δ (CasADi AD of the held step) against a central difference of the step itself.
+    """S_k = ∂ζ⁺/∂δ (CasADi AD of the held step) against a central difference of the step itself,
+    taken as the master takes it: at its own estimate, so the point moves with δ.
     The difference's truncation is h² ζ'''/6 and its rounding ε |ζ⁺| / h: at h = 1e-5 both are
     below 1e-8 of the column's scale on any IEEE machine."""
     flat = ex._flat(MODEL)
@@ -38,12 +39,36 @@ def test_sensitivity_column_equals_a_finite_difference():
     for j in range(3):
         dx = np.zeros(6)
         dx[3 + j] = h
-        fd = (np.array(model.step_sx(x + dx, w)) - np.array(model.step_sx(x - dx, w))).ravel()[:3] / (2 * h)
+        fd = (np.array(model.step_sx(x + dx, model.input(u, x + dx)))
+              - np.array(model.step_sx(x - dx, model.input(u, x - dx)))).ravel()[:3] / (2 * h)
         scale = max(np.abs(fd).max(), 1e-12)
         np.testing.assert_allclose(Phi[:3, 3 + j], fd, rtol=0, atol=1e-7 * scale)
         assert np.abs(fd).max() > 1e-4          # the offsets move the state: a column worth testing
     np.testing.assert_array_equal(Phi[:3, :3], predictors.held_constants(flat, 0.01).E)
     np.testing.assert_array_equal(Phi[3:], np.hstack([np.zeros((3, 3)), np.eye(3)]))
+
+
+def test_a_node_steps_its_own_state_linearized_at_the_masters_offsets():
+    """A node's mean moves its own ζ with the broadcast point's parameters plus the sensitivity
+    times its own offsets' distance from the point's, ζ⁺ = step(ζ, δ_p) + S_k (δ - δ_p): the
+    linearization its covariance already uses, so a node whose δ (observed weakly from one camera)
+    strays far never evaluates the step at non-physical parameters (the master, at δ = δ_p, steps
+    exactly: test above). Checked: two nodes differ by exactly S_k (δ_a - δ_b) (to rounding of the
+    sums, 1e-12 of ζ's scale), even where one node's δ would flip the parameters' sign; each keeps
+    its own δ (constant offsets)."""
+    flat = ex._flat(MODEL)
+    model = OffsetModel(flat, 0.01, (1.0,), Offsets(("R", "m"), (0.2,)))
+    point = np.array([0.3, -0.8, 2.0, 0.1, -0.05])
+    w = model.input(np.array([1.5]), point)
+    S = np.array(model.transition_sx(w))[:3, 3:]
+    zeta = np.array([0.35, -0.7, 1.0])
+    da, db = np.array([0.4, 0.3]), np.array([-1.6, -1.2])      # b: R and m of the wrong sign
+    a = np.array(model.step_sx(np.concatenate([zeta, da]), w)).ravel()
+    b = np.array(model.step_sx(np.concatenate([zeta, db]), w)).ravel()
+    np.testing.assert_allclose(a[:3] - b[:3], S @ (da - db), rtol=0,
+                               atol=1e-12 * max(np.abs(a).max(), np.abs(b).max(), np.abs(S @ db).max()))
+    np.testing.assert_array_equal(a[3:], da)
+    assert np.abs(S).max() > 1e-4        # the offsets do move the step: the test can fail
 
 
 def _centralized(rec, filt, offsets_model):

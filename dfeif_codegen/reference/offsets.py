@@ -13,7 +13,11 @@ moves by Φ_k = [[Φ₀, S_k], [0, I]], S_k = ∂ζ⁺/∂δ at the estimate and
 parameter sensitivity, the one derivative evaluated at run time (Φ₀ stays the build-time
 transition of the canonical block). S_k is taken at the master's fused estimate, which the master
 would broadcast with u: nodes and master then share one covariance recursion, so the nodes' replay
-and the information-difference fusion stay exact.
+and the information-difference fusion stay exact. A node's mean is linearized about that point
+in δ, ζ⁺ = step(ζ, δ̂) + S_k (δ - δ̂) with δ̂ the master's offsets, the linearization its
+covariance already uses: from one camera the offsets are weakly observable, and a node stepping
+at its own δ drifted to non-physical values (the arm's k_d offset to -1.15) until its step
+exploded and took the master with it. The master steps at its own estimate, exactly.
 """
 
 from __future__ import annotations
@@ -76,8 +80,8 @@ class OffsetModel(CanonicalMaps):
     comparison's driver. What `predict` takes is (u, x̂): the applied input and the master's
     estimate after its fusion, the point S_k is taken at, so that every node and the master
     propagate their covariances by the same Φ_k (the information-difference fusion and the
-    nodes' replay then stay exact, as with the constant Φ₀) while each mean uses its own
-    estimate."""
+    nodes' replay then stay exact, as with the constant Φ₀); each mean steps its own ζ at the
+    point's offsets plus S_k times its own offsets' distance from them."""
 
     def __init__(self, flat, ts: float, q, offsets: Offsets):
         which, p0 = offsets.indices(flat), flat.param_vector
@@ -97,7 +101,9 @@ class OffsetModel(CanonicalMaps):
         Phi = ca.SX.eye(self.n)
         Phi[:n, :n] = ca.DM(H.E)
         Phi[:n, n:] = sensitivity(point, w)
-        self.step_sx = ca.Function("step", [x, w], [ca.vertcat(mean, x[n:])])
+        held = ca.Function("held", [x, w], [mean])
+        at_point = held(ca.vertcat(x[:n], point[n:]), w) + Phi[:n, n:] @ (x[n:] - point[n:])
+        self.step_sx = ca.Function("step", [x, w], [ca.vertcat(at_point, x[n:])])
         self.transition_sx = ca.Function("transition", [w], [Phi])
         Q = np.zeros((self.n, self.n))
         Q[:n, :n], Q[n:, n:] = H.Q(np.asarray(q, dtype=float)), np.eye(k) * offsets.q * ts
