@@ -124,7 +124,9 @@ def generated() -> dict:
     for label, table, words in [("negative density", 'kind = "random_walk"\nq = -1.0', ["disturbance.q", ">= 0"]),
                                 ("tau 0", 'kind = "gauss_markov"\nq = 1.0\ntau = 0', ["disturbance.tau", "> 0"]),
                                 ("tau < 0", 'kind = "gauss_markov"\nq = 1.0\ntau = -2.0', ["disturbance.tau"]),
-                                ("no kind", "q = 1.0", ["disturbance.kind"])]:
+                                ("no kind", "q = 1.0", ["disturbance.kind"]),
+                                ("zero density without p0_std", 'kind = "random_walk"\nq = [0.0]',
+                                 ["disturbance.p0_std", "disturbance.q", "is 0"])]:
         c[f"scenario disturbance {label}"] = ("scenario field", ["simulate", *S, "--engine", "reference"],
                                               {"s.toml": SMALL + f"\n[disturbance]\n{table}\n"}, words)
     c["disturbance with the Brunovsky predictor"] = (

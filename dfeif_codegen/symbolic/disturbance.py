@@ -83,6 +83,11 @@ def from_table(table: dict, fail) -> Disturbance:
     elif tau is not None:
         fail("disturbance.tau", "applies to kind = \"gauss_markov\" only")
     p0 = numbers(table["p0_std"], "disturbance.p0_std", fail, allow_zero=False) if "p0_std" in table else None
+    if p0 is None and 0.0 in q:
+        # the default initial spread is the one the density gathers: none for q = 0, which would
+        # leave that state's covariance singular (the information-form fusion inverts it)
+        fail("disturbance.p0_std", "needed when a density in disturbance.q is 0 (a constant disturbance: "
+                                   "its initial std cannot come from a zero density)")
     return Disturbance(kind, q, tau, p0)
 
 
