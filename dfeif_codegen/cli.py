@@ -206,6 +206,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--tau", type=float, default=None, metavar="S", help="the Gauss-Markov time constant [s]")
     p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
                    help="calibrate against a plant with that model error (as simulate's), and write it")
+    p.add_argument("--offsets", default=None, metavar="NAME[,NAME...]",
+                   help="with --disturbance and --param-error: an [offsets] table for simulate --filters "
+                        "offsets, estimating these parameters' offsets, its chains' q calibrated")
     p.add_argument("--trajectory", metavar="FILE.csv",
                    help="track this CSV of the flat outputs (t, <output>, optionally <output>_d1, ...) instead of a shape")
     p.add_argument("--smoothing", type=float, default=0.0, metavar="S",
@@ -335,7 +338,7 @@ def scenario(args: argparse.Namespace) -> int:
     text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
                             offset=args.offset, phase=args.phase, period=args.period,
                             disturbance=args.disturbance, tau=args.tau, param_error=args.param_error,
-                            trajectory=args.trajectory, smoothing=args.smoothing, **_budget(args))
+                            offsets=args.offsets, trajectory=args.trajectory, smoothing=args.smoothing, **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 

@@ -157,6 +157,12 @@ def generated() -> dict:
             ["disturbance", f"codegen {cmd}", "codegen simulate"])
     c |= _opt("option: not a choice", "scenario", "--disturbance", ["walk", ""])
     c |= _opt("option: out of range", "scenario", "--tau", ["0", "-1", "nan"], extra=("--disturbance", "gauss_markov"))
+    c |= _opt("option: not a choice", "scenario", "--offsets", ["R"], extra=("--param-error", "0.2"),
+              words=["--offsets", "--disturbance"])
+    c |= _opt("option: not a choice", "scenario", "--offsets", ["Rx", "R,R", "R,"],
+              extra=("--disturbance", "random_walk", "--param-error", "0.2"), words=["--offsets"])
+    c |= _opt("option: not a choice", "scenario", "--offsets", ["m"],
+              extra=("--disturbance", "random_walk", "--param-error", "R=0.1"), words=["--offsets", "m"])
     c |= _opt("option: not a number", "bench", "--repeat", INT_BAD)
     c |= _opt("option: out of range", "bench", "--repeat", ["-1", "100000"])
     c |= _opt("output path", "bench", "--out", ["/proc/B.md", "{d}/nodir/B.md", "{d}/user"])

@@ -75,6 +75,31 @@ def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: l
     return q, log, with_densities(dist, qd)
 
 
+def offsets_nees(results: list, offsets) -> float:
+    """The offset filter's master NEES (reference/offsets.py), averaged over the steps and the
+    recordings (inf if it fails or diverges on one)."""
+    values = []
+    for res in results:
+        m = compare.evaluate(res, compare.OFFSETS, offsets=offsets)
+        if "failed" in m:
+            return math.inf
+        values.append(float(np.mean(m["nees_master"])))
+    return float(np.mean(values))
+
+
+def offsets_chains_q(q, loops: list, offsets, match, log: list[str]):
+    """(the Offsets with `chains_q` calibrated, log): the chains' white density of the offset
+    filter, scaled from the held filter's white `q` until its master NEES on the same loops is
+    n (`match` as in `densities`). Why its own: with the parameters estimated, what is left
+    for the chains' noise is less than the held filter's white part (q = 1 left the motor's
+    NEES at 1.4 where n = 3)."""
+    def at(cq):
+        return dataclasses.replace(offsets, chains_q=tuple(float(v) for v in np.atleast_1d(cq)))
+    cq, log = match(np.asarray(q, dtype=float), log, lambda cq: offsets_nees(loops, at(cq)))
+    log[-1] = "the offset filter's chains: " + log[-1]
+    return at(cq), log
+
+
 def _text(values) -> str:
     return "[" + ", ".join(f"{v:.3g}" for v in np.atleast_1d(values)) + "]"
 

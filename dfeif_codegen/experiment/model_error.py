@@ -72,6 +72,16 @@ class ParamError:
                                 f"by {100 * reach[i]:.0f}% of its value (sign flip): keep |relative| + "
                                 f"{'3 x ' if self.draw == 'normal' else ''}spread below 1")
 
+    def stds(self, model) -> np.ndarray:
+        """Each parameter's relative error, as a standard deviation (model order): the draw's when
+        drawn (spread/sqrt(3) uniform, the truncated normal's), else the size of its fixed offset
+        relative to its value; 0 for a parameter left alone."""
+        rel, ab, spread = self._vectors(model)
+        p0 = np.array([abs(q.value) for q in model.parameters], dtype=float)
+        fixed = np.abs(rel) + np.abs(ab) / np.where(p0 == 0, 1.0, p0)
+        level = math.sqrt(TRUNCATED_VARIANCE) if self.draw == "normal" else 1.0 / math.sqrt(3.0)
+        return np.where((spread > 0) & (self.draw != "none"), spread * level, fixed)
+
     def _vectors(self, model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         index = {q.name: i for i, q in enumerate(model.parameters)}
         rel, ab, spread = (np.zeros(len(index)) for _ in range(3))

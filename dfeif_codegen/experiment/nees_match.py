@@ -85,7 +85,7 @@ def _master_nees(config, q, seeds) -> float:
     return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
 
 
-def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list[str]]:
+def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEES_FLOOR) -> tuple[np.ndarray, list[str]]:
     """Scale q (every chain alike, keeping the residual's proportions) until the master's NEES,
     averaged over `seeds` closed loops without delays of NEES_SECONDS (the length of a
     scenario's runs: the NEES of a filter with little process noise drifts over a run, so a
@@ -94,7 +94,9 @@ def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list
     grows); at most NEES_EVALS evaluations, keeping the closest. The residual alone does not get
     there: it is coloured (correlated from step to step), which white noise of the same variance
     does not describe, and the estimate's own error feeds back through u. `nees(q)`: another
-    measure of the master's NEES at q than `seeds` closed loops of `config`."""
+    measure of the master's NEES at q than `seeds` closed loops of `config`; `floor`: how far
+    below the start q may go when the first loop closed (None: no floor, for a filter whose
+    start is not the residual's scale and which does not close the loop)."""
     n = flat.n
     nees_at = nees or (lambda qq: _master_nees(config, qq, seeds))
     tried = []                                   # (log scale, log NEES / n)
@@ -118,8 +120,8 @@ def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list
             slope = min(slope, -0.05)            # NEES falls with q; a flat stretch takes large steps
         step = max(-3.0, min(3.0, tried[-1][1] / slope))                   # within e^+-3 per step
         scale = tried[-1][0] - step
-        if tried[0][0] >= math.log(NEES_FLOOR):  # the loop closed near the residual: keep the floor
-            scale = max(scale, min(math.log(NEES_FLOOR), tried[-1][0]))
+        if floor is not None and tried[0][0] >= math.log(floor):  # closed near the residual: keep the floor
+            scale = max(scale, min(math.log(floor), tried[-1][0]))
             floored = scale == tried[-1][0]
             if floored:
                 break                            # at the floor, and NEES still asks for less q
@@ -133,5 +135,5 @@ def match_nees(flat, q, config, seeds, log, nees=None) -> tuple[np.ndarray, list
     log.append(f"master NEES over {len(seeds)} runs without delays: {n * math.exp(best[1]):.3g} at q = {fmt(q)} "
                f"(x{math.exp(best[0]):.3g}; target n = {n}"
                + ("" if inside else f", not reached in {len(tried)} tries")
-               + (f", q lowered at most x{NEES_FLOOR:g}" if floored else "") + ")")
+               + (f", q lowered at most x{floor:g}" if floored else "") + ")")
     return q, log

@@ -113,7 +113,8 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     selects), so q is calibrated for the filter that will run; `delays`: the camera links
     (network.Link per node) of the scenario's hardest delay row, which q must also close. With
     `disturbance` among the options (a Disturbance, its densities ignored): (q, log, the
-    Disturbance with calibrated densities)."""
+    Disturbance with calibrated densities, the `offsets` option (reference/offsets.Offsets) with
+    its chains' q calibrated, or None)."""
     shape = shape or shapes.from_domains(flat)
     q = _reference_q(flat, spec, ts, substeps, shape)
     floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
@@ -130,6 +131,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
         # only a plant that leaves its domain or overflows ends one
 
     dist = options.pop("disturbance", None)
+    offsets = options.pop("offsets", None)
     if dist is not None:      # the loops are closed by the chapter's filter (module docstring)
         options["predictor"] = "brunovsky"
     for _ in range(rounds):
@@ -156,7 +158,11 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             loops = [ex.run(dataclasses.replace(config(q, s, NEES_SECONDS), plant_error=e))
                      for s, e in zip(seeds, errors)]
             match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees)  # noqa: E731
-            return disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
+            held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
+            if offsets is not None:     # a reference filter that closes no loop here: no floor
+                free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None)  # noqa: E731
+                offsets, log = disturbance_calibration.offsets_chains_q(held, loops, offsets, free, log)
+            return held, log, dist, offsets
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
                                  getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
@@ -229,11 +235,14 @@ def _reference_lines(shape: shapes.Shape, file: str | None) -> list[str]:
 
 
 def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | None = None,
-                      disturbance: Disturbance | None = None, plant_error=None) -> tuple[str, list[str]]:
+                      disturbance: Disturbance | None = None, plant_error=None,
+                      offsets=None) -> tuple[str, list[str]]:
     """The TOML text of a starting scenario for model `spec`, and the calibration log; `file`:
     how the scenario names a trajectory shape's CSV; `disturbance` (its densities ignored):
     calibrated for the held filter with those states; `plant_error` (model_error.ParamError):
-    the calibration's plants have it, and so has the scenario (its [model_error] table)."""
+    the calibration's plants have it, and so has the scenario (its [model_error] table);
+    `offsets` (reference/offsets.Offsets, with a disturbance): the [offsets] table, its chains'
+    q calibrated on the same loops."""
     flat = ex._flat(spec)
     shape = shape or shapes.from_domains(flat)
     model = flat.model
@@ -247,10 +256,11 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
         noise_std = [std, [1.25 * s for s in std]]
     paper = scenario_mod.load("paper")   # its delay grid is the starting scenario's
     options = ({} if plant_error is None else {"plant_error": plant_error}) | \
-        ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance})
+        ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance}) | \
+        ({} if offsets is None else {"offsets": offsets})
     q, log, *calibrated = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape,
                                     delays=paper.grid[-1].links(len(noise_std)), **options)
-    disturbance = calibrated[0] if calibrated else None
+    disturbance, offsets = calibrated if calibrated else (None, None)
     if NO_LOOP in log[-1]:     # no closed loop of the NEES stage survived: nothing was calibrated
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged or lost "
                             f"its closed loop "
@@ -301,12 +311,12 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
-    lines += _extra_tables(plant_error, disturbance)
+    lines += _extra_tables(plant_error, disturbance, offsets)
     return "\n".join(lines), log
 
 
-def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
-    """The [model_error] and [disturbance] tables of a starting scenario, when asked for."""
+def _extra_tables(plant_error, disturbance: Disturbance | None, offsets=None) -> list[str]:
+    """The [model_error], [disturbance] and [offsets] tables of a starting scenario, when asked for."""
     lines: list[str] = []
     if plant_error is not None:
         lines += ["# the plant's parameters against the model's (--param-error), as calibrated", "[model_error]"]
@@ -320,6 +330,13 @@ def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
                   "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {_toml_list(disturbance.q)}"]
         lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
         lines += [""]
+    if offsets is not None:
+        lines += ["# the offset filter of simulate --filters offsets (reference only): the named parameters'",
+                  "# relative offsets as constant states, prior std their error's; chains_q: the",
+                  "# chains' white density, scaled so that its master's NEES averages n",
+                  "[offsets]", f"params = [{', '.join(json.dumps(p) for p in offsets.params)}]",
+                  f"std = {_toml_list(offsets.std)}", f"q = {offsets.q:g}",
+                  f"chains_q = {_toml_list(offsets.chains_q)}", ""]
     return lines
 
 
@@ -331,7 +348,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
              max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
              phase=None, period: float | None = None, trajectory: str | None = None,
              smoothing: float = 0.0, disturbance: str | None = None, tau: float | None = None,
-             param_error: str | None = None) -> str:
+             param_error: str | None = None, offsets: str | None = None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
     derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `trajectory`: a CSV of
@@ -339,13 +356,17 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     scenario relative to `out`'s folder (or to the current one when printed). `disturbance`
     ("random_walk" or "gauss_markov", `tau` its time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
-    --param-error`): the calibration's plants and the scenario get that model error."""
+    --param-error`): the calibration's plants and the scenario get that model error; `offsets`
+    ("NAME,..."; with both): an [offsets] table for those parameters (offset_option)."""
     dist = disturbance_calibration.from_options(disturbance, tau)
     plant_error = None
     if param_error is not None:
         from dfeif_codegen.experiment import model_error
         plant_error = model_error.from_option(param_error)
         plant_error = plant_error if plant_error.active else None
+    if offsets is not None and (dist is None or plant_error is None):
+        raise ScenarioError(f"--offsets {offsets}: needs --disturbance and a non-zero --param-error (its chains' q is "
+                            "calibrated on the loops the disturbance calibration runs under that error)")
     path = Path(out) if out else None
     if path is not None and path.exists():
         try:
@@ -360,6 +381,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     flat = derivation.derive(model, max_seconds, max_memory)
     if plant_error is not None:
         plant_error.check(flat.model, lambda key: "--param-error")
+    wanted = None if offsets is None else offset_option(flat.model, offsets, plant_error)
     file = None
     if trajectory is None:
         ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
@@ -367,7 +389,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
         ref, file = shapes.of_trajectory(flat, trajectory, smoothing, path,
                                          shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period)))
     try:
-        text, _ = starting_scenario(model, ref, file, dist, plant_error)
+        text, _ = starting_scenario(model, ref, file, dist, plant_error, wanted)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
                             f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "
@@ -376,3 +398,26 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")
     return text
+
+
+def offset_option(model, names: str, plant_error):
+    """--offsets NAME,...: an Offsets for those parameters of `model`, each one's prior std the
+    relative error `plant_error` gives it (the draw's std, or its fixed offset's size); ScenarioError
+    naming a parameter the model lacks or the error leaves alone (nothing to calibrate on)."""
+    from dfeif_codegen.reference.offsets import Offsets
+    params = [p.strip() for p in names.split(",")]
+    known = [q.name for q in model.parameters]
+    if not all(params) or len(set(params)) != len(params):
+        raise ScenarioError(f"--offsets {names}: give distinct parameter names separated by commas")
+    unknown = [p for p in params if p not in known]
+    if unknown:
+        raise ScenarioError(f"--offsets: {', '.join(unknown)} is not a parameter of model {model.name} "
+                            f"(its parameters: {', '.join(known)})")
+    size = plant_error.stds(model)
+    std = [float(f"{size[known.index(p)]:.4g}") for p in params]
+    still = [p for p, s in zip(params, std) if s <= 0]
+    if still:
+        raise ScenarioError(f"--offsets: --param-error leaves {', '.join(still)} at the model's value: "
+                            "no error of it to calibrate on")
+    return Offsets(tuple(params), tuple(std))
+
