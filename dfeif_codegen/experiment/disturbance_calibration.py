@@ -30,10 +30,21 @@ FLOOR = 1e-6
 def held_nees(results: list, q, dist: Disturbance) -> float:
     """The held filter's master NEES with disturbance states `dist`, averaged over the steps and
     the recordings (inf if it fails or diverges on one)."""
+    def one(res):
+        rec = dataclasses.replace(res.recording, predictor="held", q=np.asarray(q, dtype=float))
+        return compare.evaluate(dataclasses.replace(res, recording=rec), "df", disturbance=dist)
+    return _mean_nees(results, one)
+
+
+def offsets_nees(results: list, offsets) -> float:
+    """The offset filter's master NEES (reference/offsets.py), averaged likewise."""
+    return _mean_nees(results, lambda res: compare.evaluate(res, compare.OFFSETS, offsets=offsets))
+
+
+def _mean_nees(results: list, evaluate) -> float:
     values = []
     for res in results:
-        rec = dataclasses.replace(res.recording, predictor="held", q=np.asarray(q, dtype=float))
-        m = compare.evaluate(dataclasses.replace(res, recording=rec), "df", disturbance=dist)
+        m = evaluate(res)
         if "failed" in m:
             return math.inf
         values.append(float(np.mean(m["nees_master"])))
@@ -73,18 +84,6 @@ def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: l
     qd, log = match(guess, log, lambda qd: held_nees(loops, q, with_densities(dist, qd)))
     log[-1] = log[-1].replace(" at q = ", f" at q = {_text(q)}, disturbance q = ")
     return q, log, with_densities(dist, qd)
-
-
-def offsets_nees(results: list, offsets) -> float:
-    """The offset filter's master NEES (reference/offsets.py), averaged over the steps and the
-    recordings (inf if it fails or diverges on one)."""
-    values = []
-    for res in results:
-        m = compare.evaluate(res, compare.OFFSETS, offsets=offsets)
-        if "failed" in m:
-            return math.inf
-        values.append(float(np.mean(m["nees_master"])))
-    return float(np.mean(values))
 
 
 def offsets_chains_q(q, loops: list, offsets, match, log: list[str]):
