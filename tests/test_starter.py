@@ -121,6 +121,8 @@ def test_disturbance_densities_put_the_held_filters_nees_in_its_band(tmp_path):
     assert sc.offsets.params == ("R", "k_e", "m") and sc.offsets.q == 0.0
     assert np.allclose(sc.offsets.std, 0.2 / np.sqrt(3.0), rtol=1e-3)     # written to 4 digits
     assert len(sc.offsets.chains_q) == 1 and sc.offsets.chains_q[0] > 0
+    others = [p.name for p in ex._flat("dc_motor_link").model.parameters if p.name not in ("R", "k_e", "m")]
+    assert f"# NOTE: the error also moves {', '.join(others)}, which no offset estimates" in out.read_text()
     loops = scenario.load("paper")       # closed by the Brunovsky filter at its own q, on the error written
     loops.model_error = sc.model_error
     lo, hi = stats.nees_band(3, 8)

@@ -311,12 +311,15 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
-    lines += _extra_tables(plant_error, disturbance, offsets)
+    left = [] if offsets is None else [q.name for q, e in zip(model.parameters, plant_error.stds(model))
+                                       if e > 0 and q.name not in offsets.params]
+    lines += _extra_tables(plant_error, disturbance, offsets, left)
     return "\n".join(lines), log
 
 
-def _extra_tables(plant_error, disturbance: Disturbance | None, offsets=None) -> list[str]:
-    """The [model_error], [disturbance] and [offsets] tables of a starting scenario, when asked for."""
+def _extra_tables(plant_error, disturbance: Disturbance | None, offsets=None, left=()) -> list[str]:
+    """The [model_error], [disturbance] and [offsets] tables of a starting scenario, when asked for;
+    `left`: the parameters the error moves that the offsets leave out (said in a comment)."""
     lines: list[str] = []
     if plant_error is not None:
         lines += ["# the plant's parameters against the model's (--param-error), as calibrated", "[model_error]"]
@@ -334,6 +337,9 @@ def _extra_tables(plant_error, disturbance: Disturbance | None, offsets=None) ->
         lines += ["# the offset filter of simulate --filters offsets (reference only): the named parameters'",
                   "# relative offsets as constant states, prior std their error's; chains_q: the",
                   "# chains' white density, scaled so that its master's NEES averages n",
+                  *([f"# NOTE: the error also moves {', '.join(left)}, which no offset estimates: that part",
+                     "# stays in chains_q, and a run drawn far off there is over-confident (docs/experiment.md)"]
+                    if left else []),
                   "[offsets]", f"params = [{', '.join(json.dumps(p) for p in offsets.params)}]",
                   f"std = {_toml_list(offsets.std)}", f"q = {offsets.q:g}",
                   f"chains_q = {_toml_list(offsets.chains_q)}", ""]
