@@ -161,3 +161,20 @@ def test_simulate_records_the_offsets_it_ran(tmp_path):
     assert doc["settings"]["offsets"] == {"params": ["R", "m"], "std": [0.2, 0.1], "q": 1e-6, "chains_q": [2.0]}
     (pair,) = [p for p in doc["paired"] if p["filter"] == "offsets"]
     assert pair["pairs"] == 1 and all(np.isfinite(pair["mean"]))
+
+
+def test_calibration_refuses_offsets_the_filter_cannot_run():
+    """`codegen scenario --offsets`: when the offset filter fails on the calibration's loops at every
+    scale of its chains' q (the match reports every scale lost), the calibration stops with one
+    line naming --offsets and the parameters, rather than the closed-loop message the held
+    filter's q gets (no loop was lost: the loops are already recorded)."""
+    from dfeif_codegen.errors import ScenarioError
+    from dfeif_codegen.experiment import disturbance_calibration
+    from dfeif_codegen.experiment.nees_match import NO_LOOP
+
+    def lost_everywhere(q, log, nees):
+        return q, log + [f"master NEES: {NO_LOOP} lost a closed loop; q kept from the residual"]
+
+    with pytest.raises(ScenarioError) as err:
+        disturbance_calibration.offsets_chains_q([1.0], [], Offsets(("R", "m"), (0.1,)), lost_everywhere, [])
+    assert str(err.value).startswith("--offsets R,m: the offset filter failed") and "\n" not in str(err.value)

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from dfeif_codegen.experiment import compare
+from dfeif_codegen.experiment.nees_match import NO_LOOP
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.symbolic.disturbance import KINDS, Disturbance
@@ -95,6 +96,9 @@ def offsets_chains_q(q, loops: list, offsets, match, log: list[str]):
     def at(cq):
         return dataclasses.replace(offsets, chains_q=tuple(float(v) for v in np.atleast_1d(cq)))
     cq, log = match(np.asarray(q, dtype=float), log, lambda cq: offsets_nees(loops, at(cq)))
+    if NO_LOOP in log[-1]:
+        raise ScenarioError(f"--offsets {','.join(offsets.params)}: the offset filter failed or diverged on the "
+                            "calibration's loops at every scale of its chains' q tried; estimate fewer parameters")
     log[-1] = "the offset filter's chains: " + log[-1]
     return at(cq), log
 
