@@ -169,12 +169,12 @@ def test_calibration_refuses_offsets_the_filter_cannot_run():
     line naming --offsets and the parameters, rather than the closed-loop message the held
     filter's q gets (no loop was lost: the loops are already recorded)."""
     from dfeif_codegen.errors import ScenarioError
-    from dfeif_codegen.experiment import disturbance_calibration
+    from dfeif_codegen.experiment import offsets_calibration
     from dfeif_codegen.experiment.nees_match import NO_LOOP
 
     def lost_everywhere(q, log, nees):
         return q, log + [f"master NEES: {NO_LOOP} lost a closed loop; q kept from the residual"]
 
     with pytest.raises(ScenarioError) as err:
-        disturbance_calibration.offsets_chains_q([1.0], [], Offsets(("R", "m"), (0.1,)), lost_everywhere, [])
+        offsets_calibration.chains_q([1.0], [], Offsets(("R", "m"), (0.1,)), lost_everywhere, [])
     assert str(err.value).startswith("--offsets R,m: the offset filter failed") and "\n" not in str(err.value)

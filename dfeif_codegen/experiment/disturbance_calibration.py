@@ -20,7 +20,6 @@ import math
 import numpy as np
 
 from dfeif_codegen.experiment import compare
-from dfeif_codegen.experiment.nees_match import NO_LOOP
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.symbolic.disturbance import KINDS, Disturbance
@@ -34,15 +33,12 @@ def held_nees(results: list, q, dist: Disturbance) -> float:
     def one(res):
         rec = dataclasses.replace(res.recording, predictor="held", q=np.asarray(q, dtype=float))
         return compare.evaluate(dataclasses.replace(res, recording=rec), "df", disturbance=dist)
-    return _mean_nees(results, one)
+    return mean_nees(results, one)
 
 
-def offsets_nees(results: list, offsets) -> float:
-    """The offset filter's master NEES (reference/offsets.py), averaged likewise."""
-    return _mean_nees(results, lambda res: compare.evaluate(res, compare.OFFSETS, offsets=offsets))
-
-
-def _mean_nees(results: list, evaluate) -> float:
+def mean_nees(results: list, evaluate) -> float:
+    """The master NEES `evaluate(result)` (compare.evaluate's metrics) gives, averaged over the
+    steps and the recordings (inf if it fails or diverges on one)."""
     values = []
     for res in results:
         m = evaluate(res)
@@ -85,22 +81,6 @@ def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: l
     qd, log = match(guess, log, lambda qd: held_nees(loops, q, with_densities(dist, qd)))
     log[-1] = log[-1].replace(" at q = ", f" at q = {_text(q)}, disturbance q = ")
     return q, log, with_densities(dist, qd)
-
-
-def offsets_chains_q(q, loops: list, offsets, match, log: list[str]):
-    """(the Offsets with `chains_q` calibrated, log): the chains' white density of the offset
-    filter, scaled from the held filter's white `q` until its master NEES on the same loops is
-    n (`match` as in `densities`). Why its own: with the parameters estimated, what is left
-    for the chains' noise is less than the held filter's white part (q = 1 left the motor's
-    NEES at 1.4 where n = 3)."""
-    def at(cq):
-        return dataclasses.replace(offsets, chains_q=tuple(float(v) for v in np.atleast_1d(cq)))
-    cq, log = match(np.asarray(q, dtype=float), log, lambda cq: offsets_nees(loops, at(cq)))
-    if NO_LOOP in log[-1]:
-        raise ScenarioError(f"--offsets {','.join(offsets.params)}: the offset filter failed or diverged on the "
-                            "calibration's loops at every scale of its chains' q tried; estimate fewer parameters")
-    log[-1] = "the offset filter's chains: " + log[-1]
-    return at(cq), log
 
 
 def _text(values) -> str:

@@ -48,7 +48,7 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
-from dfeif_codegen.experiment import disturbance_calibration, shapes
+from dfeif_codegen.experiment import disturbance_calibration, offsets_calibration, shapes
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.trajectory import flags
@@ -161,7 +161,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
             if offsets is not None:     # a reference filter that closes no loop here: no floor
                 free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None)  # noqa: E731
-                offsets, log = disturbance_calibration.offsets_chains_q(held, loops, offsets, free, log)
+                offsets, log = offsets_calibration.chains_q(held, loops, offsets, free, log)
             return held, log, dist, offsets
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
                                  getattr(rec, "predictor", "brunovsky")), q)
@@ -311,15 +311,13 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
-    left = [] if offsets is None else [q.name for q, e in zip(model.parameters, plant_error.stds(model))
-                                       if e > 0 and q.name not in offsets.params]
-    lines += _extra_tables(plant_error, disturbance, offsets, left)
+    lines += _extra_tables(plant_error, disturbance)
+    lines += [] if offsets is None else offsets_calibration.table(offsets, model, plant_error)
     return "\n".join(lines), log
 
 
-def _extra_tables(plant_error, disturbance: Disturbance | None, offsets=None, left=()) -> list[str]:
-    """The [model_error], [disturbance] and [offsets] tables of a starting scenario, when asked for;
-    `left`: the parameters the error moves that the offsets leave out (said in a comment)."""
+def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
+    """The [model_error] and [disturbance] tables of a starting scenario, when asked for."""
     lines: list[str] = []
     if plant_error is not None:
         lines += ["# the plant's parameters against the model's (--param-error), as calibrated", "[model_error]"]
@@ -333,16 +331,6 @@ def _extra_tables(plant_error, disturbance: Disturbance | None, offsets=None, le
                   "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {_toml_list(disturbance.q)}"]
         lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
         lines += [""]
-    if offsets is not None:
-        lines += ["# the offset filter of simulate --filters offsets (reference only): the named parameters'",
-                  "# relative offsets as constant states, prior std their error's; chains_q: the",
-                  "# chains' white density, scaled so that its master's NEES averages n",
-                  *([f"# NOTE: the error also moves {', '.join(left)}, which no offset estimates: that part",
-                     "# stays in chains_q, and a run drawn far off there is over-confident (docs/experiment.md)"]
-                    if left else []),
-                  "[offsets]", f"params = [{', '.join(json.dumps(p) for p in offsets.params)}]",
-                  f"std = {_toml_list(offsets.std)}", f"q = {offsets.q:g}",
-                  f"chains_q = {_toml_list(offsets.chains_q)}", ""]
     return lines
 
 
@@ -363,7 +351,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     ("random_walk" or "gauss_markov", `tau` its time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
     --param-error`): the calibration's plants and the scenario get that model error; `offsets`
-    ("NAME,..."; with both): an [offsets] table for those parameters (offset_option)."""
+    ("NAME,..."; with both): an [offsets] table for those parameters (offsets_calibration)."""
     dist = disturbance_calibration.from_options(disturbance, tau)
     plant_error = None
     if param_error is not None:
@@ -387,7 +375,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     flat = derivation.derive(model, max_seconds, max_memory)
     if plant_error is not None:
         plant_error.check(flat.model, lambda key: "--param-error")
-    wanted = None if offsets is None else offset_option(flat.model, offsets, plant_error)
+    wanted = None if offsets is None else offsets_calibration.from_option(flat.model, offsets, plant_error)
     file = None
     if trajectory is None:
         ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
@@ -404,26 +392,4 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")
     return text
-
-
-def offset_option(model, names: str, plant_error):
-    """--offsets NAME,...: an Offsets for those parameters of `model`, each one's prior std the
-    relative error `plant_error` gives it (the draw's std, or its fixed offset's size); ScenarioError
-    naming a parameter the model lacks or the error leaves alone (nothing to calibrate on)."""
-    from dfeif_codegen.reference.offsets import Offsets
-    params = [p.strip() for p in names.split(",")]
-    known = [q.name for q in model.parameters]
-    if not all(params) or len(set(params)) != len(params):
-        raise ScenarioError(f"--offsets {names}: give distinct parameter names separated by commas")
-    unknown = [p for p in params if p not in known]
-    if unknown:
-        raise ScenarioError(f"--offsets: {', '.join(unknown)} is not a parameter of model {model.name} "
-                            f"(its parameters: {', '.join(known)})")
-    size = plant_error.stds(model)
-    std = [float(f"{size[known.index(p)]:.4g}") for p in params]
-    still = [p for p, s in zip(params, std) if s <= 0]
-    if still:
-        raise ScenarioError(f"--offsets: --param-error leaves {', '.join(still)} at the model's value: "
-                            "no error of it to calibrate on")
-    return Offsets(tuple(params), tuple(std))
 
