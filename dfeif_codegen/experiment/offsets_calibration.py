@@ -22,20 +22,20 @@ from dfeif_codegen.experiment.nees_match import NO_LOOP
 from dfeif_codegen.reference.offsets import Offsets
 
 
-def from_option(model, names: str, plant_error) -> Offsets:
-    """--offsets NAME,...: an Offsets for those parameters of `model`, each one's prior std the
-    relative error `plant_error` gives it (the draw's std, or its fixed offset's size); ScenarioError
-    naming a parameter the model lacks or the error leaves alone (nothing to calibrate on)."""
+def from_option(flat, names: str, plant_error) -> Offsets:
+    """--offsets NAME,...: an Offsets for those parameters of `flat`'s model, each one's prior std
+    the relative error `plant_error` gives it (the draw's std, or its fixed offset's size);
+    ScenarioError naming a parameter the model lacks or the error leaves alone (nothing to
+    calibrate on)."""
     params = [p.strip() for p in names.split(",")]
-    known = [q.name for q in model.parameters]
     if not all(params) or len(set(params)) != len(params):
         raise ScenarioError(f"--offsets {names}: give distinct parameter names separated by commas")
-    unknown = [p for p in params if p not in known]
-    if unknown:
-        raise ScenarioError(f"--offsets: {', '.join(unknown)} is not a parameter of model {model.name} "
-                            f"(its parameters: {', '.join(known)})")
-    size = plant_error.stds(model)
-    std = [float(f"{size[known.index(p)]:.4g}") for p in params]
+    try:
+        where = Offsets(tuple(params), (1.0,)).indices(flat)
+    except ValueError as exc:
+        raise ScenarioError(f"--offsets: {exc}") from None
+    size = plant_error.stds(flat.model)
+    std = [float(f"{size[i]:.4g}") for i in where]
     still = [p for p, s in zip(params, std) if s <= 0]
     if still:
         raise ScenarioError(f"--offsets: --param-error leaves {', '.join(still)} at the model's value: "
@@ -71,6 +71,10 @@ def table(offsets: Offsets, model, plant_error) -> list[str]:
     return ["# the offset filter of simulate --filters offsets (reference only): the named parameters'",
             "# relative offsets as constant states, prior std their error's; chains_q: the",
             "# chains' white density, scaled so that its master's NEES averages n", *note,
-            "[offsets]", f"params = {json.dumps(list(offsets.params))}",
-            f"std = {json.dumps([float(f'{v:.4g}') for v in offsets.std])}", f"q = {offsets.q:g}",
-            f"chains_q = {json.dumps([float(f'{v:.4g}') for v in offsets.chains_q])}", ""]
+            "[offsets]", f"params = {json.dumps(list(offsets.params))}", f"std = {_numbers(offsets.std)}",
+            f"q = {offsets.q:g}", f"chains_q = {_numbers(offsets.chains_q)}", ""]
+
+
+def _numbers(values) -> str:
+    """A TOML list of numbers to four significant digits."""
+    return json.dumps([float(f"{v:.4g}") for v in values])

@@ -375,7 +375,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     flat = derivation.derive(model, max_seconds, max_memory)
     if plant_error is not None:
         plant_error.check(flat.model, lambda key: "--param-error")
-    wanted = None if offsets is None else offsets_calibration.from_option(flat.model, offsets, plant_error)
+    wanted = None if offsets is None else offsets_calibration.from_option(flat, offsets, plant_error)
     file = None
     if trajectory is None:
         ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
@@ -392,4 +392,3 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")
     return text
-
