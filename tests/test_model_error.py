@@ -149,6 +149,35 @@ def test_design_averages_any_quadratic_to_its_expectation(draw, spread, second):
     assert np.all(np.abs(delta[:, var == 0]) < 1e-15)    # without a spread: at the offset (p(1 + r)/p - 1 - r rounds)
 
 
+@pytest.mark.parametrize("draw, edge", [("uniform", 1.0), ("normal", 2.0)])
+def test_corners_put_every_parameter_pair_at_each_edge(draw, edge):
+    """`codegen scenario`'s pole check (experiment/pole_margin.py) closes its loops on
+    ParamError.corners: every perturbed parameter at offset ± edge × spread (the uniform draw's
+    bounds, the normal's 95% points), each at each sign in half the rows, each pair of
+    parameters at each of its four sign pairs equally often, the all-low and all-high plants
+    among them; a parameter without a spread stays at its offset. Exact but for p(1 + r)/p - 1
+    rounding (1e-15 relative; 1e-12 holds on any IEEE machine)."""
+    flat = ex._flat("two_link_arm")
+    names = [q.name for q in flat.model.parameters]
+    spec = me.ParamError(relative=(("m1", 0.1),), draw=draw, spread=(("m2", 0.05), ("l1", 0.1), ("R", 0.15)))
+    corners = spec.corners(flat.model)
+    rel = np.array([e.values(flat.model, 0) for e in corners]) / flat.param_vector - 1
+    assert all(e.draw == "none" for e in corners) and len(corners) == 16    # 8 rows (3 parameters) and their negatives
+    moved = [names.index(p) for p in ("m2", "l1", "R")]
+    signs = rel[:, moved] / (edge * np.array([0.05, 0.1, 0.15]))
+    np.testing.assert_allclose(np.abs(signs), 1.0, rtol=1e-12)
+    signs = np.sign(signs)
+    for a in range(3):
+        assert np.sum(signs[:, a] > 0) == 8
+        for b in range(a + 1, 3):
+            pairs = {(x, y): int(np.sum((signs[:, a] == x) & (signs[:, b] == y))) for x in (-1, 1) for y in (-1, 1)}
+            assert set(pairs.values()) == {4}, pairs
+    assert any(np.all(r == 1) for r in signs) and any(np.all(r == -1) for r in signs)
+    others = [i for i in range(len(names)) if i not in moved]
+    offsets = np.where(np.array(others) == names.index("m1"), 0.1, 0.0)
+    np.testing.assert_allclose(rel[:, others], np.broadcast_to(offsets, (len(corners), len(others))), atol=1e-12)
+
+
 def test_filters_keep_the_nominal_model():
     """The EKF/UKF predict with the model's parameters whatever the plant's."""
     flat = ex._flat("dc_motor_link")

@@ -51,8 +51,9 @@ def test_motor_q_matches_the_hand_calibration():
     calibration's NEES, 3.5 for n = 3, is above n)."""
     from dfeif_codegen.experiment import shapes, starter
     flat = ex._flat("dc_motor_link")
-    q, log = starter.calibrate(flat, "dc_motor_link", flat.model.ts, [10.0], [0.025, 0.0628, 0.158], [None, None],
-                               shape=shapes.from_domains(flat), predictor="brunovsky")
+    q, log, poles, *_ = starter.calibrate(flat, "dc_motor_link", flat.model.ts, [10.0], [0.025, 0.0628, 0.158],
+                                          [None, None], shape=shapes.from_domains(flat), predictor="brunovsky")
+    assert poles == [10.0]       # no model error: the poles as given
     residual = float(next(e for e in log if e.startswith("along the closed loop")).split("[")[1].split("]")[0])
     assert 10 <= residual <= 40
     assert q[0] > residual
@@ -123,6 +124,10 @@ def test_disturbance_densities_put_the_held_filters_nees_in_its_band(tmp_path):
     assert len(sc.offsets.chains_q) == 1 and sc.offsets.chains_q[0] > 0
     others = [p.name for p in ex._flat("dc_motor_link").model.parameters if p.name not in ("R", "k_e", "m")]
     assert f"# NOTE: the error also moves {', '.join(others)}, which no offset estimates" in out.read_text()
+    # the poles' check (pole_margin): the motor's loop holds every corner of +-20% at -0.1/Ts
+    assert "poles [10] hold the loop on the error's 32 corners under d = 25 with p = 0.6, d = 30 with p = 0.6" \
+        in out.read_text()
+    assert sc.poles == [10.0]
     loops = scenario.load("paper")       # closed by the Brunovsky filter at its own q, on the error written
     loops.model_error = sc.model_error
     lo, hi = stats.nees_band(3, 8)

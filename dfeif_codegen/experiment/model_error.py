@@ -126,6 +126,18 @@ class ParamError:
         draw is its expectation. Why: a run's NEES under a drawn error is close to quadratic in
         the draw and spans decades (motor, +-5%: 1.1 to 12.6 between the 5% and 95% points), so
         8 random draws put the mean anywhere in 2.0-6.8 where the 100-run band is 2.5-3.5."""
+        level = np.sqrt(TRUNCATED_VARIANCE) if self.draw == "normal" else 1.0 / np.sqrt(3.0)
+        return self._array(model, at_least, level, fold=False)
+
+    def corners(self, model) -> list["ParamError"]:
+        """Fixed errors at the draw's edges, where a loop is likeliest lost (`codegen scenario`'s
+        pole check, experiment/pole_margin.py): the rows of `design`'s array at the full spread
+        (uniform; a normal draw at twice its spread, its 95% points) and their negatives, so
+        that every parameter sits at each edge, every pair at each of its four sign pairs, and
+        the all-low and all-high plants are among them."""
+        return self._array(model, 8, 2.0 if self.draw == "normal" else 1.0, fold=True)
+
+    def _array(self, model, at_least: int, level: float, fold: bool) -> list["ParamError"]:
         rel, ab, spread = self._vectors(model)
         names = [q.name for q in model.parameters]
         moved = [i for i, s in enumerate(spread) if s and self.draw != "none"]
@@ -133,7 +145,7 @@ class ParamError:
             return [self]
         size = max(at_least, 1 << len(moved).bit_length())       # a power of two above d
         signs = _hadamard(size)[:, 1:len(moved) + 1]
-        level = np.sqrt(TRUNCATED_VARIANCE) if self.draw == "normal" else 1.0 / np.sqrt(3.0)
+        signs = np.vstack([signs, -signs]) if fold else signs
         out = []
         for row in signs:
             r = rel.copy()

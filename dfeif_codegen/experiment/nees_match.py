@@ -21,19 +21,26 @@ def fmt(values) -> str:
 DELAY_STEPS = 6    # half decades q may rise by to close the loop under the hardest delays
 
 
+def first_loss(configs) -> tuple[int, str] | None:
+    """The first of the closed loops `configs` that is lost (simulate's divergence tests, when a
+    config watches them): its index and why; None when every one holds. Stops at that loop."""
+    for i, cfg in enumerate(configs):
+        try:
+            ex.run(cfg)
+        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            return i, str(exc)
+    return None
+
+
 def close_with_delays(q, config, seeds, links, log) -> tuple[np.ndarray, list[str]]:
     """Under the hardest delays the estimate rides the model's prediction for many steps, and a q
     matched without delays can lose the loop (the maglev of the tests drifts onto its magnet).
     Run the replay loop there (simulate's divergence tests) and raise q by half a decade until it
     closes; past DELAY_STEPS keep the NEES-matched q and say so."""
     def lost(q) -> str | None:
-        for s in seeds:
-            cfg = dataclasses.replace(config(q, s, NEES_SECONDS), sensor=tuple(links), watch_nees=True)
-            try:
-                ex.run(cfg)
-            except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
-                return str(exc)
-        return None
+        loss = first_loss(dataclasses.replace(config(q, s, NEES_SECONDS), sensor=tuple(links), watch_nees=True)
+                          for s in seeds)
+        return loss and loss[1]
 
     where = ", ".join(f"d = {lk.d} with p = {lk.p:g}" for lk in links)
     first = lost(q)

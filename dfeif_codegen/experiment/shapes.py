@@ -21,6 +21,8 @@ import numpy as np
 import sympy as sp
 
 from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.experiment import closed_loop as ex
+from dfeif_codegen.experiment.trajectory import flags
 from dfeif_codegen.symbolic.lie import nominal_state
 
 if TYPE_CHECKING:   # for the annotation only: trajectory_file is imported where it is used
@@ -199,3 +201,24 @@ def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None
                 first = first or str(exc)
     raise ScenarioError(f"{flat.model.source}: no {kind} reference around {list(base.offset)} stays where the "
                         f"transform is defined ({first}); give --amplitude, --offset, --period or --shape")
+
+
+def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: Shape | None = None) -> float:
+    """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]
+    (`codegen scenario` warns when it turns by more than 0.3 rad per period)."""
+    shape = shape or from_domains(flat)
+    plant = ex._plant(spec, ts, 1)
+    cfg = ex.Config(model=spec, **shape.config())
+    refs = ex.references(cfg, flat.m)
+    p, n, worst = flat.param_vector, flat.n, 0.0
+    for tk in np.linspace(0, shape.period, points, endpoint=False):
+        fl = flags(refs, flat.degrees, tk)
+        z = ex.state_of_flags(flat, fl)
+        top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
+        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+        x = flat.phi_inv_num(z, p)
+        h = 1e-6 * np.maximum(1.0, np.abs(x))
+        jac = np.column_stack([(plant.rhs(x + h[i] * np.eye(n)[i], u) - plant.rhs(x - h[i] * np.eye(n)[i], u))
+                               / (2 * h[i]) for i in range(n)])
+        worst = max(worst, float(np.abs(np.linalg.eigvals(jac).imag).max()))
+    return worst

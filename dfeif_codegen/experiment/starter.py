@@ -3,6 +3,8 @@
 What a user would otherwise guess, derived from the model:
 
 - poles: every pole of each chain at -0.1/Ts (the paper's lambda Ts = 0.1), whatever the degree;
+  with --param-error slowed until the loop holds the error's corners under the hardest delays
+  (experiment/pole_margin.py);
 - P0 per derivative order k: std 0.05 A (2 omega)^k for the reference's amplitude A and angular
   frequency omega (the paper's 3 degrees on the angle, looser on each derivative);
 - camera noise: the model's [measurement]; a model without one gets 0.4% of the amplitude per flat
@@ -41,6 +43,7 @@ import importlib
 import json
 import math
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,7 +51,7 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
-from dfeif_codegen.experiment import disturbance_calibration, offsets_calibration, shapes
+from dfeif_codegen.experiment import disturbance_calibration, offsets_calibration, pole_margin, shapes
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.trajectory import flags
@@ -105,16 +108,26 @@ def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
     return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
 
 
+class Calibrated(NamedTuple):
+    """What `calibrate` settles on, and its log."""
+
+    q: np.ndarray
+    log: list[str]
+    poles: list[float]
+    disturbance: Disturbance | None = None
+    offsets: object = None          # reference/offsets.Offsets
+
+
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
               duration: float = 5.0, seed: int = 1000, rounds: int = 3,
-              shape: shapes.Shape | None = None, delays: tuple | None = None, **options) -> tuple:
+              shape: shapes.Shape | None = None, delays: tuple | None = None, **options) -> Calibrated:
     """q per chain and a log of the rounds (see the module docstring). `options`: the filters'
     settings of the closed loops (closed_loop.Config fields, e.g. the predictor the scenario
     selects), so q is calibrated for the filter that will run; `delays`: the camera links
-    (network.Link per node) of the scenario's hardest delay row, which q must also close. With
-    `disturbance` among the options (a Disturbance, its densities ignored): (q, log, the
-    Disturbance with calibrated densities, the `offsets` option (reference/offsets.Offsets) with
-    its chains' q calibrated, or None)."""
+    (network.Link per node) of the scenario's hardest delay row, which q must also close, and
+    with a `plant_error` the poles too (pole_margin). With `disturbance` among the options (a
+    Disturbance, its densities ignored): its calibrated densities, and the `offsets` option
+    (reference/offsets.Offsets) with its chains' q calibrated."""
     shape = shape or shapes.from_domains(flat)
     q = _reference_q(flat, spec, ts, substeps, shape)
     floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
@@ -162,7 +175,10 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             if offsets is not None:     # a reference filter that closes no loop here: no floor
                 free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None)  # noqa: E731
                 offsets, log = offsets_calibration.chains_q(held, loops, offsets, free, log)
-            return held, log, dist, offsets
+            own = lambda j: dataclasses.replace(config(held, seed + j, NEES_SECONDS), predictor="held",  # noqa: E731
+                                                disturbance=dist)
+            poles, log = pole_margin.hold(own, poles, cfg.plant_error, flat.model, delays, log)
+            return Calibrated(held, log, poles, dist, offsets)
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
                                  getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
@@ -172,8 +188,11 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     seeds = [seed + i for i in range(NEES_RUNS)]
     q, log = match_nees(flat, q, config, seeds, log)
     if delays is None or NO_LOOP in log[-1]:
-        return q, log
-    return close_with_delays(q, config, seeds, delays, log)
+        return Calibrated(q, log, list(poles))
+    q, log = close_with_delays(q, config, seeds, delays, log)
+    poles, log = pole_margin.hold(lambda j: config(q, seed + j, NEES_SECONDS), poles, options.get("plant_error"),
+                                  flat.model, delays, log)
+    return Calibrated(q, log, poles)
 
 
 def _white_q(flat, start, config, seed: int, log: list[str]) -> tuple[np.ndarray, list[str]]:
@@ -200,26 +219,6 @@ def _held_residual_q(flat, ts, cfg, res, k0) -> np.ndarray:
         res = ex.run(dataclasses.replace(cfg, plant_error=ex.EXACT_MODEL))
     rec = res.recording
     return implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:], "held")
-
-
-def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: shapes.Shape | None = None) -> float:
-    """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]."""
-    shape = shape or shapes.from_domains(flat)
-    plant = ex._plant(spec, ts, 1)
-    cfg = ex.Config(model=spec, **shape.config())
-    refs = ex.references(cfg, flat.m)
-    p, n, worst = flat.param_vector, flat.n, 0.0
-    for tk in np.linspace(0, shape.period, points, endpoint=False):
-        fl = flags(refs, flat.degrees, tk)
-        z = ex.state_of_flags(flat, fl)
-        top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
-        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
-        x = flat.phi_inv_num(z, p)
-        h = 1e-6 * np.maximum(1.0, np.abs(x))
-        jac = np.column_stack([(plant.rhs(x + h[i] * np.eye(n)[i], u) - plant.rhs(x - h[i] * np.eye(n)[i], u))
-                               / (2 * h[i]) for i in range(n)])
-        worst = max(worst, float(np.abs(np.linalg.eigvals(jac).imag).max()))
-    return worst
 
 
 def _reference_lines(shape: shapes.Shape, file: str | None) -> list[str]:
@@ -258,16 +257,15 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     options = ({} if plant_error is None else {"plant_error": plant_error}) | \
         ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance}) | \
         ({} if offsets is None else {"offsets": offsets})
-    q, log, *calibrated = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape,
-                                    delays=paper.grid[-1].links(len(noise_std)), **options)
-    disturbance, offsets = calibrated if calibrated else (None, None)
+    q, log, poles, disturbance, offsets = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape,
+                                                    delays=paper.grid[-1].links(len(noise_std)), **options)
     if NO_LOOP in log[-1]:     # no closed loop of the NEES stage survived: nothing was calibrated
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged or lost "
                             f"its closed loop "
                             f"(q up to {_fmt(q)} on a {shape.kind} of amplitude {_fmt(shape.amplitude)} around "
                             f"{_fmt(shape.offset)}): the loop does not close on that reference; try "
                             "--amplitude, --offset, --period or --shape")
-    omega_max = fastest_oscillation(flat, spec, ts, shape=shape)
+    omega_max = shapes.fastest_oscillation(flat, spec, ts, shape=shape)
     warn = []
     if omega_max * ts > 0.3:
         warn = [f"# WARNING: the plant oscillates at up to {omega_max:.3g} rad/s, {omega_max * ts:.2f} rad per "
@@ -279,7 +277,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     lines = [
         MARKER + f" for model {model.name}.",
         "# Every number below comes from the model (docs/experiment.md, \"A starting scenario\"):",
-        "# q from the canonical model's one-step residual, poles from Ts, P0 from the reference.",
+        "# q from the canonical model's one-step residual, poles from Ts (and the error), P0 from the reference.",
         *(f"#   calibration: {entry}" for entry in log),
         *warn,
         "",
@@ -301,7 +299,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
         "initial_error = true",
         "",
         "[control]",
-        f"poles = {poles[0]:g}              # every pole at -0.1/Ts",
+        f"poles = {poles[0]:g}              # every pole at -{poles[0] * ts:.3g}/Ts",
         "",
         *_reference_lines(shape, file),
     ]
