@@ -4,11 +4,10 @@ Why: the flatness law inverts the model's F and G, so a plant lighter than the m
 with its masses and lengths 12-19% low) meets a loop gain well above the one the poles were
 placed for; under the hardest delays the estimate rides the model's prediction for up to d
 steps, and that lag on top loses the loop. Measured on the arm at +-20% (docs/experiment.md):
-poles at -0.1/Ts lost one draw in twenty on every delayed row, and 3 of the 32 corners below;
-at -0.07/Ts neither the draw nor 31 of the corners, at -0.05/Ts none, for position tracking
-two and four times coarser. That is the controller's trade, not the filter's (the draw's
-loop holds at the slower poles with its master NEES in band), so the calibration makes it
-and says so: it closes the scenario's own loop (its filter, q and disturbance states) on
+poles at -0.1/Ts lost one draw in a hundred (on every delayed row) and 3 of the 32 corners
+below; at -0.07/Ts that draw held and one corner did not; at -0.05/Ts every corner held, and
+the draw with its master NEES in band, for position tracking 2.3-3.7 times coarser. That is
+the controller's trade, not the filter's, so the calibration makes it and says so: it closes the scenario's own loop (its filter, q and disturbance states) on
 each corner of the error (model_error.ParamError.corners) under the grid's hardest delay row,
 with simulate's divergence watch, and slows every pole by SLOWER until no corner is lost, at
 most STEPS times; past that it keeps the poles it was given and writes a warning.
