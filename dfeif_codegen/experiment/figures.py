@@ -188,9 +188,10 @@ def comparison_figure(path, title, flat, row_labels, series):
     _save(plt, fig, title, path)
 
 
-def simulation_figures(directory: str, figures: dict, flat) -> list[str]:
+def simulation_figures(directory: str, figures: dict, flat, metrics_from: float = 1.0) -> list[str]:
     """`simulate --plot`: PNG figures like the chapter's Figs 9-13: states against the
-    reference, the estimation error with its +-3 sigma band, the delays."""
+    reference, the estimation error with its +-3 sigma band (its share of steps inside counted
+    from the scenario's `metrics_from`, as the tables are), the delays."""
     pyplot()
     folder = Path(directory)
     folder.mkdir(parents=True, exist_ok=True)
@@ -231,7 +232,8 @@ def simulation_figures(directory: str, figures: dict, flat) -> list[str]:
             if "P_diag" in d:
                 error_figure(save(folder / f"fig{last + 1}_{ref}_master_error_{key}.png"),
                                   f"{name}: master estimation error {label} ({ref}, {how})", flat,
-                                  np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]))
+                                  np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]),
+                                  metrics_from)
     return written
 
 

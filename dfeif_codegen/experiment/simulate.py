@@ -104,7 +104,7 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
     if plot:
         from dfeif_codegen.experiment.figures import simulation_figures
 
-        result.written, result.plot_dir = simulation_figures(plot, result.figures, p.flat), plot
+        result.written, result.plot_dir = simulation_figures(plot, result.figures, p.flat, p.sc.metrics_from), plot
         if result.settings.get("filters"):
             from dfeif_codegen.experiment.figures import filters_figures
 
