@@ -21,6 +21,11 @@ def fmt(values) -> str:
 DELAY_STEPS = 6    # half decades q may rise by to close the loop under the hardest delays
 
 
+def links_text(links) -> str:
+    """The camera links of a delay row, as the calibration's log names them."""
+    return ", ".join(f"d = {lk.d} with p = {lk.p:g}" for lk in links)
+
+
 def first_loss(configs) -> tuple[int, str] | None:
     """The first of the closed loops `configs` that is lost (simulate's divergence tests, when a
     config watches them): its index and why; None when every one holds. Stops at that loop."""
@@ -42,7 +47,7 @@ def close_with_delays(q, config, seeds, links, log) -> tuple[np.ndarray, list[st
                           for s in seeds)
         return loss and loss[1]
 
-    where = ", ".join(f"d = {lk.d} with p = {lk.p:g}" for lk in links)
+    where = links_text(links)
     first = lost(q)
     first = first and first.split(" (")[0]
     if first is None:

@@ -7,17 +7,18 @@ steps, and that lag on top loses the loop. Measured on the arm at +-20% (docs/ex
 poles at -0.1/Ts lost one draw in a hundred (on every delayed row) and 3 of the 32 corners
 below; at -0.07/Ts that draw held and one corner did not; at -0.05/Ts every corner held, and
 the draw with its master NEES in band, for position tracking 2.3-3.7 times coarser. That is
-the controller's trade, not the filter's, so the calibration makes it and says so: it closes the scenario's own loop (its filter, q and disturbance states) on
-each corner of the error (model_error.ParamError.corners) under the grid's hardest delay row,
-with simulate's divergence watch, and slows every pole by SLOWER until no corner is lost, at
-most STEPS times; past that it keeps the poles it was given and writes a warning.
+the controller's trade, not the filter's, so the calibration makes it and says so: it closes
+the scenario's own loop (its filter, q and disturbance states) on each corner of the error
+(model_error.ParamError.corners) under the grid's hardest delay row, with simulate's
+divergence watch, and slows every pole by SLOWER until no corner is lost, at most STEPS times;
+past that it keeps the poles it was given and writes a warning.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
-from dfeif_codegen.experiment.nees_match import first_loss, fmt
+from dfeif_codegen.experiment.nees_match import first_loss, fmt, links_text
 
 SLOWER, STEPS = 0.7, 3
 
@@ -36,7 +37,7 @@ def hold(config, poles, plant_error, model, links, log: list[str]) -> tuple[list
     if plant_error is None or not plant_error.active or links is None:
         return list(poles), log
     errors = plant_error.corners(model)
-    where = ", ".join(f"d = {lk.d} with p = {lk.p:g}" for lk in links)
+    where = links_text(links)
     first = lost_corner(config, poles, errors, links)
     if first is None:
         log.append(f"poles {fmt(poles)} hold the loop on the error's {len(errors)} corners under {where}")
