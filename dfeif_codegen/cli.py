@@ -67,8 +67,8 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
     _filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
     p.add_argument("--disturbance", metavar="KIND", default=None,
-                   help="random_walk or gauss_markov: one disturbance state per chain after the canonical "
-                        "state; their densities follow the chains' in q (held predictor only)")
+                   help="random_walk, gauss_markov or integrated_random_walk (d and its rate): disturbance states "
+                        "per chain after the canonical state; their densities follow the chains' in q (held only)")
     p.add_argument("--tau", type=float, default=None, metavar="S",
                    help="the gauss_markov disturbance's time constant [s]")
     p.add_argument("--check", action="store_true",
@@ -202,7 +202,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
     p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
     p.add_argument("--disturbance", metavar="KIND", default=None,
-                   help="random_walk or gauss_markov: add disturbance states and calibrate their densities")
+                   help="random_walk, gauss_markov or integrated_random_walk: add disturbance states and "
+                        "calibrate their densities")
     p.add_argument("--tau", type=float, default=None, metavar="S", help="the Gauss-Markov time constant [s]")
     p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
                    help="calibrate against a plant with that model error (as simulate's), and write it")

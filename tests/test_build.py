@@ -137,6 +137,21 @@ def test_header_defines_and_options(tmp_path):
     assert "dc_motor_link_kern_retro_step" in (tmp_path / "dc_motor_link" / "dc_motor_link_kernels.h").read_text()
 
 
+def test_banner_command_regenerates_the_same_build(tmp_path):
+    """A build with non-default options names them in every file's banner; running that command
+    (a second build, the oracle) gives the same files byte for byte."""
+    argv = ["--precision", "float", "--max-lag", "7", "--oosm", "retrodict", "--fusion", "ci", "--ts", "0.005"]
+    assert cli_run("build", "--out", str(tmp_path / "a"), *argv).returncode == 0
+    first = tree(tmp_path / "a" / "dc_motor_link")
+    text = " ".join(first["dc_motor_link.h"].decode().split("*/")[0].replace("*", " ").split())
+    command = re.search(r"regenerate with `codegen build ([^`]*)`", text).group(1).split()
+    assert command[0] == "dc_motor_link" and set(argv) <= set(command)
+    assert cli_run("build", *command, "--out", str(tmp_path / "b")).returncode == 0
+    assert tree(tmp_path / "b" / "dc_motor_link") == first
+    default = tree(ROOT / "generated" / "dc_motor_link")["dc_motor_link.h"].decode()
+    assert "regenerate with `codegen build dc_motor_link`" in default      # the default build: no flags
+
+
 def test_cli_prints_files_sizes_and_sizeof(tmp_path):
     result = cli_run("build", "--out", str(tmp_path))
     assert result.returncode == 0

@@ -47,6 +47,7 @@ VARIANTS = {
     # disturbance states (codegen build --disturbance): the state extended, q by their densities
     "dc-float-disturbance": ("dc_motor_link", {"precision": "float", "disturbance": "random_walk"}),
     "arm-double-gauss-markov": ("two_link_arm", {"disturbance": "gauss_markov", "tau": 0.5}),
+    "arm-float-integrated": ("two_link_arm", {"precision": "float", "disturbance": "integrated_random_walk"}),
     "arm-double": ("two_link_arm", {}),
     "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)

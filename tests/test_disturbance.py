@@ -47,7 +47,28 @@ def test_augmented_transition_is_the_exponential_of_the_extended_dynamics(kind, 
     assert np.allclose(H.Q(5.0, 0.0)[:n, :n], base.Q(5.0), rtol=1e-12, atol=0)
 
 
-def _biased_run(flat, bias, dist, steps=1500, seed=4):
+def test_integrated_random_walk_block_is_its_closed_form():
+    """d̈ = w: the disturbance block of Φ₀ is [[1, Ts], [0, 1]] and its noise q [[Ts³/3, Ts²/2],
+    [Ts²/2, Ts]] (the integrals of a white d̈ over one period); d enters the top derivative as
+    the random walk's does, so Φ₀ is e^{A Ts} of the extended A (scipy's expm)."""
+    flat = flat_system("dc_motor_link")
+    dist = Disturbance("integrated_random_walk", (3.0,))
+    H = sampling.held_sampling(flat, TS, disturbance=dist)
+    base = sampling.held_sampling(flat, TS)
+    n = flat.n
+    A = np.zeros((n + 2, n + 2))
+    A[:n, :n], A[:n, n:n + 1], A[n, n + 1] = base.A, base.Bc, 1.0
+    scale = np.abs(H.E).max()     # as above: 1e-11 of the norm for two scaling-and-squaring expm's
+    assert np.abs(H.E - expm(A * TS)).max() < 1e-11 * scale
+    assert np.abs(H.E[n:, n:] - [[1.0, TS], [0.0, 1.0]]).max() < 1e-15
+    Q = H.Q(0.0, 3.0)[n:, n:]
+    want = 3.0 * np.array([[TS ** 3 / 3, TS ** 2 / 2], [TS ** 2 / 2, TS]])
+    assert np.abs(Q - want).max() < 1e-12 * want.max()
+    x0, P0 = augment(np.zeros(n), np.eye(n), dist, 1)       # default start: 1 s of the density
+    assert np.allclose(np.diag(P0)[n:], [3.0 / 3, 3.0], rtol=1e-15) and x0.shape == (n + 2,)
+
+
+def _biased_run(flat, bias, dist, steps=1500, seed=4, ramp=0.0):
     """A node filter on a plant whose input is u + bias (the model's u without it); returns the
     filter's estimates and the truth per step."""
     top = sampling.remainder_function(flat)
@@ -65,7 +86,8 @@ def _biased_run(flat, bias, dist, steps=1500, seed=4):
         truth.append(zeta.copy())
         u = u0 + 0.5 * np.sin(2 * np.pi * k * TS / 2.0) * np.ones(flat.m)
         node.predict(u)
-        zeta = solve_ivp(lambda t, s: Ac @ s + Bc @ np.asarray(top(s, u + bias, p)[0]).ravel(), (0, TS), zeta,
+        off = bias + ramp * (k + 0.5) * TS          # a ramp: its midpoint over the period
+        zeta = solve_ivp(lambda t, s: Ac @ s + Bc @ np.asarray(top(s, u + off, p)[0]).ravel(), (0, TS), zeta,
                          method="DOP853", rtol=1e-11, atol=1e-12).y[:, -1]
     return np.array(xs), np.array(truth)
 
@@ -89,12 +111,33 @@ def test_random_walk_state_removes_the_bias_of_a_constant_input_offset():
     assert abs(d_est - gain[0]) < 0.05 * abs(gain[0])   # the disturbance state is the offset's effect
 
 
+def test_integrated_random_walk_follows_a_ramping_input_offset_that_the_random_walk_lags():
+    """An input offset growing at a constant rate: a random walk state follows it with a steady
+    lag (its estimate trails a ramp by about rate / its bandwidth), the integrated random walk
+    has no steady error on a ramp (a type-2 loop) and its rate state is G times the offset's rate."""
+    flat = flat_system("dc_motor_link")
+    rate = np.array([0.1])                        # V/s: 1.5 V over the 15 s run
+    gain = flat.G_num(sampling.nominal_point(flat)[0]) @ rate
+    top_state = flat.heads[0] + flat.degrees[0] - 1
+    tail = slice(700, None)
+    rw, truth_rw = _biased_run(flat, 0.0, Disturbance("random_walk", (50.0,)), ramp=rate)
+    irw, truth_irw = _biased_run(flat, 0.0, Disturbance("integrated_random_walk", (50.0,)), ramp=rate)
+    lag_rw = np.mean(rw[tail, top_state] - truth_rw[tail, top_state])
+    lag_irw = np.mean(irw[tail, top_state] - truth_irw[tail, top_state])
+    rate_est = np.mean(irw[tail, flat.n + 1])
+    print(f"\nramp: theta'' bias with a random walk {lag_rw:.3e}, integrated {lag_irw:.3e}; "
+          f"rate {rate_est:.3f} against G*rate {gain[0]:.3f}")
+    assert abs(lag_irw) < 0.2 * abs(lag_rw)
+    assert abs(rate_est - gain[0]) < 0.1 * abs(gain[0])
+
+
 @pytest.mark.parametrize("table,words", [
     ('kind = "random_walk"\nq = -1.0', "disturbance.q: must be a number >= 0"),
     ('kind = "gauss_markov"\nq = 1.0\ntau = 0', "disturbance.tau: the Gauss-Markov time constant must be"),
     ('kind = "gauss_markov"\nq = 1.0\ntau = -2.0', "disturbance.tau: the Gauss-Markov time constant must be"),
     ('kind = "gauss_markov"\nq = 1.0', "disturbance.tau"),
-    ('kind = "walk"\nq = 1.0', "disturbance.kind: must be one of random_walk, gauss_markov"),
+    ('kind = "walk"\nq = 1.0', "disturbance.kind: must be one of random_walk, gauss_markov, integrated_random_walk"),
+    ('kind = "integrated_random_walk"\nq = 0.0', "disturbance.p0_std: needed when a density"),
     ('kind = "random_walk"\nq = 1.0\ntau = 1.0', "disturbance.tau: applies to kind"),
     ('kind = "random_walk"\nqq = 1.0', "disturbance.qq: unknown field"),
 ])
@@ -102,6 +145,21 @@ def test_bad_disturbance_tables_are_one_line_errors_naming_the_field(table, word
     with pytest.raises(ScenarioError) as err:
         scenario.loads(f"[disturbance]\n{table}\n", "s.toml")
     assert words in str(err.value) and "\n" not in str(err.value) and str(err.value).startswith("s.toml:")
+
+
+@pytest.mark.parametrize("table,words", [
+    ('kind = "random_walk"\nq = [1.0, 2.0, 3.0]', "disturbance.q: needs 1 or 2 values"),
+    ('kind = "random_walk"\nq = 1.0\np0_std = [1.0, 2.0, 3.0, 4.0]', "disturbance.p0_std: needs 1 or 2 values"),
+    ('kind = "integrated_random_walk"\nq = 1.0\np0_std = [1.0, 2.0, 3.0]', "needs 1 or 2 or 4 values"),
+    ('kind = "integrated_random_walk"\nq = [0.0, 1.0]\np0_std = [1.0, 2.0]', "needs 4 values (the d's, then"),
+])
+def test_disturbance_tables_sized_for_another_model_are_refused_naming_the_field(table, words):
+    """The two-chain arm: one density per chain, one initial std per state (the integrated
+    random walk's rates too, and those are needed when a density is 0)."""
+    sc = scenario.loads(f"[disturbance]\n{table}\n", "s.toml")
+    with pytest.raises(ScenarioError) as err:
+        sc.check_model(flat_system("two_link_arm"))
+    assert words in str(err.value) and "\n" not in str(err.value) and str(err.value).startswith("s.toml")
 
 
 def test_the_law_cancels_the_estimated_disturbance_under_model_error(monkeypatch):

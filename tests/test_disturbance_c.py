@@ -32,7 +32,10 @@ def scenario(tmp_path: Path, kind: str, chains: int, q: float = 1.0, extra: str 
 
 CASES = [("dc_motor_link", "random_walk", 1, "double"), ("dc_motor_link", "random_walk", 1, "float"),
          ("two_link_arm", "gauss_markov", 2, "double"), ("two_link_arm", "gauss_markov", 2, "float"),
-         (str(DATA / "planar_arm3.toml"), "random_walk", 3, "double")]
+         (str(DATA / "planar_arm3.toml"), "random_walk", 3, "double"),
+         ("dc_motor_link", "integrated_random_walk", 1, "double"),
+         ("dc_motor_link", "integrated_random_walk", 1, "float"),
+         ("two_link_arm", "integrated_random_walk", 2, "double")]
 # a user model without [measurement]: its cameras' noise per flat output, as a user writes it
 NODES = {3: "[[nodes]]\nnoise_std = [0.002, 0.002, 0.002]\n\n[[nodes]]\nnoise_std = [0.0025, 0.0025, 0.0025]\n"}
 
@@ -73,7 +76,7 @@ def _without_disturbance(path: str, tmp_path: Path) -> str:
 
 
 @pytest.mark.parametrize("options,words", [
-    (dict(disturbance="walk"), ["--disturbance", "random_walk"]),
+    (dict(disturbance="walk"), ["--disturbance", "random_walk", "integrated_random_walk"]),
     (dict(disturbance="random_walk", predictor="brunovsky"), ["--predictor held"]),
     (dict(disturbance="random_walk", tau=0.5), ["--tau", "gauss_markov"]),
     (dict(disturbance="gauss_markov"), ["--tau", "> 0"]),
@@ -84,3 +87,20 @@ def test_bad_disturbance_options_are_refused_before_any_work(options, words):
     with pytest.raises(BuildError) as err:
         Options(ts=0.01, **options)
     assert all(w in str(err.value) for w in words), str(err.value)
+
+
+@pytest.mark.target
+def test_integrated_random_walk_float_build_on_cortex_m4f(tmp_path, capsys, cross_tools):
+    """The second-order disturbance states in a float build on the emulated Cortex-M4F, at the
+    density the motor's ±20% scenario calibrates (about 1e6: its largest entries in Q and P):
+    `codegen verify --target cortex-m4f` passes the float tolerances (check/verify.py)."""
+    from dfeif_codegen import cli
+
+    path = tmp_path / "irw.toml"
+    path.write_text(GRID + '\n[disturbance]\nkind = "integrated_random_walk"\nq = [1e6]\n')
+    rc = cli.main(["verify", "dc_motor_link", "--scenario", str(path), "--precision", "float",
+                   "--target", "cortex-m4f"])
+    out = capsys.readouterr().out
+    print(out)
+    assert "disturbance integrated_random_walk" in out and "target cortex-m4f" in out
+    assert rc == 0 and "FAIL" not in out

@@ -60,7 +60,8 @@ def test_c_engine_equals_the_reference(host_cc, model, method, fusion, sensor):
 
 @pytest.mark.parametrize("model, dist, error", [
     ("dc_motor_link", ("random_walk", None), None),
-    ("two_link_arm", ("gauss_markov", 0.5), 0.2)])
+    ("two_link_arm", ("gauss_markov", 0.5), 0.2),
+    ("dc_motor_link", ("integrated_random_walk", None), 0.2)])
 def test_c_engine_runs_disturbance_states_as_the_reference(host_cc, model, dist, error):
     """[disturbance] through the compiled loop: the library built with the disturbance states,
     their initial spread and densities passed as the reference's FilterBank takes them, the law

@@ -57,7 +57,8 @@ def output_arrays(rec, dtype) -> dict[str, np.ndarray]:
 
 def filter_size(rec) -> int:
     """The C filters' state dimension for a recording (disturbance states after the canonical)."""
-    return rec.n + (rec.m if getattr(rec, "disturbance", "") else 0)
+    dist = Disturbance.from_json(getattr(rec, "disturbance", ""))
+    return rec.n + (0 if dist is None else dist.order * rec.m)
 
 
 def filter_start(rec) -> dict[str, np.ndarray]:

@@ -56,7 +56,8 @@ def context(flat, opts: Options) -> dict:
     p = m.name
     ks = kernels.build(flat, opts, p)
     real_c = "float" if opts.precision == "float" else "double"
-    nd = flat.m if opts.disturbance else 0
+    dist = opts.disturbance_states()
+    nd = 0 if dist is None else dist.order * flat.m
     kernel_code: dict[str, tuple[str, str]] = {}
     kernel_list: list[dict] = []
     for group, functions in ks.groups.items():
@@ -76,13 +77,15 @@ def context(flat, opts: Options) -> dict:
     return {
         "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
         "description": _comment(m.description or p),
-        "zeta_names": [_comment(z) for z in flat.zeta] + [f"d_{flat.zeta[h]}" for h in flat.heads[:nd]],
+        "zeta_names": [_comment(z) for z in flat.zeta] + [f"d_{flat.zeta[h]}" for h in flat.heads[:nd]]
+        + [f"rate of d_{flat.zeta[h]}" for h in flat.heads[:max(nd - flat.m, 0)]],
         # n: the filters' state (the canonical one, nz, then nd disturbance states); nq densities
-        "n": flat.n + nd, "nz": flat.n, "nd": nd, "nq": flat.m + nd, "m": flat.m, "np": len(flat.params),
+        # (the chains', then one per chain for the disturbances)
+        "n": flat.n + nd, "nz": flat.n, "nd": nd, "nq": flat.m + (flat.m if nd else 0), "m": flat.m, "np": len(flat.params),
         "degrees": flat.degrees, "heads": flat.heads, "angles": [int(c.angle) for c in flat.chains],
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
-        "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(),
+        "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(), "model_ts": m.ts,
         # the held predictor's linearization input (benchmarks drive the filters with it)
         "input_nominal": [float(u) for u in nominal_point(flat)[1]] if opts.predictor == "held" else [],
         "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
@@ -174,8 +177,9 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
     there is one) before it replaces the folder, atomically. `force` allows replacing files the
     toolkit did not write there. `predictor`: "held" (u held) or "brunovsky"; None: brunovsky, and
-    brunovsky with retrodict (the only one it can use). `disturbance` ("random_walk" or
-    "gauss_markov", with its time constant `tau`): one disturbance state per chain."""
+    brunovsky with retrodict (the only one it can use). `disturbance` ("random_walk",
+    "gauss_markov" with its time constant `tau`, or "integrated_random_walk"): disturbance
+    states per chain (symbolic/disturbance.py)."""
     if isinstance(out, str) and not out.strip():
         raise BuildError(f"--out {out!r}: an empty path (give a folder; . for the current one)")
     from dfeif_codegen.paths import writable_dir

@@ -32,7 +32,7 @@ class Options:
     precision: str = "double"
     singular_rtol: float = 1e-6  # control returns ERR_SINGULAR below this fraction of |det G| nominal
     predictor: str | None = None  # u held, or (None) the default (held; brunovsky with retrodict)
-    disturbance: str | None = None  # one disturbance state per chain: random_walk or gauss_markov
+    disturbance: str | None = None  # disturbance states per chain: one of symbolic/disturbance.KINDS
     tau: float | None = None        # the Gauss-Markov time constant [s]
 
     def __post_init__(self) -> None:
@@ -77,6 +77,19 @@ class Options:
             object.__setattr__(self, "tau", float(tau))
         elif tau is not None:
             raise BuildError("--tau applies to --disturbance gauss_markov only")
+
+    def flags(self, model_ts: float) -> str:
+        """The `codegen build` options that differ from the defaults (the model's Ts among
+        them): what a file's banner tells a user to regenerate it with."""
+        default = Options(ts=model_ts)
+        out = [f"--{name.replace('_', '-')} {getattr(self, name):g}" if isinstance(getattr(self, name), float)
+               else f"--{name.replace('_', '-')} {getattr(self, name)}"
+               for name in ("precision", "max_lag", "nodes", "oosm", "fusion", "ts", "singular_rtol", "disturbance",
+                            "tau")
+               if getattr(self, name) is not None and getattr(self, name) != getattr(default, name)]
+        if self.predictor != for_method(None, self.oosm):
+            out.append(f"--predictor {self.predictor}")
+        return " ".join(out)
 
     def disturbance_states(self) -> Disturbance | None:
         """The disturbance model the constants are built for (its densities are runtime values,

@@ -56,7 +56,7 @@ class CanonicalModel(CanonicalMaps):
     flatness map) is the identity here."""
 
     def __init__(self, flat, ts: float, q, predictor: str = predictors.DEFAULT, disturbance=None):
-        """`disturbance`: the held filter's state extended by one disturbance state per chain
+        """`disturbance`: the held filter's state extended by the disturbance states
         (symbolic/disturbance.py); `phi` then reports the canonical part."""
         pred = predictors.make(predictor, flat, ts, q, disturbance=disturbance)
         self.disturbance, self.canonical_n = disturbance, flat.n

@@ -76,7 +76,8 @@ def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: l
         log.append(f"held filter's NEES at or below n with disturbance q = {_text(floor.q)}: the model needs none")
         q, log = match(q, log, lambda qq: held_nees(loops, qq, floor))
         return q, log, floor
-    guess = first_guess(flat, loops[0].recording.ts, loops)
+    # an integrated random walk's d spreads q T^3 / 3 in T = 1 s where a random walk's spreads q T
+    guess = first_guess(flat, loops[0].recording.ts, loops) * (3.0 if dist.order == 2 else 1.0)
     log.append(f"disturbance q from what the held model misses on the top derivatives: {_text(guess)}")
     qd, log = match(guess, log, lambda qd: held_nees(loops, q, with_densities(dist, qd)))
     log[-1] = log[-1].replace(" at q = ", f" at q = {_text(q)}, disturbance q = ")

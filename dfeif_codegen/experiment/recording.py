@@ -89,10 +89,10 @@ class FilterBank:
 
     def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
                  node_dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
-        """`disturbance`: the filters' states are extended by one per chain (their x0, P0 here
+        """`disturbance`: the filters' states are extended by its states (their x0, P0 here
         are the canonical ones; the disturbances start at 0 with their initial spread); what
         `step` returns stays the canonical part, what the controller and the metrics read."""
-        m, self.n = flat.m, flat.n
+        m, self.n, self.m = flat.m, flat.n, flat.m
         node_x0, node_P0 = zip(*[augment(x, P, disturbance, m) for x, P in zip(node_x0, node_P0)])
         master_x0, master_P0 = augment(master_x0, master_P0, disturbance, m)
         self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
@@ -119,7 +119,7 @@ class FilterBank:
             sent.pop(k - self.max_lag - 1, None)
         self.master.fuse([sent.get(s) if s >= 0 else None for sent, s in zip(self.sent, sources)])
         n = self.n
-        d = self.master.x[n:] if self.compensate and len(self.master.x) > n else None
+        d = self.master.x[n:n + self.m] if self.compensate else None
         u, v = self.control(self.master.x[:n], ref, disturbance=d)
         out = (applied, [nd.x[:n].copy() for nd in self.nodes], [nd.P[:n, :n].copy() for nd in self.nodes],
                self.master.x[:n].copy(), self.master.P[:n, :n].copy(), u, v)

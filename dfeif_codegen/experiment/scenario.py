@@ -163,6 +163,8 @@ class Scenario:
             K = int(round(self.duration / ts))
             trajectory_file.check(self.trajectory, [o.name for o in flat.model.outputs], flat.degrees,
                                   (K - 1) * ts, flat.model.name, self.where("reference.file"))
+        if self.disturbance is not None:
+            self.disturbance.check(m, fail)
         if len(self.p0_std) < max(flat.degrees):
             fail("filter.p0_std", f"needs {max(flat.degrees)} values (one per derivative order) for model "
                                   f"{flat.model.name}, got {len(self.p0_std)}")

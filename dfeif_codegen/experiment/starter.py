@@ -324,7 +324,8 @@ def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
         lines += [f'draw = "{plant_error.draw}"', f"spread = {dict(plant_error.spread)['*']:g}", ""] \
             if plant_error.spread else [""]
     if disturbance is not None:
-        lines += ["# one disturbance state per chain on its top derivative (run with --predictor held);",
+        lines += ["# a disturbance per chain on its top derivative (run with --predictor held);"
+                  + (" and its rate" if disturbance.order == 2 else ""),
                   "# q: their densities, scaled so that the master's NEES averages n",
                   "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {_toml_list(disturbance.q)}"]
         lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
@@ -346,7 +347,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `trajectory`: a CSV of
     the flat outputs (experiment/trajectory_file.py) to track instead of a shape, named in the
     scenario relative to `out`'s folder (or to the current one when printed). `disturbance`
-    ("random_walk" or "gauss_markov", `tau` its time constant [s]): the scenario adds
+    (one of disturbance.KINDS; `tau` the Gauss-Markov time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
     --param-error`): the calibration's plants and the scenario get that model error; `offsets`
     ("NAME,..."; with both): an [offsets] table for those parameters (offsets_calibration)."""

@@ -91,7 +91,7 @@ class NodeFilter:
         self.dtype = np.dtype(dtype)
         self.predictor = predictors.make(predictor, flat, ts, q, self.dtype, disturbance)
         self.A, self.Q = self.predictor.Phi, self.predictor.Q
-        self.n = len(self.A)     # flat.n, plus one disturbance state per chain if asked for
+        self.n = len(self.A)     # flat.n, plus the disturbance states if asked for
         self.B, self.C = (a.astype(self.dtype) for a in flat.discrete(ts)[1:])
         self.R = measurement_covariance(R, flat.m).astype(self.dtype)
         self.heads = np.array(flat.heads)

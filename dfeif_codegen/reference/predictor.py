@@ -71,8 +71,8 @@ class Held:
     name = "held"
 
     def __init__(self, flat, ts: float, q, dtype=np.float64, disturbance=None):
-        """`disturbance` (symbolic/disturbance.py): the state is extended by one disturbance
-        state per chain, after the canonical ones."""
+        """`disturbance` (symbolic/disturbance.py): the state is extended by its disturbance
+        states (one or two per chain), after the canonical ones."""
         self.flat, self.ts, self.q, self.dtype = flat, float(ts), q, np.dtype(dtype)
         self.drift = None if disturbance is None else (disturbance.kind, disturbance.tau)
         self.qd = None if disturbance is None else disturbance.densities(flat.m)

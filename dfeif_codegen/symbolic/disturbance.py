@@ -1,9 +1,12 @@
 """Disturbance states for model error (scenario `[disturbance]`, docs/algorithms.md "Disturbance
-states"): one state d_i per chain entering its top derivative, y_i^(r_i) = F_i + G_i u + d_i,
+states"): a state d_i per chain entering its top derivative, y_i^(r_i) = F_i + G_i u + d_i,
 so that what the model gets wrong (a parameter, an unmodelled force) is estimated instead of
 biasing the chain. `random_walk`: ḋ = w; `gauss_markov`: ḋ = -d / tau + w (first order);
-w white with density q_i per chain. Only the held predictor carries them (its transition is
-the exponential of the augmented A; the Brunovsky chain has no place for them).
+`integrated_random_walk`: d̈ = w, a second state per chain for its rate ḋ (after the m d's),
+so that an error that drifts as the state moves (the motor's m g l sin θ / J under a wrong
+mass) is followed without the random walk's lag; w white with density q_i per chain. Only the
+held predictor carries them (its transition is the exponential of the augmented A; the
+Brunovsky chain has no place for them).
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-KINDS = ("random_walk", "gauss_markov")
+KINDS = ("random_walk", "gauss_markov", "integrated_random_walk")
 KEYS = {"kind", "q", "tau", "p0_std"}
 
 
@@ -25,18 +28,37 @@ class Disturbance:
     p0_std: tuple | None = None  # initial std per chain; None: the stationary one (Gauss-Markov) or
                                  # the spread one second of the random walk gathers
 
+    @property
+    def order(self) -> int:
+        """Disturbance states per chain: d, and its rate for the integrated random walk."""
+        return 2 if self.kind == "integrated_random_walk" else 1
+
     def densities(self, m: int) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.q, dtype=float), (m,)).copy()
 
     def drift(self, m: int) -> np.ndarray:
-        """ḋ = D d: 0 for the random walk, -1/tau for Gauss-Markov."""
+        """ḋ = D d over the order * m disturbance states: 0 for the random walk, -1/tau for
+        Gauss-Markov, and for the integrated random walk each d driven by its rate."""
+        if self.order == 2:
+            return np.block([[np.zeros((m, m)), np.eye(m)], [np.zeros((m, 2 * m))]])
         return np.eye(m) * (-1.0 / self.tau if self.kind == "gauss_markov" else 0.0)
 
     def initial_std(self, m: int) -> np.ndarray:
-        if self.p0_std is not None:
-            return np.broadcast_to(np.asarray(self.p0_std, dtype=float), (m,)).copy()
+        """The order * m states' initial std: p0_std when given (the integrated random walk's:
+        the d's, or the d's then the rates'), otherwise the spread the density gathers (over
+        tau / 2 for Gauss-Markov, 1 s else: d ~ sqrt(q) for the random walk; for the integrated
+        one, its rate sqrt(q) and d sqrt(q / 3), the integrals of a white d̈ over 1 s)."""
+        q = self.densities(m)
+        given = None if self.p0_std is None else np.asarray(self.p0_std, dtype=float)
+        if self.order == 2:
+            if given is not None and len(given) == 2 * m:
+                return given.copy()
+            d = np.sqrt(q / 3) if given is None else np.broadcast_to(given, (m,))
+            return np.concatenate([d, np.sqrt(q)])
+        if given is not None:
+            return np.broadcast_to(given, (m,)).copy()
         span = self.tau / 2 if self.kind == "gauss_markov" else 1.0
-        return np.sqrt(self.densities(m) * span)
+        return np.sqrt(q * span)
 
     def to_json(self) -> str:
         """One line a Recording stores (and `from_json` reads back)."""
@@ -51,6 +73,18 @@ class Disturbance:
         d = json.loads(text)
         return Disturbance(d["kind"], tuple(d["q"]), d["tau"], None if d["p0_std"] is None else tuple(d["p0_std"]))
 
+    def check(self, m: int, fail) -> None:
+        """q and p0_std sized for a model of m chains; `fail(key, message)` raises the error."""
+        if len(self.q) not in (1, m):
+            fail("disturbance.q", f"needs 1 or {m} values (one density per flat output), got {len(self.q)}")
+        sizes = (1, m, 2 * m) if self.order == 2 else (1, m)
+        if self.p0_std is not None and len(self.p0_std) not in sizes:
+            fail("disturbance.p0_std", f"needs {' or '.join(map(str, sorted(set(sizes))))} values, got "
+                                       f"{len(self.p0_std)}" + (" (the d's, then their rates')" if self.order == 2 else ""))
+        if self.order == 2 and 0.0 in self.q and (self.p0_std is None or len(self.p0_std) != 2 * m):
+            fail("disturbance.p0_std", f"needs {2 * m} values (the d's, then their rates') when a density is 0: a "
+                                       "constant rate's initial std cannot come from a zero density")
+
     def scaled(self, factor: float) -> "Disturbance":
         """The same disturbance with every density times `factor` (calibration)."""
         return Disturbance(self.kind, tuple(float(v) * factor for v in self.q), self.tau, self.p0_std)
@@ -60,10 +94,10 @@ def augment(x0, P0, dist: Disturbance | None, m: int) -> tuple[np.ndarray, np.nd
     """(x0, P0) of the canonical state extended by the disturbances (mean 0, independent)."""
     if dist is None:
         return np.asarray(x0, dtype=float), np.asarray(P0, dtype=float)
-    n = len(x0)
-    P = np.zeros((n + m, n + m))
-    P[:n, :n], P[n:, n:] = P0, np.diag(dist.initial_std(m) ** 2)
-    return np.concatenate([x0, np.zeros(m)]), P
+    n, std = len(x0), dist.initial_std(m)
+    P = np.zeros((n + len(std), n + len(std)))
+    P[:n, :n], P[n:, n:] = P0, np.diag(std ** 2)
+    return np.concatenate([x0, np.zeros(len(std))]), P
 
 
 def from_table(table: dict, fail) -> Disturbance:

@@ -140,17 +140,20 @@ def assemble(Ac, Bc, L0, zeta0, u0, ts, noise=None) -> HeldSampling:
 
 
 def augmented(flat, L0, dist) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(A_c, B_c, L₀, noise columns) of the canonical state followed by one disturbance state per
-    chain entering its top derivative (symbolic/disturbance.py); without `dist`, the plain ones."""
+    """(A_c, B_c, L₀, noise columns) of the canonical state followed by the disturbance states
+    (symbolic/disturbance.py): the first m enter the chains' top derivatives, the white noise
+    drives the last m (the d's themselves, or the integrated random walk's rates); without
+    `dist`, the plain ones."""
     Ac, Bc, _ = flat.canonical()
     if dist is None:
         return Ac, Bc, L0, Bc
     n, m = Bc.shape
-    A = np.zeros((n + m, n + m))
-    A[:n, :n], A[:n, n:], A[n:, n:] = Ac, Bc, dist.drift(m)
-    B = np.vstack([Bc, np.zeros((m, m))])
-    L = np.hstack([L0, np.zeros((m, m))])
-    noise = np.hstack([B, np.vstack([np.zeros((n, m)), np.eye(m)])])
+    nd = dist.order * m
+    A = np.zeros((n + nd, n + nd))
+    A[:n, :n], A[:n, n:n + m], A[n:, n:] = Ac, Bc, dist.drift(m)
+    B = np.vstack([Bc, np.zeros((nd, m))])
+    L = np.hstack([L0, np.zeros((m, nd))])
+    noise = np.hstack([B, np.vstack([np.zeros((n + nd - m, m)), np.eye(m)])])
     return A, B, L, noise
 
 
@@ -316,7 +319,7 @@ def nominal_point(flat, x=None, u=None) -> tuple[np.ndarray, np.ndarray]:
 def held_sampling(flat, ts: float, x=None, u=None, disturbance=None) -> HeldSampling:
     """The held-input predictor's constants at period `ts`, linearized at the nominal point (or
     at the physical state `x` and input `u`, to measure the sensitivity to that choice); with
-    `disturbance`, for the state extended by one disturbance state per chain."""
+    `disturbance`, for the state extended by its disturbance states."""
     zeta0, u0 = nominal_point(flat, x, u)
     _, jac = remainder_function(flat)(zeta0, u0, flat.param_vector)
     L0 = np.array(jac, dtype=float).reshape(flat.m, flat.n)

@@ -27,9 +27,10 @@ class Chains:
 
     def __init__(self, flat, opts: Options):
         self.flat, self.opts = flat, opts
-        # the filters' state: the canonical one, then one disturbance state per chain if built with them
+        # the filters' state: the canonical one, then the disturbance states if built with them
         self.nz, self.m = flat.n, flat.m
-        self.n = flat.n + (flat.m if opts.disturbance else 0)
+        dist = opts.disturbance_states()
+        self.n = flat.n + (0 if dist is None else dist.order * flat.m)
         self.degrees = flat.degrees
         self.heads = flat.heads
         self.angles = [c.angle for c in flat.chains]

@@ -60,7 +60,7 @@ def control(s: Chains, name: str, held: sampling.HeldSampling | None = None) -> 
     else:
         u = (v - F) / G if m == 1 else ca.solve(G, v - F)
     if s.n > n:                                   # the estimated disturbance cancelled
-        d = xd[n:]
+        d = xd[n:n + m]                           # (an integrated random walk's rates follow)
         u = u - (d / G if m == 1 else ca.solve(G, d))
     # declared actuator limits: clamp u, count the clamped inputs, and broadcast the v the
     # clamped u really produces (v = F + G u), so the filters predict what the plant does

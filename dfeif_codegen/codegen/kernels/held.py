@@ -14,8 +14,9 @@ stored values keeping their resolution in single precision. The model's paramete
 at their values: L₀ is taken with them at build time.
 
 With disturbance states (`codegen build --disturbance`, symbolic/disturbance.py) the state is the
-canonical one followed by one disturbance per chain, q the chains' densities followed by the
-disturbances': the same increment and E, U of the extended A (sampling.augmented).
+canonical one followed by the disturbances (one per chain; two, d then its rate, for the
+integrated random walk), q the chains' densities followed by the disturbances' (one per chain):
+the same increment and E, U of the extended A (sampling.augmented).
 """
 
 from __future__ import annotations
