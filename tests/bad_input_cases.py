@@ -126,7 +126,12 @@ def generated() -> dict:
                                 ("tau < 0", 'kind = "gauss_markov"\nq = 1.0\ntau = -2.0', ["disturbance.tau"]),
                                 ("no kind", "q = 1.0", ["disturbance.kind"]),
                                 ("zero density without p0_std", 'kind = "random_walk"\nq = [0.0]',
-                                 ["disturbance.p0_std", "disturbance.q", "is 0"])]:
+                                 ["disturbance.p0_std", "disturbance.q", "is 0"]),
+                                ("densities for another model", 'kind = "random_walk"\nq = [1.0, 2.0]',
+                                 ["disturbance.q", "needs 1 value"]),
+                                ("integrated walk's zero density without its rates' std",
+                                 'kind = "integrated_random_walk"\nq = 0.0\np0_std = 1.0',
+                                 ["disturbance.p0_std", "the d's, then their rates'"])]:
         c[f"scenario disturbance {label}"] = ("scenario field", ["simulate", *S, "--engine", "reference"],
                                               {"s.toml": SMALL + f"\n[disturbance]\n{table}\n"}, words)
     c["disturbance with the Brunovsky predictor"] = (

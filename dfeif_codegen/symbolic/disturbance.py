@@ -76,11 +76,12 @@ class Disturbance:
     def check(self, m: int, fail) -> None:
         """q and p0_std sized for a model of m chains; `fail(key, message)` raises the error."""
         if len(self.q) not in (1, m):
-            fail("disturbance.q", f"needs 1 or {m} values (one density per flat output), got {len(self.q)}")
-        sizes = (1, m, 2 * m) if self.order == 2 else (1, m)
+            fail("disturbance.q", f"needs 1 or {m} values (one density per flat output), got {len(self.q)}"
+                 if m > 1 else f"needs 1 value (the density of the one flat output), got {len(self.q)}")
+        sizes = sorted({1, m, 2 * m} if self.order == 2 else {1, m})
         if self.p0_std is not None and len(self.p0_std) not in sizes:
-            fail("disturbance.p0_std", f"needs {' or '.join(map(str, sorted(set(sizes))))} values, got "
-                                       f"{len(self.p0_std)}" + (" (the d's, then their rates')" if self.order == 2 else ""))
+            fail("disturbance.p0_std", f"needs {' or '.join(map(str, sizes))} values, got {len(self.p0_std)}"
+                 + (" (the d's, then their rates')" if self.order == 2 else ""))
         if self.order == 2 and 0.0 in self.q and (self.p0_std is None or len(self.p0_std) != 2 * m):
             fail("disturbance.p0_std", f"needs {2 * m} values (the d's, then their rates') when a density is 0: a "
                                        "constant rate's initial std cannot come from a zero density")
