@@ -202,8 +202,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
     p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
     p.add_argument("--disturbance", metavar="KIND", default=None,
-                   help="random_walk, gauss_markov or integrated_random_walk: add disturbance states and "
-                        "calibrate their densities")
+                   help="random_walk, gauss_markov, integrated_random_walk or auto (the more accurate of the "
+                        "first and the third, measured): add disturbance states and calibrate their densities")
     p.add_argument("--tau", type=float, default=None, metavar="S", help="the Gauss-Markov time constant [s]")
     p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
                    help="calibrate against a plant with that model error (as simulate's), and write it")

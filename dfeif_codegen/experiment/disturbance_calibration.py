@@ -94,8 +94,9 @@ def from_options(kind: str | None, tau: float | None) -> Disturbance | None:
         if tau is not None:
             raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
         return None
-    if kind not in KINDS:
-        raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(KINDS)}")
+    if kind not in (*KINDS, "auto"):
+        raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(KINDS)}, or auto (the calibration "
+                            "measures random_walk against integrated_random_walk)")
     if kind == "gauss_markov":
         if tau is None or not math.isfinite(tau) or tau <= 0:
             raise ScenarioError(f"--tau {tau}: --disturbance gauss_markov needs a time constant > 0 [s]")

@@ -51,7 +51,7 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
-from dfeif_codegen.experiment import disturbance_calibration, offsets_calibration, pole_margin, shapes
+from dfeif_codegen.experiment import disturbance_calibration, disturbance_choice, offsets_calibration, pole_margin, shapes
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.trajectory import flags
@@ -171,13 +171,17 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             loops = [ex.run(dataclasses.replace(config(q, s, NEES_SECONDS), plant_error=e))
                      for s, e in zip(seeds, errors)]
             match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees)  # noqa: E731
-            held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
+            hold = lambda qq, d, lg: pole_margin.hold(  # noqa: E731
+                lambda j: dataclasses.replace(config(qq, seed + j, NEES_SECONDS), predictor="held", disturbance=d),
+                poles, cfg.plant_error, flat.model, delays, lg)
+            if dist.kind == disturbance_choice.AUTO:
+                held, log, dist, poles = disturbance_choice.choose(flat, held, loops, match, NEES_TOL, log, hold)
+            else:
+                held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
+                poles, log = hold(held, dist, log)
             if offsets is not None:     # a reference filter that closes no loop here: no floor
                 free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None)  # noqa: E731
                 offsets, log = offsets_calibration.chains_q(held, loops, offsets, free, log)
-            own = lambda j: dataclasses.replace(config(held, seed + j, NEES_SECONDS), predictor="held",  # noqa: E731
-                                                disturbance=dist)
-            poles, log = pole_margin.hold(own, poles, cfg.plant_error, flat.model, delays, log)
             return Calibrated(held, log, poles, dist, offsets)
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
                                  getattr(rec, "predictor", "brunovsky")), q)
