@@ -25,8 +25,9 @@ class Disturbance:
     kind: str
     q: tuple                 # density per chain (1 value: every chain)
     tau: float | None = None     # Gauss-Markov time constant [s]
-    p0_std: tuple | None = None  # initial std per chain; None: the stationary one (Gauss-Markov) or
-                                 # the spread one second of the random walk gathers
+    p0_std: tuple | None = None  # initial std per chain (integrated walk: of d, or of d then its
+                                 # rate); None: the stationary one (Gauss-Markov) or the spread one
+                                 # second of the walk gathers (initial_std)
 
     @property
     def order(self) -> int:
