@@ -58,6 +58,7 @@ def context(flat, opts: Options) -> dict:
     real_c = "float" if opts.precision == "float" else "double"
     dist = opts.disturbance_states()
     nd = 0 if dist is None else dist.order * flat.m
+    disturbances = [f"d_{flat.zeta[h]}" for h in flat.heads] if nd else []
     kernel_code: dict[str, tuple[str, str]] = {}
     kernel_list: list[dict] = []
     for group, functions in ks.groups.items():
@@ -77,8 +78,7 @@ def context(flat, opts: Options) -> dict:
     return {
         "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
         "description": _comment(m.description or p),
-        "zeta_names": [_comment(z) for z in flat.zeta] + [f"d_{flat.zeta[h]}" for h in flat.heads[:nd]]
-        + [f"rate of d_{flat.zeta[h]}" for h in flat.heads[:max(nd - flat.m, 0)]],
+        "zeta_names": [_comment(z) for z in flat.zeta] + disturbances + [f"rate of {d}" for d in disturbances[:nd - flat.m]],
         # n: the filters' state (the canonical one, nz, then nd disturbance states); nq densities
         # (the chains', then one per chain for the disturbances)
         "n": flat.n + nd, "nz": flat.n, "nd": nd, "nq": flat.m + (flat.m if nd else 0), "m": flat.m, "np": len(flat.params),

@@ -81,12 +81,12 @@ class Options:
     def flags(self, model_ts: float) -> str:
         """The `codegen build` options that differ from the defaults (the model's Ts among
         them): what a file's banner tells a user to regenerate it with."""
-        default = Options(ts=model_ts)
-        out = [f"--{name.replace('_', '-')} {getattr(self, name):g}" if isinstance(getattr(self, name), float)
-               else f"--{name.replace('_', '-')} {getattr(self, name)}"
-               for name in ("precision", "max_lag", "nodes", "oosm", "fusion", "ts", "singular_rtol", "disturbance",
-                            "tau")
-               if getattr(self, name) is not None and getattr(self, name) != getattr(default, name)]
+        default, out = Options(ts=model_ts), []
+        for name in ("precision", "max_lag", "nodes", "oosm", "fusion", "ts", "singular_rtol", "disturbance", "tau"):
+            value = getattr(self, name)
+            if value is not None and value != getattr(default, name):
+                out.append(f"--{name.replace('_', '-')} {value:g}" if isinstance(value, float)
+                           else f"--{name.replace('_', '-')} {value}")
         if self.predictor != for_method(None, self.oosm):
             out.append(f"--predictor {self.predictor}")
         return " ".join(out)

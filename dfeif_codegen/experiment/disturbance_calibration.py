@@ -27,13 +27,20 @@ from dfeif_codegen.symbolic.disturbance import KINDS, Disturbance
 FLOOR = 1e-6
 
 
+AUTO = "auto"     # --disturbance auto: the kind chosen by measurement (disturbance_choice.py)
+
+
+def held_metrics(res, q, dist: Disturbance) -> dict:
+    """compare.evaluate's metrics of the held filter with white density `q` and disturbance
+    states `dist` on a loop's recording ({"failed": why} when it fails)."""
+    rec = dataclasses.replace(res.recording, predictor="held", q=np.asarray(q, dtype=float))
+    return compare.evaluate(dataclasses.replace(res, recording=rec), "df", disturbance=dist)
+
+
 def held_nees(results: list, q, dist: Disturbance) -> float:
     """The held filter's master NEES with disturbance states `dist`, averaged over the steps and
     the recordings (inf if it fails or diverges on one)."""
-    def one(res):
-        rec = dataclasses.replace(res.recording, predictor="held", q=np.asarray(q, dtype=float))
-        return compare.evaluate(dataclasses.replace(res, recording=rec), "df", disturbance=dist)
-    return mean_nees(results, one)
+    return mean_nees(results, lambda res: held_metrics(res, q, dist))
 
 
 def mean_nees(results: list, evaluate) -> float:
@@ -94,7 +101,7 @@ def from_options(kind: str | None, tau: float | None) -> Disturbance | None:
         if tau is not None:
             raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
         return None
-    if kind not in (*KINDS, "auto"):
+    if kind not in (*KINDS, AUTO):
         raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(KINDS)}, or auto (the calibration "
                             "measures random_walk against integrated_random_walk)")
     if kind == "gauss_markov":

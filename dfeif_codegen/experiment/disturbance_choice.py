@@ -12,15 +12,13 @@ chosen one's loop does not hold the error's corners under the hardest delays (po
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 
-from dfeif_codegen.experiment import compare, disturbance_calibration
+from dfeif_codegen.experiment import disturbance_calibration
 from dfeif_codegen.symbolic.disturbance import Disturbance
 
-AUTO = "auto"
 CANDIDATES = ("random_walk", "integrated_random_walk")
 
 
@@ -29,10 +27,9 @@ def master_rmse(results: list, q, dist: Disturbance) -> np.ndarray:
     recordings; inf where it fails on one."""
     out = []
     for res in results:
-        rec = dataclasses.replace(res.recording, predictor="held", q=np.asarray(q, dtype=float))
-        m = compare.evaluate(dataclasses.replace(res, recording=rec), "df", disturbance=dist)
+        m = disturbance_calibration.held_metrics(res, q, dist)
         if "failed" in m:
-            return np.full(rec.n, math.inf)
+            return np.full(res.recording.n, math.inf)
         out.append(np.asarray(m["rmse_master"], dtype=float))
     return np.sqrt(np.mean(np.square(out), axis=0))
 

@@ -174,7 +174,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             hold = lambda qq, d, lg: pole_margin.hold(  # noqa: E731
                 lambda j: dataclasses.replace(config(qq, seed + j, NEES_SECONDS), predictor="held", disturbance=d),
                 poles, cfg.plant_error, flat.model, delays, lg)
-            if dist.kind == disturbance_choice.AUTO:
+            if dist.kind == disturbance_calibration.AUTO:
                 held, log, dist, poles = disturbance_choice.choose(flat, held, loops, match, NEES_TOL, log, hold)
             else:
                 held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
@@ -328,8 +328,8 @@ def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
         lines += [f'draw = "{plant_error.draw}"', f"spread = {dict(plant_error.spread)['*']:g}", ""] \
             if plant_error.spread else [""]
     if disturbance is not None:
-        lines += ["# a disturbance per chain on its top derivative (run with --predictor held);"
-                  + (" and its rate" if disturbance.order == 2 else ""),
+        lines += ["# a disturbance per chain on its top derivative" + (" and its rate" if disturbance.order == 2 else "")
+                  + " (run with --predictor held);",
                   "# q: their densities, scaled so that the master's NEES averages n",
                   "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {_toml_list(disturbance.q)}"]
         lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
