@@ -63,7 +63,7 @@ def test_calibrated_q_puts_the_master_nees_in_its_band(tmp_path):
     """The arm: with the residual's q its master NEES is 8.0-9.1 for n = 6 (docs/experiment.md);
     the written q brings it to n within 20% on seeds the calibration did not use (0-3; rows
     without and with the paper's longest delays), inside the 95% band of 4 runs. 20%: the
-    calibration matches n to 10% over 2 runs of 20 s; the NEES's run-to-run spread over 4 runs
+    calibration matches n to 10% over 8 runs of 20 s; the NEES's run-to-run spread over 4 runs
     of 20 s is a few percent (measured 3.4-3.5% on the motor)."""
     out = tmp_path / "arm.toml"
     assert cli.main(["scenario", "two_link_arm", "--out", str(out)]) == 0

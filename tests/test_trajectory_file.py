@@ -198,7 +198,7 @@ def test_verify_and_a_starting_scenario_on_a_file(tmp_path, capsys, monkeypatch)
     assert cli.main(["scenario", "unicycle", "--trajectory", "data/eight.csv", "--out", str(out)]) == 0
     text = out.read_text()
     assert 'file = "../data/eight.csv"' in text and 'references = ["trajectory"]' in text
-    line = text.split("master NEES over 2 runs without delays: ")[1].split("\n")[0]
+    line = text.split(f"master NEES over {nees_match.NEES_RUNS} runs without delays: ")[1].split("\n")[0]
     nees = float(line.split()[0])
     if "q lowered at most" in line:   # the floor: the residual's q (closed loop) times NEES_FLOOR
         residual = np.array(json.loads(text.split("along the closed loop: q = ")[1].split("\n")[0]))

@@ -63,7 +63,10 @@ def close_with_delays(q, config, seeds, links, log) -> tuple[np.ndarray, list[st
     return q, log
 
 
-NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 2, 1.1, 8, 20.0
+# eight runs: one run's master NEES spreads widely from seed to seed (the arm at a fixed q: 2.6 to
+# 11, standard deviation 2.2 around a mean of 4.8 over seeds 0-99), so two runs matched n to a
+# mean 20% off on other seeds; eight halve that spread (docs/experiment.md, the exact-model NEES target)
+NEES_RUNS, NEES_TOL, NEES_EVALS, NEES_SECONDS = 8, 1.1, 8, 20.0
 NEES_LOST = 6      # scales of q whose closed loops were lost, at most, before giving up
 # the match lowers q at most a decade below the residual: the information-difference fusion's
 # Y_i - Y_pred cancels more digits the smaller q is (measured on a rotor, C against reference:
