@@ -156,6 +156,20 @@ def test_float_retrodict_where_it_is_ill_conditioned(store):
     assert "the C's rounding is the likely cause" in verify.single_precision_yardstick(worse, np_errors)
 
 
+def test_float32_twin_runs_nodes_and_master_in_single_precision():
+    """The yardstick's second single-precision implementation (`replay_recording(dtype=float32)`)
+    keeps every node and master estimate and covariance in float32, the held mean rounded inside
+    (numeric.SinglePrecision): each stored value is a float32 (x == float32(x), which a double run
+    meets with probability ~0), and it departs from the double run by float32's, not double's,
+    rounding (the motor's master: above 1e-9 relative somewhere, below 1e-3)."""
+    rec = verify.record("dc_motor_link", duration=2.0)
+    twin = experiment.replay_recording(rec, dtype=np.float32)
+    for key in ("node_x", "node_P", "x", "P"):
+        assert np.array_equal(twin[key], twin[key].astype(np.float32).astype(float)), key
+    worst = max(e.worst for e in verify.compare_run(twin, rec, "float") if e.signal in ("master.x", "master.P"))
+    assert 1e-9 < worst < 1e-3
+
+
 @pytest.mark.parametrize("case", [GRID[2], DIAGONAL[8]], ids=str)
 def test_own_inputs(store, case):
     """The nodes and the master predict with the v the C controller computes (the loop through

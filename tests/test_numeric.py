@@ -14,6 +14,7 @@ import pytest
 import sympy as sp
 
 from dfeif_codegen.experiment.plant import Camera, Plant
+from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic import flatness, model, numeric
 
 PACKAGE = Path(__file__).resolve().parents[1] / "dfeif_codegen"
@@ -96,3 +97,28 @@ def test_no_other_sympy_to_numeric_path():
     offenders = [str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")
                  if re.search(r"\blambdify\b", p.read_text())]
     assert offenders == []
+
+
+def test_single_precision_rounds_every_operation():
+    """`SinglePrecision` runs a Function's instructions in float32, each rounded as a float C
+    build rounds it. Closed forms: (1 + 2^24) - 2^24 is 1 in double and 0 in float32, since
+    2^24 + 1 is not a float32 and rounds to even, 2^24; 0.7 * 3 - 0.3 is float32(0.7) * 3 - float32(0.3)
+    rounded step by step, not the double result. Against the double Function on a mixed expression: within 1e-6 relative (a few float32
+    roundings of O(1) values, no cancellation), and float32 out."""
+    a, b, c = ca.SX.sym("a"), ca.SX.sym("b"), ca.SX.sym("c")
+    cancel = ca.Function("cancel", [a, b, c], [(a + b) - c])     # (a + b) - b CasADi would simplify to a
+    assert numeric.Numeric(cancel)(1.0, 2.0 ** 24, 2.0 ** 24) == 1.0
+    assert numeric.SinglePrecision(cancel)(1.0, 2.0 ** 24, 2.0 ** 24) == 0.0
+    residue = ca.Function("residue", [a], [a * 3 - 0.3])
+    f32 = np.float32
+    got = numeric.SinglePrecision(residue)(0.7)[0]
+    assert got == f32(f32(0.7) * f32(3)) - f32(0.3) and float(got) != 0.7 * 3 - 0.3
+    x, u = ca.SX.sym("x", 3), ca.SX.sym("u")
+    e = ca.vertcat(ca.sin(x[0]) * 3 + u, x[1] / x[0], u * u, ca.fabs(u), 2 * x[1], ca.fmax(x[2], u),
+                   ca.if_else(x[0] < u, x[1], x[2]), ca.atan2(x[0], x[1]), ca.exp(x[2]) - ca.sqrt(x[0]), x[0] ** 3)
+    mixed = ca.Function("mixed", [x, u], [e], {"cse": True})
+    args = (np.array([0.3, -1.2, 2.0]), -0.7)
+    got, want = numeric.SinglePrecision(mixed)(*args), numeric.Numeric(mixed)(*args)
+    assert got.dtype == np.float32 and np.all(np.abs(got - want) <= 1e-6 * np.maximum(np.abs(want), 1))
+    with pytest.raises(ModelError, match="no single-precision twin"):
+        numeric.SinglePrecision(ca.Function("erf", [a], [ca.erf(a)]))

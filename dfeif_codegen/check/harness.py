@@ -295,8 +295,8 @@ def filter_bank(library: Library):
 
     class CFilterBank:
         def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                     node_dtype=None, predictor=None, disturbance=None):
-            del node_dtype, predictor   # the library's build fixed both (it predicts with <P>_PREDICTS_WITH_U's input)
+                     dtype=None, predictor=None, disturbance=None):
+            del dtype, predictor   # the library's build fixed both (it predicts with <P>_PREDICTS_WITH_U's input)
             opts = library.model.options
             for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R)),
                               ("disturbance", None if disturbance is None else disturbance.kind)):

@@ -134,13 +134,14 @@ class Result:
 
 # --- the replay ------------------------------------------------------------------------------------
 
-def replay_recording(rec: Recording, node_dtype=np.float64) -> dict[str, np.ndarray]:
+def replay_recording(rec: Recording, dtype=np.float64) -> dict[str, np.ndarray]:
     """Re-run only the filters and the controller from a recording (no plant, no network) and
-    return the outputs: late_applied, node_x, node_P, x, P, u, v. `node_dtype=np.float32` runs
-    the node filters in single precision: a second single-precision implementation to judge the C's."""
+    return the outputs: late_applied, node_x, node_P, x, P, u, v. `dtype=np.float32` runs
+    the nodes and the master in single precision: a second single-precision implementation to judge
+    the C's (the controller stays in double)."""
     flat = _flat(rec.model)
     bank = FilterBank(flat, rec.ts, rec.q, rec.R, rec.node_x0, rec.node_P0, rec.master_x0, rec.master_P0,
-                      rec.gains, rec.max_lag, rec.oosm, rec.fusion, node_dtype, rec.predictor,
+                      rec.gains, rec.max_lag, rec.oosm, rec.fusion, dtype, rec.predictor,
                       Disturbance.from_json(rec.disturbance))
     K = rec.ref.shape[0]
     out = _Outputs(rec.nodes, K, rec.n, rec.m)

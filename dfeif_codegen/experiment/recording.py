@@ -88,7 +88,7 @@ class FilterBank:
     """Nodes, master and controller, stepped exactly as the protocol says."""
 
     def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                 node_dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
+                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
         """`disturbance`: the filters' states are extended by its states (their x0, P0 here
         are the canonical ones; the disturbances start at 0 with their initial spread); what
         `step` returns stays the canonical part, what the controller and the metrics read."""
@@ -96,10 +96,10 @@ class FilterBank:
         node_x0, node_P0 = zip(*[augment(x, P, disturbance, m) for x, P in zip(node_x0, node_P0)])
         master_x0, master_P0 = augment(master_x0, master_P0, disturbance, m)
         self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
-                                 dtype=node_dtype, predictor=predictor, disturbance=disturbance)
+                                 dtype=dtype, predictor=predictor, disturbance=disturbance)
                       for i in range(len(R))]
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
-                             predictor=predictor, disturbance=disturbance)
+                             predictor=predictor, disturbance=disturbance, dtype=dtype)
         self.takes_v = predictor == "brunovsky"
         held = predictors.held_constants(flat, ts) if predictor == "held" else None
         self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds

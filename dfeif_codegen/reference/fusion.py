@@ -82,16 +82,18 @@ class Master:
     it broadcasts to the nodes."""
 
     def __init__(self, flat, ts, q, x0, P0, n_nodes: int, rule: str = "difference", max_lag: int = 32,
-                 predictor: str = predictors.DEFAULT, disturbance=None):
+                 predictor: str = predictors.DEFAULT, disturbance=None, dtype=np.float64):
+        """`dtype`: the precision of every stored value and operation (float32: the single-precision
+        twin check/verify.py judges a float build by)."""
         if rule not in RULES:
             raise ValueError(f"rule must be one of {RULES}, not {rule!r}")
         self.rule, self.n_nodes, self.max_lag = rule, n_nodes, max_lag
-        self.predictor = predictors.make(predictor, flat, ts, q, disturbance=disturbance)
+        self.predictor = predictors.make(predictor, flat, ts, q, dtype, disturbance=disturbance)
         self.A, self.Q = self.predictor.Phi, self.predictor.Q
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])
         self.k = 0
-        self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
+        self.x, self.P = np.array(x0, dtype=dtype), np.array(P0, dtype=dtype)
         self.x_prior, self.P_prior = self.x, self.P
         self._v: dict[int, np.ndarray] = {}
         self.weights = np.zeros(n_nodes)     # the last CI weights, node by node
@@ -130,13 +132,13 @@ class Master:
             self.weights[picked], self.weighed[picked] = w, True
             Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
             y = sum(wi * yi for wi, yi in zip(w, ys))
-        self.P = spd_inv(Y)
-        self.x = c + self.P @ y
+        self.P = spd_inv(Y.astype(c.dtype))
+        self.x = c + self.P @ y.astype(c.dtype)
 
     def predict(self, v) -> None:
         """Predict with the input it broadcasts (u for the held predictor, v for the Brunovsky one),
         the one the nodes predict with."""
-        v = np.atleast_1d(np.asarray(v, dtype=float))
+        v = np.atleast_1d(np.asarray(v, dtype=self.x.dtype))
         self._v[self.k] = v
         self._v.pop(self.k - self.max_lag, None)
         self.x_prior = self.predictor.mean(self.x, v)
@@ -166,5 +168,5 @@ class Master:
         if N == 0:
             return p.x, p.P, p.x_pred, p.P_pred
         x, x_pred = self.predictor.bring([p.x, p.x_pred], [self._v[i] for i in range(p.step, self.k)])
-        A, Q = self.predictor.ahead(N)
+        A, Q = (a.astype(self.x.dtype) for a in self.predictor.ahead(N))
         return x, A @ p.P @ A.T + Q, x_pred, A @ p.P_pred @ A.T + Q

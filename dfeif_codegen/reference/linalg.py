@@ -28,7 +28,7 @@ def spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def spd_inv(a: np.ndarray) -> np.ndarray:
-    return spd_solve(a, np.eye(a.shape[0]))
+    return spd_solve(a, np.eye(a.shape[0], dtype=a.dtype))
 
 
 def wrap(e: np.ndarray, angle: np.ndarray) -> np.ndarray:

@@ -81,6 +81,10 @@ class Held:
         self.Phi = self.H.E.astype(self.dtype)
         self.Q = self.H.Q(q, self.qd).astype(self.dtype)
         self._step = _mean_function(flat, self.H, self.drift)
+        if self.dtype == np.float32:      # the float build's rounding inside the step, not only of its result
+            function = self._step.function
+            self._step = _cached(("mean32", id(flat), self.ts, self.drift), flat,
+                                 lambda: numeric.SinglePrecision(function))
         self._p = flat.param_vector
         self._ahead: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
