@@ -178,7 +178,8 @@ CHECK_POINTS = 1000                                 # reference states checked p
 def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None, phase=None,
             period=None) -> Shape:
     """from_domains, and where its reference leaves the transform's domain (a speed or thrust
-    outside its limits, the decoupling matrix's singular set), the first slower (PERIODS) or
+    outside its limits, the decoupling matrix's singular set) or needs an input past its limits
+    (`_check_inputs`), the first slower (PERIODS) or
     smaller (SCALES) one that stays inside; values given are kept as given. When none fits, a
     ScenarioError naming what the first one hit and when."""
     from dfeif_codegen.experiment import closed_loop as ex
@@ -194,18 +195,45 @@ def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None
                           base.cycles, p)
             refs = ex.references(ex.Config(model=spec, **shape.config()), flat.m)
             t = np.linspace(0.0, p, CHECK_POINTS, endpoint=False)   # one period: the reference repeats
+            rows = [flags(refs, flat.degrees, tk) for tk in t]
             try:
-                ex.check_reference(flat, [flags(refs, flat.degrees, tk) for tk in t], t)
+                ex.check_reference(flat, rows, t)
+                _check_inputs(flat, rows, t)
                 return shape
             except ArithmeticError as exc:
                 first = first or str(exc)
     raise ScenarioError(f"{flat.model.source}: no {kind} reference around {list(base.offset)} stays where the "
-                        f"transform is defined ({first}); give --amplitude, --offset, --period or --shape")
+                        f"transform is defined and the inputs within their limits ({first}); give --amplitude, "
+                        "--offset, --period or --shape")
+
+
+def _check_inputs(flat, rows, t) -> None:
+    """The feedforward of the reference, u = G⁻¹(y^(r) - F) at its own states (what the plant
+    needs to follow it exactly), inside each input's declared limits less a tenth of their range
+    at both ends, left to the feedback. Why: past a limit the input is clamped and the loop stops
+    tracking (a tank whose 5 s reference asked for 2.9 times its inflow tracked to 55% of the
+    swing); ArithmeticError at the first point outside, like check_reference."""
+    inputs = flat.model.inputs
+    lo = np.array([-np.inf if w.min is None else w.min for w in inputs], dtype=float)
+    hi = np.array([np.inf if w.max is None else w.max for w in inputs], dtype=float)
+    if not (np.isfinite(lo).any() or np.isfinite(hi).any()):
+        return
+    margin = np.where(np.isfinite(hi - lo), 0.1 * (hi - lo), 0.0)
+    p = flat.param_vector
+    for k, row in enumerate(rows):
+        z = ex.state_of_flags(flat, row)
+        top = np.array([row[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
+        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+        out = np.flatnonzero((u < lo + margin) | (u > hi - margin))
+        if out.size:
+            i = int(out[0])
+            raise ArithmeticError(f"the reference at t = {t[k]:.3f} s needs {inputs[i].name} = {u[i]:.3g}, outside "
+                                  f"[{lo[i]:g}, {hi[i]:g}] less a tenth of that range for the feedback")
 
 
 def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: Shape | None = None) -> float:
     """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]
-    (`codegen scenario` warns when it turns by more than 0.3 rad per period)."""
+    (`codegen scenario` names it when it turns by more than 0.3 rad per period: starter._fast_mode)."""
     shape = shape or from_domains(flat)
     plant = ex._plant(spec, ts, 1)
     cfg = ex.Config(model=spec, **shape.config())
