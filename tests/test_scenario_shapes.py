@@ -98,35 +98,6 @@ def test_a_run_that_stops_tracking_is_a_failure(engine, tmp_path, capsys):
     assert not result.failures
 
 
-TANK = """
-[model]
-name = "tank"
-ts = 0.1
-[[states]]
-name = "h"
-min = 0.1
-max = 2.0
-nominal = 1.0
-[[inputs]]
-name = "qin"
-min = 0.0
-max = 0.01
-[[parameters]]
-name = "a"
-value = 0.005
-[[parameters]]
-name = "A"
-value = 0.1
-[dynamics.f]
-h = "-a*sqrt(h)/A"
-[dynamics.g.qin]
-h = "1/A"
-[[outputs]]
-name = "level"
-expr = "h"
-[measurement]
-noise = { level = 0.002 }
-"""
 
 
 def test_reference_slowed_until_its_input_is_within_limits(tmp_path):
@@ -137,8 +108,7 @@ def test_reference_slowed_until_its_input_is_within_limits(tmp_path):
     0.009] (a tenth of the range left to the feedback), at the full swing. On it the loop tracks
     to under 1% of the swing, no input clamped (measured 0.53 mm; 106 mm at 5 s, where it was
     clamped 180 steps of 200)."""
-    model = tmp_path / "tank.toml"
-    model.write_text(TANK)
+    model = DATA / "tank_limited.toml"
     expected = None
     for T in shapes.PERIODS:
         w, t = 2 * math.pi / T, np.linspace(0.0, T, 20001)
