@@ -179,9 +179,9 @@ def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None
             period=None) -> Shape:
     """from_domains, and where its reference leaves the transform's domain (a speed or thrust
     outside its limits, the decoupling matrix's singular set) or needs an input past its limits
-    (`_check_inputs`), the first slower (PERIODS) or
-    smaller (SCALES) one that stays inside; values given are kept as given. When none fits, a
-    ScenarioError naming what the first one hit and when."""
+    (`_check_inputs`), the first slower (PERIODS) or smaller (SCALES) one that stays inside;
+    values given are kept as given. When none fits, a ScenarioError naming what the first one
+    hit and when."""
     from dfeif_codegen.experiment import closed_loop as ex
     from dfeif_codegen.experiment.trajectory import flags
 

@@ -211,8 +211,9 @@ class SinglePrecision:
     """A CasADi SX Function run instruction by instruction in float32, every operation rounded
     to single precision as the float build's C computes it (the C is printed from the same
     instructions). Why: a Function computes in double, so a float32 reference that called one
-    would round only its result and miss what the kernel loses inside (the cancellation in a
-    stiff model's canonical top derivative, measured 14x the rounding of the result alone).
+    would round only its result and miss what the kernel loses inside: on a stiff flexible joint,
+    whose canonical top derivative cancels five digits, the float32 run's node estimates leave the
+    double ones by 1.1e-2 through this class and by 4.6e-4 with the mean rounded once.
     Same calling convention as `Numeric`; slow (a Python loop), for checks only."""
 
     UNARY, BINARY = _unary_ops(), _binary_ops()
