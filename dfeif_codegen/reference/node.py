@@ -79,7 +79,7 @@ class NodeFilter:
         """`dtype` is the precision of every stored value and operation: float64 for the
         reference; float32 gives a second single-precision implementation (numpy and LAPACK
         instead of the generated C), to tell the method's conditioning from the C's rounding
-        (the held predictor's mean map is evaluated in double and rounded). `mid_run`: the node
+        (the held mean instruction by instruction in float32: numeric.SinglePrecision). `mid_run`: the node
         starts later than step 0 with the prior of step 0 (a restart; the C's node_mid_run):
         late frames of steps before its first measurement are refused (`update_delayed`)."""
         if oosm not in ("replay", "retrodict"):
