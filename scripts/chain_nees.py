@@ -31,13 +31,13 @@ def main() -> None:
     sc = scenario.load(a.scenario)
     sc.q = sc.q_ekf = [float(v) for v in a.q.split(",")]
     flat = ex._flat(a.model)
+    blocks = [slice(c.offset, c.offset + c.degree) for c in flat.chains]
     nees, ratio = [], []
     for seed in range(a.seeds):
         cfg = plan.make_config(sc, a.model, 2, 32, "sinusoid", sc.grid[a.row], "replay", "difference", seed)
         res = ex.run(cfg)
         rec, k0 = res.recording, int(round(cfg.metrics_from / res.recording.ts))
         err, P = _errors(flat, rec.x[k0:], res.zeta[k0:]), rec.P[k0:]
-        blocks = [slice(c.offset, c.offset + c.degree) for c in flat.chains]
         nees.append([np.mean(_nees(err, P))] + [np.mean(_nees(err[:, b], P[:, b, b])) for b in blocks])
         ratio.append(np.sqrt(np.mean(err ** 2, axis=0)) / compare.evaluate(res, "ekf")["rmse_master"])
     nees, ratio = np.array(nees), np.array(ratio)

@@ -207,6 +207,14 @@ def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None
                         "--offset, --period or --shape")
 
 
+def feedforward(flat, row, p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The canonical state one row of reference flags describes, the chains' top derivatives it
+    asks for, and the input that gives them there, u = G⁻¹(y^(r) - F) (parameters p)."""
+    z = ex.state_of_flags(flat, row)
+    top = np.array([row[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
+    return z, top, np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+
+
 def _check_inputs(flat, rows, t) -> None:
     """The feedforward of the reference, u = G⁻¹(y^(r) - F) at its own states (what the plant
     needs to follow it exactly), inside each input's declared limits less a tenth of their range
@@ -221,9 +229,7 @@ def _check_inputs(flat, rows, t) -> None:
     margin = np.where(np.isfinite(hi - lo), 0.1 * (hi - lo), 0.0)
     p = flat.param_vector
     for k, row in enumerate(rows):
-        z = ex.state_of_flags(flat, row)
-        top = np.array([row[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
-        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+        u = feedforward(flat, row, p)[2]
         out = np.flatnonzero((u < lo + margin) | (u > hi - margin))
         if out.size:
             i = int(out[0])
@@ -240,10 +246,7 @@ def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: Sha
     refs = ex.references(cfg, flat.m)
     p, n, worst = flat.param_vector, flat.n, 0.0
     for tk in np.linspace(0, shape.period, points, endpoint=False):
-        fl = flags(refs, flat.degrees, tk)
-        z = ex.state_of_flags(flat, fl)
-        top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
-        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+        z, _, u = feedforward(flat, flags(refs, flat.degrees, tk), p)
         x = flat.phi_inv_num(z, p)
         h = 1e-6 * np.maximum(1.0, np.abs(x))
         jac = np.column_stack([(plant.rhs(x + h[i] * np.eye(n)[i], u) - plant.rhs(x - h[i] * np.eye(n)[i], u))

@@ -93,10 +93,7 @@ def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
     zeta, v = [], []
     p = flat.param_vector
     for tk in t:
-        fl = flags(refs, flat.degrees, tk)
-        z = ex.state_of_flags(flat, fl)
-        top = np.array([fl[c.offset + j + c.degree] for j, c in enumerate(flat.chains)])
-        u = np.linalg.solve(flat.G_num(z, p), top - flat.F_num(z, p))
+        z, top, u = shapes.feedforward(flat, flags(refs, flat.degrees, tk), p)
         zn = flat.phi_num(plant.step(flat.phi_inv_num(z, p), u), p)
         zeta.append(np.stack([z, zn]))
         v.append(top)

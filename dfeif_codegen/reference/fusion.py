@@ -132,8 +132,8 @@ class Master:
             self.weights[picked], self.weighed[picked] = w, True
             Y = sum(wi * Yi for wi, Yi in zip(w, Ys))
             y = sum(wi * yi for wi, yi in zip(w, ys))
-        self.P = spd_inv(Y.astype(c.dtype))
-        self.x = c + self.P @ y.astype(c.dtype)
+        self.P = spd_inv(Y.astype(c.dtype, copy=False))
+        self.x = c + self.P @ y.astype(c.dtype, copy=False)
 
     def predict(self, v) -> None:
         """Predict with the input it broadcasts (u for the held predictor, v for the Brunovsky one),
@@ -168,5 +168,5 @@ class Master:
         if N == 0:
             return p.x, p.P, p.x_pred, p.P_pred
         x, x_pred = self.predictor.bring([p.x, p.x_pred], [self._v[i] for i in range(p.step, self.k)])
-        A, Q = (a.astype(self.x.dtype) for a in self.predictor.ahead(N))
+        A, Q = (a.astype(self.x.dtype, copy=False) for a in self.predictor.ahead(N))
         return x, A @ p.P @ A.T + Q, x_pred, A @ p.P_pred @ A.T + Q

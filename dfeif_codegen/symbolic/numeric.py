@@ -234,13 +234,13 @@ class SinglePrecision:
     def __call__(self, *args) -> np.ndarray:
         ins = [np.ravel(np.asarray(a, dtype=np.float32)) for a in args]
         out, w = np.zeros(self.function.nnz_out(0), dtype=np.float32), self._work
-        unary, binary = self.UNARY, self.BINARY
+        unary, binary, const, load, store = self.UNARY, self.BINARY, ca.OP_CONST, ca.OP_INPUT, ca.OP_OUTPUT
         for op, i, o, c in self._program:
-            if op == ca.OP_CONST:
+            if op == const:
                 w[o[0]] = c
-            elif op == ca.OP_INPUT:
+            elif op == load:
                 w[o[0]] = ins[i[0]][i[1]]
-            elif op == ca.OP_OUTPUT:
+            elif op == store:
                 if o[0] == 0:
                     out[o[1]] = w[i[0]]
             elif op in unary:
