@@ -319,6 +319,8 @@ int dc_motor_link_master_predict(dc_motor_link_master* master, const real input[
     int rc = DC_MOTOR_LINK_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = DC_MOTOR_LINK_ERR_ARG;
+    } else if (master->k == DC_MOTOR_LINK_LAST_STEP) { /* 32-bit step numbers: no successor */
+        rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     } else if (dc_motor_link_finite(v, NY) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     } else {

@@ -64,6 +64,10 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define PVTOL_PREDICTS_WITH_U 1
+/** the last step a node or the master reaches: step numbers are 32 bits, and predict refuses
+ * (ERR_SEQUENCE) past it rather than wrap (2^32 - 1 steps: 497 days at 100 Hz, 49.7 at 1 kHz;
+ * init again to go on) */
+#define PVTOL_LAST_STEP 0xFFFFFFFFu
 /** late-measurement window: lags 1..NMAX steps */
 #define PVTOL_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -122,7 +126,7 @@ extern const uint8_t pvtol_chain_angle[PVTOL_NY];
 #define PVTOL_ERR_SINGULAR (-4)
 /** that step already has a measurement */
 #define PVTOL_ERR_DUPLICATE (-5)
-/** protocol order: update twice in a step, predict or late before update */
+/** protocol order: update twice in a step, predict or late before update, predict at LAST_STEP */
 #define PVTOL_ERR_SEQUENCE (-6)
 
 /** Node health counters. */

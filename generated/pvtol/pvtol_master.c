@@ -292,6 +292,8 @@ int pvtol_master_predict(pvtol_master* master, const real input[NY])
     int rc = PVTOL_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = PVTOL_ERR_ARG;
+    } else if (master->k == PVTOL_LAST_STEP) { /* 32-bit step numbers: no successor */
+        rc = PVTOL_ERR_SEQUENCE;
     } else if (pvtol_finite(v, NY) == 0) {
         rc = PVTOL_ERR_NONFINITE;
     } else {

@@ -63,6 +63,10 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define TWO_LINK_ARM_PREDICTS_WITH_U 1
+/** the last step a node or the master reaches: step numbers are 32 bits, and predict refuses
+ * (ERR_SEQUENCE) past it rather than wrap (2^32 - 1 steps: 497 days at 100 Hz, 49.7 at 1 kHz;
+ * init again to go on) */
+#define TWO_LINK_ARM_LAST_STEP 0xFFFFFFFFu
 /** late-measurement window: lags 1..NMAX steps */
 #define TWO_LINK_ARM_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -137,7 +141,7 @@ extern const uint8_t two_link_arm_chain_angle[TWO_LINK_ARM_NY];
 #define TWO_LINK_ARM_ERR_SINGULAR (-4)
 /** that step already has a measurement */
 #define TWO_LINK_ARM_ERR_DUPLICATE (-5)
-/** protocol order: update twice in a step, predict or late before update */
+/** protocol order: update twice in a step, predict or late before update, predict at LAST_STEP */
 #define TWO_LINK_ARM_ERR_SEQUENCE (-6)
 
 /** Node health counters. */

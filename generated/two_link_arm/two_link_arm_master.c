@@ -320,6 +320,8 @@ int two_link_arm_master_predict(two_link_arm_master* master, const real input[NY
     int rc = TWO_LINK_ARM_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = TWO_LINK_ARM_ERR_ARG;
+    } else if (master->k == TWO_LINK_ARM_LAST_STEP) { /* 32-bit step numbers: no successor */
+        rc = TWO_LINK_ARM_ERR_SEQUENCE;
     } else if (two_link_arm_finite(v, NY) == 0) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     } else {

@@ -380,6 +380,7 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
     real old_P[TWO_LINK_ARM_NODE_NCHECK_REALS];
     real prior[NXP]; /* step j's: x as its slot holds it, P carried */
     uint32_t j = j0;
+    const uint32_t stop = node->k + 1u; /* modulo 2^32: j reaches it after k - j0 + 1 steps */
     uint32_t written = 0u; /* priors' x rewritten so far: slots j0 + 1 .. j0 + written */
     int checks = 0; /* checkpoints rewritten so far, from the first multiple after j0 */
     uint32_t first;
@@ -387,7 +388,7 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
     int c;
     int rc = prior_P(node, j0, prior);
     (void)memcpy(prior, &node->ring_x[slot_of(j0) * NX], sizeof(real) * (size_t)NX);
-    while ((rc == TWO_LINK_ARM_OK) && (j <= node->k)) {
+    while ((rc == TWO_LINK_ARM_OK) && (j != stop)) {
         int slot = slot_of(j);
         real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
         const real* z = (j == j0) ? zlate : &node->ring_z[slot * NY];
@@ -488,7 +489,8 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real input[NY])
     if ((node == NULL) || (v == NULL)) {
         rc = TWO_LINK_ARM_ERR_ARG;
     }
-    if ((rc == TWO_LINK_ARM_OK) && (node->updated == 0u)) {
+    /* step numbers are 32 bits: the last one has no successor (no ring index wraps) */
+    if ((rc == TWO_LINK_ARM_OK) && ((node->updated == 0u) || (node->k == TWO_LINK_ARM_LAST_STEP))) {
         rc = TWO_LINK_ARM_ERR_SEQUENCE;
     }
     if (rc == TWO_LINK_ARM_OK) { /* a non-finite v makes the prediction so */

@@ -293,6 +293,8 @@ int unicycle_master_predict(unicycle_master* master, const real input[NY])
     int rc = UNICYCLE_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = UNICYCLE_ERR_ARG;
+    } else if (master->k == UNICYCLE_LAST_STEP) { /* 32-bit step numbers: no successor */
+        rc = UNICYCLE_ERR_SEQUENCE;
     } else if (unicycle_finite(v, NY) == 0) {
         rc = UNICYCLE_ERR_NONFINITE;
     } else {

@@ -367,6 +367,7 @@ static int replay(unicycle_node* node, uint32_t j0, const real* zlate, real* pos
     real old_P[UNICYCLE_NODE_NCHECK_REALS];
     real prior[NXP]; /* step j's: x as its slot holds it, P carried */
     uint32_t j = j0;
+    const uint32_t stop = node->k + 1u; /* modulo 2^32: j reaches it after k - j0 + 1 steps */
     uint32_t written = 0u; /* priors' x rewritten so far: slots j0 + 1 .. j0 + written */
     int checks = 0; /* checkpoints rewritten so far, from the first multiple after j0 */
     uint32_t first;
@@ -374,7 +375,7 @@ static int replay(unicycle_node* node, uint32_t j0, const real* zlate, real* pos
     int c;
     int rc = prior_P(node, j0, prior);
     (void)memcpy(prior, &node->ring_x[slot_of(j0) * NX], sizeof(real) * (size_t)NX);
-    while ((rc == UNICYCLE_OK) && (j <= node->k)) {
+    while ((rc == UNICYCLE_OK) && (j != stop)) {
         int slot = slot_of(j);
         real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
         const real* z = (j == j0) ? zlate : &node->ring_z[slot * NY];
@@ -474,7 +475,8 @@ int unicycle_node_predict(unicycle_node* node, const real input[NY])
     if ((node == NULL) || (v == NULL)) {
         rc = UNICYCLE_ERR_ARG;
     }
-    if ((rc == UNICYCLE_OK) && (node->updated == 0u)) {
+    /* step numbers are 32 bits: the last one has no successor (no ring index wraps) */
+    if ((rc == UNICYCLE_OK) && ((node->updated == 0u) || (node->k == UNICYCLE_LAST_STEP))) {
         rc = UNICYCLE_ERR_SEQUENCE;
     }
     if (rc == UNICYCLE_OK) { /* a non-finite v makes the prediction so */
