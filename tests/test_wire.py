@@ -108,7 +108,7 @@ def test_codec_c_equals_python(libs, model, precision, key):
 class Master:
     """A C master and inbox at step `k` (predicted with v = 0), fed frames."""
 
-    def __init__(self, lib: WireLib, k: int, key: bytes | None = None, nodes: int = 2, epoch: int = 0):
+    def __init__(self, lib: WireLib, k: int, key: bytes | None = None, nodes: int = 2, epoch: int = 0, base: int = 0):
         self.lib, self.key, lay = lib, key, lib.layout
         n = lay.n
         self.P0 = np.eye(n) * 0.01
@@ -117,7 +117,7 @@ class Master:
         assert lib.fn("master_init")(self.m, lib.reals(np.zeros(n)), lib.reals(self.P0), lib.reals(np.ones(lay.m))) == 0
         for _ in range(k):
             assert lib.fn("master_predict")(self.m, lib.reals(np.zeros(lay.m))) == 0
-        assert lib.fn("inbox_init")(self.inbox, lib.key(key), ctypes.c_uint32(0), ctypes.c_uint32(epoch)) == 0
+        assert lib.fn("inbox_init")(self.inbox, lib.key(key), ctypes.c_uint32(base), ctypes.c_uint32(epoch)) == 0
 
     def receive(self, frame: bytes) -> int:
         return self.lib.fn("master_receive")(self.m, self.inbox, frame, ctypes.c_size_t(len(frame)))
@@ -358,6 +358,33 @@ def test_null_arguments_and_sequence_wrap(libs):
     assert ms.receive(frame(lay, 39, node=0, seq=0, key=DEPLOY)) == 0
     assert ms.receive(frame(lay, 40, node=0, seq=0xFFFFFFFF, key=DEPLOY)) == wire.ERRORS["replay"]
     assert ms.receive(frame(lay, 40, node=0, seq=1, key=DEPLOY)) == 0
+
+
+def test_global_steps_wrap(libs):
+    """Global step numbers wrap at 2^32 (a master restarted with base near 2^32, or a long run): a
+    master whose step 40 is global step 20 after the wrap takes a fresh frame and one 25 steps old
+    from before the wrap, refuses the future, the too old and the outdated (serial-number
+    arithmetic, as for sequence numbers), and fuses what it took exactly as a master at base 0
+    fed the same frames relabelled; a master at its step 5 refuses a frame from before its step 0
+    that lies across the wrap. Before, every frame after the wrap was refused as old."""
+    lib = libs("dc_motor_link", "double")
+    lay = lib.layout
+    base, k = 2 ** 32 - 20, 40
+    g = lambda s: (base + s) % 2 ** 32   # noqa: E731 (a master step's global number)
+    ms, twin = Master(lib, k, base=base), Master(lib, k)
+    took = [(k, 0, 1), (k - 25, 1, 1)]
+    for step, node, seq in took:
+        assert ms.receive(frame(lay, g(step), node=node, seq=seq)) == 0, step
+        assert twin.receive(frame(lay, step, node=node, seq=seq)) == 0, step
+    assert ms.receive(frame(lay, g(k + 1), node=0, seq=2)) == wire.ERRORS["future"]
+    assert ms.receive(frame(lay, g(k - lib.model.options["max_lag"] - 1), node=0, seq=3)) == wire.ERRORS["old"]
+    assert ms.receive(frame(lay, g(k - 26), node=1, seq=4)) == wire.ERRORS["outdated"]
+    assert lib.fn("master_fuse_inbox")(ms.m, ms.inbox) == 0 and lib.fn("master_fuse_inbox")(twin.m, twin.inbox) == 0
+    (x, P), (xt, Pt) = ms.estimate(), twin.estimate()
+    assert np.array_equal(x, xt) and np.array_equal(P, Pt) and not np.array_equal(P, twin.P0)
+    young = Master(lib, 5, base=2 ** 32 - 2)
+    assert young.receive(frame(lay, 2 ** 32 - 3, node=0)) == wire.ERRORS["old"]    # its step -1
+    assert young.receive(frame(lay, 2 ** 32 - 1, node=0)) == 0                     # its step 1
 
 
 # --- epochs: replay protection across a master's restart (docs/wire.md, "Epochs") ----------------

@@ -64,10 +64,6 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define PVTOL_PREDICTS_WITH_U 1
-/** the last step a node or the master reaches: step numbers are 32 bits, and predict refuses
- * (ERR_SEQUENCE) past it rather than wrap (2^32 - 1 steps: 497 days at 100 Hz, 49.7 at 1 kHz;
- * init again to go on) */
-#define PVTOL_LAST_STEP 0xFFFFFFFFu
 /** late-measurement window: lags 1..NMAX steps */
 #define PVTOL_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -118,7 +114,7 @@ extern const uint8_t pvtol_chain_angle[PVTOL_NY];
 #define PVTOL_OK 0
 /** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
 #define PVTOL_ERR_ARG (-1)
-/** late measurement outside the window (lag < 1, > NMAX, > k) */
+/** late measurement outside the window (lag < 1, > NMAX, before step 0 or a mid-run start) */
 #define PVTOL_ERR_LAG (-2)
 /** NaN or infinity in an input or a result */
 #define PVTOL_ERR_NONFINITE (-3)
@@ -126,7 +122,7 @@ extern const uint8_t pvtol_chain_angle[PVTOL_NY];
 #define PVTOL_ERR_SINGULAR (-4)
 /** that step already has a measurement */
 #define PVTOL_ERR_DUPLICATE (-5)
-/** protocol order: update twice in a step, predict or late before update, predict at LAST_STEP */
+/** protocol order: update twice in a step, predict or late before update */
 #define PVTOL_ERR_SEQUENCE (-6)
 
 /** Node health counters. */
@@ -175,17 +171,21 @@ typedef struct {
     pvtol_real ring_x[PVTOL_NRING * PVTOL_NX];
     pvtol_real ring_z[PVTOL_NRING_NY];
     pvtol_real ring_v[PVTOL_NRING_NY];
-    /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), step s at entry
-     * (s / CHECK_EVERY) % NCHECK */
+    /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), the latest at or
+     * before k at entry `check`, each earlier one at the entry before (cyclically) */
     pvtol_real ring_P[PVTOL_NODE_NCHECK_REALS];
-    /** current step, and its slot (k % NRING) and flags' entry (k % NHIST) */
+    /** current step (modulo 2^32: it wraps), its slot in the rings (of NRING), its flags' entry
+     * (of NHIST) and its latest checkpoint's entry (of NCHECK): each advanced with k, and a step
+     * of the window found by its distance back from k, so no index depends on k itself */
     uint32_t k;
     uint16_t slot;
     uint16_t hist;
+    uint16_t check;
     pvtol_health health;
-    /** after node_mid_run(), 0 until update() applies a measurement, at step `first`: late
-     * frames of steps before it are refused (a replay there corrects the start-up prior alone) */
-    uint32_t first;
+    /** how far back a late frame may reach: steps since init or, after node_mid_run(), since
+     * update() applied the first measurement (a replay before it would correct the start-up prior
+     * alone); counts up to NHIST and stays there */
+    uint32_t age;
     uint8_t measured;
     /** update() done for step k */
     uint8_t updated;
@@ -228,9 +228,14 @@ typedef struct {
     pvtol_real x_prior[PVTOL_NX];
     pvtol_real P_prior[PVTOL_NXX];
     pvtol_real q[PVTOL_NQ];
-    /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
+    /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
     pvtol_real v[PVTOL_NMAX_NY];
+    /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot
+     * its input will take */
     uint32_t k;
+    uint32_t vslot;
+    /** steps since init, up to NMAX and then staying there: no packet is from before step 0 */
+    uint32_t age;
     pvtol_master_health health;
 } pvtol_master;
 

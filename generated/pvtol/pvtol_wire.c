@@ -489,6 +489,13 @@ static int seq_fresh(uint32_t seq, uint32_t last)
     return ((ahead != 0u) && (ahead < 0x80000000u)) ? 1 : 0;
 }
 
+/* 1 if step a comes after step b in serial-number arithmetic (steps wrap at 2^32 like the
+ * sequence numbers: up to 2^31 - 1 ahead). */
+static int serial_after(uint32_t a, uint32_t b)
+{
+    return seq_fresh(a, b);
+}
+
 /* The checks that need no master state: integrity, node id, and with a key the master's epoch
  * (a frame of an earlier boot is refused: replay protection across restarts) and a fresh
  * sequence number within it. */
@@ -518,13 +525,14 @@ static int check_packet(const pvtol_master* master, const pvtol_inbox* inbox, co
     uint32_t now = inbox->base + master->k;
     int rc = check_origin(inbox, buf, len, pk, h);
     if (rc == PVTOL_OK) {
-        if (h->step > now) {
+        if (serial_after(h->step, now) != 0) {
             rc = PVTOL_ERR_WIRE_FUTURE;
-        } else if ((h->step < inbox->base) || ((now - h->step) > (uint32_t)NMAX)) {
+        } else if ((now - h->step) > master->age) { /* older than NMAX or the master's step 0 */
             rc = PVTOL_ERR_WIRE_OLD;
         } else if ((inbox->seen[h->node] != 0u) && (h->step == inbox->last_step[h->node])) {
             rc = PVTOL_ERR_WIRE_DUPLICATE;
-        } else if ((inbox->seen[h->node] != 0u) && (h->step < inbox->last_step[h->node])) {
+        } else if ((inbox->seen[h->node] != 0u) &&
+                   (serial_after(inbox->last_step[h->node], h->step) != 0)) {
             rc = PVTOL_ERR_WIRE_OUTDATED;
         } else {
             /* last: a packet refused here leaves its node's step open for the real one */

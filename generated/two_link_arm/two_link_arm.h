@@ -63,10 +63,6 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define TWO_LINK_ARM_PREDICTS_WITH_U 1
-/** the last step a node or the master reaches: step numbers are 32 bits, and predict refuses
- * (ERR_SEQUENCE) past it rather than wrap (2^32 - 1 steps: 497 days at 100 Hz, 49.7 at 1 kHz;
- * init again to go on) */
-#define TWO_LINK_ARM_LAST_STEP 0xFFFFFFFFu
 /** late-measurement window: lags 1..NMAX steps */
 #define TWO_LINK_ARM_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
@@ -133,7 +129,7 @@ extern const uint8_t two_link_arm_chain_angle[TWO_LINK_ARM_NY];
 #define TWO_LINK_ARM_OK 0
 /** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
 #define TWO_LINK_ARM_ERR_ARG (-1)
-/** late measurement outside the window (lag < 1, > NMAX, > k) */
+/** late measurement outside the window (lag < 1, > NMAX, before step 0 or a mid-run start) */
 #define TWO_LINK_ARM_ERR_LAG (-2)
 /** NaN or infinity in an input or a result */
 #define TWO_LINK_ARM_ERR_NONFINITE (-3)
@@ -141,7 +137,7 @@ extern const uint8_t two_link_arm_chain_angle[TWO_LINK_ARM_NY];
 #define TWO_LINK_ARM_ERR_SINGULAR (-4)
 /** that step already has a measurement */
 #define TWO_LINK_ARM_ERR_DUPLICATE (-5)
-/** protocol order: update twice in a step, predict or late before update, predict at LAST_STEP */
+/** protocol order: update twice in a step, predict or late before update */
 #define TWO_LINK_ARM_ERR_SEQUENCE (-6)
 
 /** Node health counters. */
@@ -190,17 +186,21 @@ typedef struct {
     two_link_arm_real ring_x[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NX];
     two_link_arm_real ring_z[TWO_LINK_ARM_NRING_NY];
     two_link_arm_real ring_v[TWO_LINK_ARM_NRING_NY];
-    /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), step s at entry
-     * (s / CHECK_EVERY) % NCHECK */
+    /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), the latest at or
+     * before k at entry `check`, each earlier one at the entry before (cyclically) */
     two_link_arm_real ring_P[TWO_LINK_ARM_NODE_NCHECK_REALS];
-    /** current step, and its slot (k % NRING) and flags' entry (k % NHIST) */
+    /** current step (modulo 2^32: it wraps), its slot in the rings (of NRING), its flags' entry
+     * (of NHIST) and its latest checkpoint's entry (of NCHECK): each advanced with k, and a step
+     * of the window found by its distance back from k, so no index depends on k itself */
     uint32_t k;
     uint16_t slot;
     uint16_t hist;
+    uint16_t check;
     two_link_arm_health health;
-    /** after node_mid_run(), 0 until update() applies a measurement, at step `first`: late
-     * frames of steps before it are refused (a replay there corrects the start-up prior alone) */
-    uint32_t first;
+    /** how far back a late frame may reach: steps since init or, after node_mid_run(), since
+     * update() applied the first measurement (a replay before it would correct the start-up prior
+     * alone); counts up to NHIST and stays there */
+    uint32_t age;
     uint8_t measured;
     /** update() done for step k */
     uint8_t updated;
@@ -243,9 +243,14 @@ typedef struct {
     two_link_arm_real x_prior[TWO_LINK_ARM_NX];
     two_link_arm_real P_prior[TWO_LINK_ARM_NXX];
     two_link_arm_real q[TWO_LINK_ARM_NQ];
-    /** inputs (u) of steps k-NMAX..k-1, step j in slot j % NMAX */
+    /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
     two_link_arm_real v[TWO_LINK_ARM_NMAX_NY];
+    /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot
+     * its input will take */
     uint32_t k;
+    uint32_t vslot;
+    /** steps since init, up to NMAX and then staying there: no packet is from before step 0 */
+    uint32_t age;
     two_link_arm_master_health health;
 } two_link_arm_master;
 

@@ -23,10 +23,11 @@ size_t two_link_arm_master_size(void)
     return sizeof(two_link_arm_master);
 }
 
-/* Where step j's input starts in master->v. */
-static size_t input_at(uint32_t step)
+/* Where step j's input starts in master->v: by its distance back from k (k - NMAX <= j <= k),
+ * as step numbers wrap at 2^32, which NMAX need not divide. */
+static size_t input_at(const two_link_arm_master* master, uint32_t step)
 {
-    uint32_t slot = step % (uint32_t)NMAX;
+    uint32_t slot = (master->vslot + (uint32_t)NMAX - (master->k - step)) % (uint32_t)NMAX;
     return (size_t)slot * (size_t)NY;
 }
 
@@ -69,8 +70,10 @@ static inline int bring(const two_link_arm_master* master, const two_link_arm_pa
     (void)effect;
     two_link_arm_move_origin(x_in, pk->centre, master->centre, x);
     *P_out = P_in;
-    for (s = pk->step; (s < master->k) && (rc == TWO_LINK_ARM_OK); s++) {
-        rc = master_step(x, *P_out, &master->v[input_at(s)], master->q, master->centre, x1, P1);
+    /* step <= k, modulo 2^32 */
+    for (s = pk->step; (s != master->k) && (rc == TWO_LINK_ARM_OK); s++) {
+        rc = master_step(x, *P_out, &master->v[input_at(master, s)], master->q, master->centre, x1,
+                         P1);
         (void)memcpy(x, x1, sizeof(x1));
         (void)memcpy(P_buf, P1, sizeof(P1));
         *P_out = P_buf;
@@ -245,7 +248,7 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
         const two_link_arm_packet* pk = &packets[i];
         if (present[i] == 0u) {
             /* absent: left out */
-        } else if ((pk->step > master->k) || ((master->k - pk->step) > (uint32_t)NMAX)) {
+        } else if ((master->k - pk->step) > master->age) { /* modulo 2^32: also the future's */
             ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
@@ -276,7 +279,7 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
             }
             if (rc == TWO_LINK_ARM_OK) {
                 used++;
-                if (pk->step < master->k) {
+                if (pk->step != master->k) {
                     stale++;
                 }
             }
@@ -320,16 +323,18 @@ int two_link_arm_master_predict(two_link_arm_master* master, const real input[NY
     int rc = TWO_LINK_ARM_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = TWO_LINK_ARM_ERR_ARG;
-    } else if (master->k == TWO_LINK_ARM_LAST_STEP) { /* 32-bit step numbers: no successor */
-        rc = TWO_LINK_ARM_ERR_SEQUENCE;
     } else if (two_link_arm_finite(v, NY) == 0) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     } else {
         rc = master_step(master->x, master->P, v, master->q, master->centre, x1, P1);
     }
     if (rc == TWO_LINK_ARM_OK) {
-        (void)memcpy(&master->v[input_at(master->k)], v, sizeof(real[NY]));
+        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NY]));
         master->k++;
+        master->vslot = ((master->vslot + 1u) == (uint32_t)NMAX) ? 0u : (master->vslot + 1u);
+        if (master->age < (uint32_t)NMAX) {
+            master->age++;
+        }
         (void)memcpy(master->x_prior, x1, sizeof(x1));
         (void)memcpy(master->P_prior, P1, sizeof(P1));
         (void)memcpy(master->x, x1, sizeof(x1));

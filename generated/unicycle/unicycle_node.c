@@ -26,25 +26,35 @@ size_t unicycle_packet_size(void)
     return sizeof(unicycle_packet);
 }
 
+/* Step numbers wrap at 2^32, which no ring size divides: a step of the window (k - NMAX .. k + 1)
+ * is found by its distance back from k, k - step modulo 2^32, from k's own positions. */
+
 /* Ring slot of a step for x, z and v (NMAX + 1 slots). */
-static int slot_of(uint32_t step)
+static int slot_of(const unicycle_node* node, uint32_t step)
 {
-    uint32_t slot = step % ((uint32_t)UNICYCLE_NMAX + 1u);
-    return (int)slot;
+    const uint32_t size = (uint32_t)UNICYCLE_NMAX + 1u;
+    uint32_t at = ((uint32_t)node->slot + size) - (node->k - step);
+    at %= size;
+    return (int)at;
 }
 
 /* Entry of a step in the flags' history, which reaches CHECK_EVERY - 1 steps further back than
  * the ring so that the P recursion can start from the checkpoint before the oldest slot. */
-static int hist_of(uint32_t step)
+static int hist_of(const unicycle_node* node, uint32_t step)
 {
-    uint32_t at = step % UNICYCLE_NODE_NHIST;
+    uint32_t at = ((uint32_t)node->hist + UNICYCLE_NODE_NHIST) - (node->k - step);
+    at %= UNICYCLE_NODE_NHIST;
     return (int)at;
 }
 
 /* Entry of a checkpoint step (a multiple of CHECK_EVERY) in ring_P. */
-static int check_of(uint32_t step)
+static int check_of(const unicycle_node* node, uint32_t step)
 {
-    uint32_t at = (step / UNICYCLE_NODE_CHECK_EVERY) % UNICYCLE_NODE_NCHECK;
+    /* CHECK_EVERY divides 2^32, so k mod CHECK_EVERY does not jump where k wraps */
+    uint32_t latest = node->k - (node->k % UNICYCLE_NODE_CHECK_EVERY);
+    uint32_t back = (latest - step) / UNICYCLE_NODE_CHECK_EVERY;
+    uint32_t at = ((uint32_t)node->check + UNICYCLE_NODE_NCHECK) - back;
+    at %= UNICYCLE_NODE_NCHECK;
     return (int)at;
 }
 
@@ -294,7 +304,7 @@ int unicycle_node_update(unicycle_node* node, const real z[NY], int gamma)
             node->health.updates++;
             if (node->measured == 0u) {
                 node->measured = 1u;
-                node->first = node->k;
+                node->age = 0u;
             }
         } else {
             node->health.drops++;
@@ -338,10 +348,10 @@ static int prior_P(const unicycle_node* node, uint32_t j, real* prior)
     int rc = UNICYCLE_OK;
     (void)memset(prior, 0, sizeof(real) * (size_t)NX);
     (void)memset(zero, 0, sizeof(zero));
-    (void)memcpy(&prior[NX], &node->ring_P[check_of(s) * NPP], sizeof(real) * (size_t)NPP);
-    while ((rc == UNICYCLE_OK) && (s < j)) {
+    (void)memcpy(&prior[NX], &node->ring_P[check_of(node, s) * NPP], sizeof(real) * (size_t)NPP);
+    while ((rc == UNICYCLE_OK) && (s != j)) { /* s <= j, modulo 2^32 */
         int used = 0;
-        if ((node->ring_flags[hist_of(s)] & USED) != 0u) {
+        if ((node->ring_flags[hist_of(node, s)] & USED) != 0u) {
             used = 1;
         }
         rc = update_step(prior, zero, used, node->R, post);
@@ -374,13 +384,13 @@ static int replay(unicycle_node* node, uint32_t j0, const real* zlate, real* pos
     uint32_t i;
     int c;
     int rc = prior_P(node, j0, prior);
-    (void)memcpy(prior, &node->ring_x[slot_of(j0) * NX], sizeof(real) * (size_t)NX);
+    (void)memcpy(prior, &node->ring_x[slot_of(node, j0) * NX], sizeof(real) * (size_t)NX);
     while ((rc == UNICYCLE_OK) && (j != stop)) {
-        int slot = slot_of(j);
-        real* xnext = &node->ring_x[slot_of(j + 1u) * NX];
+        int slot = slot_of(node, j);
+        real* xnext = &node->ring_x[slot_of(node, j + 1u) * NX];
         const real* z = (j == j0) ? zlate : &node->ring_z[slot * NY];
         int used = 1; /* the late step, and the steps the history used */
-        if ((j != j0) && ((node->ring_flags[hist_of(j)] & USED) == 0u)) {
+        if ((j != j0) && ((node->ring_flags[hist_of(node, j)] & USED) == 0u)) {
             used = 0;
         }
         rc = update_step(prior, z, used, node->R, post);
@@ -392,7 +402,7 @@ static int replay(unicycle_node* node, uint32_t j0, const real* zlate, real* pos
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
             if ((rc == UNICYCLE_OK) && (((j + 1u) % UNICYCLE_NODE_CHECK_EVERY) == 0u)) {
-                real* cp = &node->ring_P[check_of(j + 1u) * NPP];
+                real* cp = &node->ring_P[check_of(node, j + 1u) * NPP];
                 (void)memcpy(&old_P[checks * NPP], cp, sizeof(real) * (size_t)NPP);
                 checks++;
                 (void)memcpy(cp, &prior[NX], sizeof(real) * (size_t)NPP);
@@ -404,11 +414,11 @@ static int replay(unicycle_node* node, uint32_t j0, const real* zlate, real* pos
         first = j0 - (j0 % UNICYCLE_NODE_CHECK_EVERY); /* the first checkpoint after j0 */
         first += UNICYCLE_NODE_CHECK_EVERY;
         for (i = 0u; i < written; i++) {
-            (void)memcpy(&node->ring_x[slot_of(j0 + 1u + i) * NX], &old_x[i * (uint32_t)NX],
+            (void)memcpy(&node->ring_x[slot_of(node, j0 + 1u + i) * NX], &old_x[i * (uint32_t)NX],
                          sizeof(real) * (size_t)NX);
         }
         for (c = 0; c < checks; c++) {
-            (void)memcpy(&node->ring_P[check_of(first) * NPP], &old_P[c * NPP],
+            (void)memcpy(&node->ring_P[check_of(node, first) * NPP], &old_P[c * NPP],
                          sizeof(real) * (size_t)NPP);
             first += UNICYCLE_NODE_CHECK_EVERY;
         }
@@ -432,20 +442,20 @@ int unicycle_node_update_delayed(unicycle_node* node, const real z_abs[NY], int3
     if ((rc == UNICYCLE_OK) && (unicycle_finite(z_abs, NY) == 0)) {
         rc = UNICYCLE_ERR_NONFINITE;
     }
-    if ((rc == UNICYCLE_OK) && ((lag < 1) || (lag > UNICYCLE_NMAX) || ((uint32_t)lag > node->k))) {
+    if ((rc == UNICYCLE_OK) && ((lag < 1) || (lag > UNICYCLE_NMAX))) {
         node->health.late_rejected++;
         rc = UNICYCLE_ERR_LAG;
     }
-    /* started mid-run: a step before the first measurement holds the start-up prior alone */
-    if ((rc == UNICYCLE_OK) &&
-        ((node->measured == 0u) || ((node->k - (uint32_t)lag) < node->first))) {
+    /* before step 0, or (started mid-run) before the first measurement, which holds the start-up
+     * prior alone */
+    if ((rc == UNICYCLE_OK) && ((node->measured == 0u) || ((uint32_t)lag > node->age))) {
         node->health.late_rejected++;
         rc = UNICYCLE_ERR_LAG;
     }
     if (rc == UNICYCLE_OK) {
         centred(node, z_abs, z);
         N = (uint32_t)lag;
-        hist = hist_of(node->k - N);
+        hist = hist_of(node, node->k - N);
         if ((node->ring_flags[hist] & HAS) != 0u) {
             node->health.late_rejected++;
             rc = UNICYCLE_ERR_DUPLICATE;
@@ -455,7 +465,7 @@ int unicycle_node_update_delayed(unicycle_node* node, const real z_abs[NY], int3
         rc = replay(node, node->k - N, z, post);
     }
     if (rc == UNICYCLE_OK) {
-        (void)memcpy(&node->ring_z[slot_of(node->k - N) * NY], z, sizeof(real) * (size_t)NY);
+        (void)memcpy(&node->ring_z[slot_of(node, node->k - N) * NY], z, sizeof(real) * (size_t)NY);
         node->ring_flags[hist] = (uint8_t)(HAS | USED);
     }
     if (rc == UNICYCLE_OK) {
@@ -471,12 +481,12 @@ int unicycle_node_predict(unicycle_node* node, const real input[NY])
     real next[NXP];
     int slot;
     uint32_t hist;
+    uint32_t check;
     int rc = UNICYCLE_OK;
     if ((node == NULL) || (v == NULL)) {
         rc = UNICYCLE_ERR_ARG;
     }
-    /* step numbers are 32 bits: the last one has no successor (no ring index wraps) */
-    if ((rc == UNICYCLE_OK) && ((node->updated == 0u) || (node->k == UNICYCLE_LAST_STEP))) {
+    if ((rc == UNICYCLE_OK) && (node->updated == 0u)) {
         rc = UNICYCLE_ERR_SEQUENCE;
     }
     if (rc == UNICYCLE_OK) { /* a non-finite v makes the prediction so */
@@ -491,8 +501,13 @@ int unicycle_node_predict(unicycle_node* node, const real input[NY])
         hist = (uint32_t)node->hist + 1u;
         node->hist = (uint16_t)((hist == UNICYCLE_NODE_NHIST) ? 0u : hist);
         (void)memcpy(&node->ring_x[slot * NX], next, sizeof(real) * (size_t)NX);
+        if (node->age < UNICYCLE_NODE_NHIST) {
+            node->age++;
+        }
         if ((node->k % UNICYCLE_NODE_CHECK_EVERY) == 0u) {
-            (void)memcpy(&node->ring_P[check_of(node->k) * NPP], &next[NX],
+            check = (uint32_t)node->check + 1u;
+            node->check = (uint16_t)((check == UNICYCLE_NODE_NCHECK) ? 0u : check);
+            (void)memcpy(&node->ring_P[(int)node->check * NPP], &next[NX],
                          sizeof(real) * (size_t)NPP);
         }
         (void)memset(&node->ring_z[slot * NY], 0, sizeof(real) * (size_t)NY);
