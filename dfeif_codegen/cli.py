@@ -317,9 +317,8 @@ def bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from dfeif_codegen.check import bench
-    from dfeif_codegen.paths import writable_file
 
-    writable_file(args.out, "--out")
+    bench.check_out(args.out, args.model)
     command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
         else None
     result = bench.bench(args.model, repeat=args.repeat, command=command, quick=args.quick,

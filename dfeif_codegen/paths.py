@@ -4,9 +4,11 @@ write, and the text files (models, scenarios) it reads, each refused in one line
 from __future__ import annotations
 
 import os
+import stat
 import sys
 import tempfile
 from pathlib import Path
+from typing import Callable
 
 from dfeif_codegen.errors import CodegenError
 
@@ -60,6 +62,59 @@ def writable_file(path: str | Path, flag: str) -> None:
         raise OutputPathError(f"{flag} {path}: cannot create it ({path.absolute().parent} is not a writable folder)")
 
 
+def replaceable_file(path: str | Path, flag: str, command: str, ours: Callable[[Path], bool],
+                     inputs: dict | None = None) -> None:
+    """`flag PATH` as writable_file, and never a file the toolkit did not write: not one of the
+    command's `inputs` ({what: path}, e.g. the scenario it reads), and an existing file only if
+    `ours(PATH)` recognises it as this command's earlier output."""
+    writable_file(path, flag)
+    path = Path(path)
+    if not path.exists():
+        return
+    if not path.is_file():     # a device or FIFO: neither ours nor safe to read to find out
+        raise OutputPathError(f"{flag} {path}: exists and is not a regular file; choose another path")
+    for what, given in (inputs or {}).items():
+        if _same_file(path, given):
+            raise OutputPathError(f"{flag} {path}: is the {what} this command reads; choose another path")
+    if not ours(path):
+        raise OutputPathError(f"{flag} {path}: exists and was not written by codegen {command}; not overwriting "
+                              "it: remove it or choose another path")
+
+
+def _same_file(a: Path, b) -> bool:
+    """Whether `b` (a path, or a built-in's name or a model object: no file) is the file `a`."""
+    if not isinstance(b, (str, os.PathLike)) or str(b) == "":
+        return False
+    try:
+        return Path(b).is_file() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def first_line(path: Path, limit: int = 2 ** 16) -> str:
+    """The first line of a file (at most `limit` bytes of it, decoded leniently; "" when it
+    cannot be read): what recognises a toolkit's earlier output without reading all of it."""
+    try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return ""
+        with open(path, "rb") as fh:
+            head = fh.read(limit)
+    except OSError:
+        return ""
+    return head.split(b"\n", 1)[0].decode("utf-8", "replace").rstrip("\r")
+
+
+def json_keys(path: Path) -> set:
+    """The top-level keys of a JSON object file (empty when it is not one, or over MAX_TABLE_BYTES)."""
+    import json
+
+    try:
+        doc = json.loads(read_bytes(path, str(path), CodegenError, "JSON", MAX_TABLE_BYTES))
+    except (CodegenError, ValueError, RecursionError):
+        return set()
+    return set(doc) if isinstance(doc, dict) else set()
+
+
 def writable_dir(path: str | Path, flag: str) -> None:
     """`flag DIR`: DIR exists as a writable folder or can be created."""
     path = Path(path)
@@ -72,13 +127,39 @@ def writable_dir(path: str | Path, flag: str) -> None:
         raise OutputPathError(f"{flag} {path}: cannot write there ({base} is not a writable folder)")
 
 
-def read_text(path: Path, source: str, error: type[CodegenError], kind: str) -> str:
-    """A user's text file (a model, a scenario), or one line naming why it cannot be one:
-    unreadable, not UTF-8, or binary (a NUL byte)."""
+MAX_TEXT_BYTES = 16 * 2 ** 20   # a model or scenario file: the largest shipped is a few kB
+MAX_TABLE_BYTES = 256 * 2 ** 20  # a trajectory CSV: a million steps of a few columns
+
+
+def read_bytes(path: Path, source: str, error: type[CodegenError], kind: str, limit: int = MAX_TEXT_BYTES) -> bytes:
+    """A user's input file's bytes, refused in one line if it is not a regular file (a device
+    such as /dev/zero would be read until memory runs out, a FIFO would block forever) or is
+    larger than `limit`."""
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        info = os.stat(path)
     except OSError as exc:
         raise error(f"{source}: cannot read {kind} file ({exc.strerror})") from None
+    if not stat.S_ISREG(info.st_mode):
+        what = "a folder" if stat.S_ISDIR(info.st_mode) else "a device, FIFO or socket"
+        raise error(f"{source}: cannot read {kind} file (not a regular file: {what})")
+    if info.st_size > limit:
+        raise error(f"{source}: {kind} file of {info.st_size} bytes: at most {limit // 2 ** 20} MiB")
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(limit + 1)        # bounded even if the file grows meanwhile
+    except OSError as exc:
+        raise error(f"{source}: cannot read {kind} file ({exc.strerror})") from None
+    if len(raw) > limit:
+        raise error(f"{source}: {kind} file larger than {limit // 2 ** 20} MiB")
+    return raw
+
+
+def read_text(path: Path, source: str, error: type[CodegenError], kind: str) -> str:
+    """A user's text file (a model, a scenario), or one line naming why it cannot be one:
+    unreadable, not a regular file, too large, not UTF-8, or binary (a NUL byte)."""
+    raw = read_bytes(path, source, error, kind)
+    try:
+        text = raw.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")   # as open()'s newlines
     except UnicodeDecodeError as exc:
         raise error(f"{source}: not a UTF-8 text file (byte {exc.start})") from None
     if "\x00" in text:

@@ -81,6 +81,70 @@ def generated() -> dict:
             ("malformed", "[scenario\n", ["malformed TOML"]),
             ("binary", b"\x00\x01\x02", ["s.toml"])):
         c[f"scenario {name}"] = ("scenario file", ["simulate", *S], {"s.toml": text}, ["s.toml", *words])
+    # --- every numeric scenario field is finite (an inf ran, then diverged or crashed) -----------
+    for name, table, words in (
+            ("q inf", "[filter]\nq = [inf]", ["s.toml:7", "filter.q", "finite", "inf"]),
+            ("p0_std inf", "[filter]\np0_std = [inf, 0.1, 1.0]", ["s.toml:7", "filter.p0_std", "finite"]),
+            ("poles inf", "[control]\npoles = inf", ["s.toml:7", "control.poles", "finite"]),
+            ("period inf", "[reference]\nperiod = inf", ["s.toml:7", "reference.period", "finite"]),
+            ("cycles inf", "[reference]\ncycles = [inf]", ["s.toml:7", "reference.cycles", "finite"]),
+            ("amplitude inf", "[reference]\namplitude = [inf]", ["s.toml:7", "reference.amplitude", "finite"]),
+            ("phase inf", "[reference]\nphase = [inf]", ["s.toml:7", "reference.phase", "finite"]),
+            ("offset -inf", "[reference]\noffset = [-inf]", ["s.toml:7", "reference.offset", "finite"]),
+            ("tracking_bound inf", "[reference]\ntracking_bound = [inf]", ["s.toml:7", "reference.tracking_bound", "finite"]),
+            ("harmonics 1e400", "[reference]\nharmonics = 1" + "0" * 400, ["s.toml:7", "reference.harmonics"]),
+            ("noise_scale inf", "[[nodes]]\nnoise_scale = inf\n[[nodes]]\nnoise_scale = 1.0",
+             ["s.toml:7", "nodes[1].noise_scale", "finite"]),
+            ("noise_std inf", "[[nodes]]\nnoise_scale = 1.0\nnoise_std = [1e-3, inf]\n[[nodes]]\nnoise_scale = 1.0",
+             ["s.toml:8", "nodes[1].noise_std", "finite"]),
+            ("uplink p_drop nan", "[uplink]\np_drop = nan", ["s.toml:7", "uplink.p_drop", "finite"]),
+            ("grid p inf", "[[grid]]\nd = 0\np = inf", ["s.toml:8", "grid[1].p", "finite"]),
+            ("absolute offset zeroes L", "[model_error]\nabsolute = { L = -0.005 }",
+             ["s.toml:7", "model_error.absolute.L", "zero or sign flip"]),
+            ("absolute offset flips L", "[model_error]\nabsolute = { L = -0.01 }",
+             ["s.toml:7", "model_error.absolute.L", "sign flip"]),
+            ("absolute offset and spread flip L", "[model_error]\nabsolute = { L = -0.004 }\nspread = 0.5",
+             ["s.toml:7", "model_error.absolute.L", "sign flip"])):
+        c[f"scenario {name}"] = ("scenario field", ["simulate", *S, "--engine", "reference"],
+                                 {"s.toml": SMALL + table + "\n"}, words)
+    c["--param-error twice"] = ("option: out of range", ["simulate", *S, "--engine", "reference", "--param-error",
+                                                         "R=0.1,R=0.2"], SF, ["--param-error", "R is given twice"])
+    # --- inputs that are not regular files (read until memory ran out) -------------------------
+    for cmd in ("inspect", "build", "simulate"):
+        c[f"{cmd} model /dev/zero"] = ("model file", [cmd, "/dev/zero"], {}, ["/dev/zero", "not a regular file"])
+    c["simulate scenario /dev/zero"] = ("scenario file", ["simulate", "--scenario", "/dev/zero"], {},
+                                        ["/dev/zero", "scenario file", "not a regular file"])
+    c["trajectory /dev/zero"] = ("trajectory file", ["simulate", *S],
+                                 {"s.toml": SMALL + '[reference]\nfile = "/dev/zero"\n'},
+                                 ["s.toml:7", "reference.file", "/dev/zero", "not a regular file"])
+    # --- an output is never an input, nor a file another program wrote ---------------------------
+    for flag in ("--json", "--csv", "--results"):
+        c[f"simulate {flag} is the scenario"] = ("output path", ["simulate", *S, flag, "{d}/in/s.toml"], SF,
+                                                 [flag, "s.toml", "is the scenario file this command reads"])
+        c[f"simulate {flag} a user's file"] = ("output path", ["simulate", *S, flag, "{d}/user/notes.txt"], SF,
+                                               [flag, "notes.txt", "exists and was not written by codegen simulate",
+                                                "remove it or choose another path"])
+    c["simulate --json is the model"] = ("output path", ["simulate", "{d}/in/m.toml", *S, "--json", "{d}/in/m.toml"],
+                                         {**SF, "m.toml": ("name", "dc_motor_link")},
+                                         ["--json", "m.toml", "is the model file"])
+    c["simulate --csv is the trajectory"] = (
+        "output path", ["simulate", *S, "--csv", "{d}/in/t.csv"],
+        {"s.toml": SMALL.replace('references = ["seesaw"]\n', "") + '[reference]\nfile = "t.csv"\n',
+         "t.csv": "t,theta\n" + "".join(f"{k * 0.01!r},{0.1 * k * 0.01!r}\n" for k in range(101))},
+        ["--csv", "t.csv", "not written by codegen simulate"])   # a trajectory's first column is t, never --csv's
+    c["simulate --json and --csv one file"] = ("output path", ["simulate", *S, "--json", "{d}/r.out", "--csv",
+                                                               "{d}/r.out"], SF, ["--csv", "r.out", "also given to --json"])
+    c["simulate --json a device"] = ("output path", ["simulate", *S, "--json", "/dev/null"], SF,
+                                     ["--json", "/dev/null", "not a regular file"])
+    c["bench --out a user's file"] = ("output path", ["bench", "--out", "{d}/user/notes.txt"], {},
+                                      ["--out", "notes.txt", "not written by codegen bench"])
+    c["bench --out is the model"] = ("output path", ["bench", "{d}/in/m.toml", "--out", "{d}/in/m.toml"],
+                                     {"m.toml": ("name", "dc_motor_link")}, ["--out", "m.toml", "is the model file"])
+    c["reproduce --doc a user's file"] = ("output path", ["reproduce", "--out", "{d}/rep", "--doc",
+                                                          "{d}/user/notes.txt"], {},
+                                          ["--doc", "notes.txt", "not written by codegen reproduce"])
+    c["scenario --out is the model"] = ("output path", ["scenario", "{d}/in/m.toml", "--out", "{d}/in/m.toml"],
+                                        {"m.toml": ("name", "dc_motor_link")}, ["--out", "m.toml", "is the model file"])
     c["scenario missing"] = ("scenario file", ["simulate", "--scenario", "{d}/in/none.toml"], {}, ["none.toml"])
     # --- a user's trajectory (experiment/trajectory_file.py): dc_motor_link's theta, 1 s at 10 ms ----
     traj = "[scenario]\nduration = 1.0\nruns = 1\nmetrics_from = 0.2\n[reference]\nfile = \"t.csv\"\n"

@@ -101,6 +101,29 @@ def test_c_engine_reports_a_diverging_plant_like_the_reference(host_cc):
         assert abs(np.log10(float(cn.rstrip(")"))) - np.log10(float(pn.rstrip(")")))) < 2
 
 
+def test_c_engine_names_the_earlier_cause_of_a_failed_call(host_cc):
+    """The kinematic car of tests/data under as-current (tests/test_baseline_check.py): its speed
+    leaves its domain at 4.12 s, and 0.5 s later the law's det G is singular. The reference's
+    watch stops at the first; the C engine, whose failed call (control, ERR_SINGULAR) ends its
+    loop later, now runs the same watch up to that call and names the same cause, where it used
+    to report only 'error -4'."""
+    from pathlib import Path
+
+    from dfeif_codegen.experiment import scenario
+    from dfeif_codegen.experiment.plan import make_config
+
+    data = Path(__file__).parent / "data"
+    sc = scenario.load(str(data / "bicycle_circle.toml"))
+    row = next(r for r in sc.grid if r.p > 0)
+    cfg = make_config(sc, str(data / "bicycle.toml"), 2, 32, sc.references[0], row, "as-current", "difference", 0)
+    with pytest.raises(ArithmeticError) as py:
+        ex.run(cfg)
+    with pytest.raises(ArithmeticError) as c:
+        closed_loop_c.run(cfg)
+    assert type(c.value) is type(py.value) and str(c.value) == str(py.value)
+    assert str(py.value).startswith("diverged at t = 4.12 s: state v = 0.104 left its domain [0.2, 5]")
+
+
 TINY = """
 [scenario]
 duration = 1.0

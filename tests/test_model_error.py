@@ -295,3 +295,24 @@ def test_paired_ratios_under_model_error(tmp_path):
         np.testing.assert_allclose(same["mean"], 1.0, rtol=1e-12)   # today the df filter is the chapter's
     text = result.report()
     assert "Table VII" in text and "every parameter uniform +-20%" in text and "seesaw" in text
+
+
+def test_absolute_offsets_are_checked_like_relative_ones():
+    """L = 0.005 H: an offset of -0.004 leaves 0.001 (accepted, and the plant's L is exactly
+    that); -0.005 makes it 0 and -0.01 flips it (refused, naming the field); with a +-50% draw
+    -0.004 can reach 0.0025 - 0.004 < 0 (refused)."""
+    flat = ex._flat("dc_motor_link")
+    names = [q.name for q in flat.model.parameters]
+    ok = me.ParamError(absolute=(("L", -0.004),))
+    ok.check(flat.model, lambda key: key)
+    assert ok.values(flat.model, 0)[names.index("L")] == pytest.approx(0.001, rel=1e-12)
+    for spec in (me.ParamError(absolute=(("L", -0.005),)), me.ParamError(absolute=(("L", -0.01),)),
+                 me.ParamError(absolute=(("L", -0.004),), draw="uniform", spread=(("*", 0.5),))):
+        with pytest.raises(ScenarioError, match=r"^absolute\.L: .*zero or sign flip"):
+            spec.check(flat.model, lambda key: key)
+
+
+def test_a_parameter_given_twice_in_the_option_is_refused():
+    with pytest.raises(ScenarioError, match="--param-error: R=0.1,R=0.2: R is given twice"):
+        me.from_option("R=0.1,R=0.2")
+    assert me.from_option("R=0.1,J=0.2").relative == (("J", 0.2), ("R", 0.1))

@@ -217,6 +217,11 @@ def test_build_check_and_inspect_are_api_functions():
 
     root = Path(__file__).resolve().parents[1] / "generated"
     assert dc.check_build("dc_motor_link", root) == []
+    for fn in (dc.check_build, dc.build):      # a CodegenError like every other bad option, not a TypeError
+        with pytest.raises(dc.BuildError, match="--out must be a folder path .*got None"):
+            fn("dc_motor_link", out=None)
+        with pytest.raises(dc.BuildError, match="--out must be a folder path .*got 3"):
+            fn("dc_motor_link", 3)
     info = inspect_model.inspect("dc_motor_link", ts=0.02)
     assert info["A_d"] == [[1.0, 0.02, 0.02 ** 2 / 2], [0.0, 1.0, 0.02], [0.0, 0.0, 1.0]]
     with pytest.raises(ModelError, match="sampling period must be a number of seconds"):

@@ -27,6 +27,17 @@ MODELS = ("dc_motor_link", "two_link_arm")
 NETWORK_MARK = "<!-- codegen network --bench -->"
 
 
+TITLE = "# Benchmarks"    # the first line of every report (bench_report) and of net/bench.py's
+
+
+def check_out(out: str, model: str | None = None) -> None:
+    """`--out FILE`, before any measurement: a new file, or a report of ours (its title line;
+    the network section `codegen network --bench` added is kept), never the model file."""
+    from dfeif_codegen.paths import first_line, replaceable_file
+
+    replaceable_file(out, "--out", "bench", lambda p: first_line(p) == TITLE, {"model file": model})
+
+
 def keep_network_section(text: str, previous: str) -> str:
     """The report with the section `codegen network --bench` wrote into the previous one kept."""
     if NETWORK_MARK not in previous:

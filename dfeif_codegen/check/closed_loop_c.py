@@ -250,10 +250,12 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
     out = driver_io.canonical(out, n)       # the filters' canonical part, as the reference records it
     if err != 0:
         step, call = res.out.failed_step, res.out.failed_call
+        # an earlier cause first, as numpy's loop meets it: the watch runs every step before the call
+        divergence.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"], steps=step)
         if call == FAILED_PLANT or err == ERR_NONFINITE:   # where numpy's loop sees the plant diverge
-            divergence.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"], steps=step)  # an earlier cause
             divergence.check_tracking_at(s, out["zeta"], step)   # the watch's first check at this step
-            raise divergence.Diverged(f"diverged at t = {s.t[step]:.2f} s: the state is not finite")
+            what = "the plant's state" if call == FAILED_PLANT else f"the result of {driver_io.CALLS.get(call, 'init')}"
+            raise divergence.Diverged(f"diverged at t = {s.t[step]:.2f} s: {what} is not finite")
         raise CEngineError(driver_io.failure({"failed_step": step, "failed_call": call, "status": err}))
     counters = []
     health = (ctypes.c_uint32 * 4)()

@@ -132,7 +132,13 @@ CALLS = {1: "node update", 2: "node update_delayed", 3: "node packet", 4: "maste
          6: "predict", 8: "extension_step"}
 
 
+# the filter calls' return codes, as every generated header defines them (templates/model.h.j2)
+FILTER_ERRORS = {-1: "ERR_ARG", -2: "ERR_LAG", -3: "ERR_NONFINITE", -4: "ERR_SINGULAR", -5: "ERR_DUPLICATE",
+                 -6: "ERR_SEQUENCE"}
+
+
 def failure(status: dict, err: int | None = None) -> str:
     code = status["status"] if err is None else err
+    name = FILTER_ERRORS.get(code)
     return (f"the C failed at step {status['failed_step']} in "
-            f"{CALLS.get(status['failed_call'], 'init')} with error {code}")
+            f"{CALLS.get(status['failed_call'], 'init')} with error {code}{f' ({name})' if name else ''}")

@@ -44,6 +44,7 @@ class Options:
             raise BuildError(f"--singular-rtol must be a number in [0, 1), got {rtol!r}")
         object.__setattr__(self, "singular_rtol", float(rtol))
         object.__setattr__(self, "ts", float(ts))
+        implicit = self.predictor is None
         object.__setattr__(self, "predictor", for_method(self.predictor, self.oosm))
         for name, limit in (("max_lag", MAX_LAG_LIMIT), ("nodes", NODES_LIMIT)):
             value = getattr(self, name)
@@ -58,9 +59,9 @@ class Options:
             raise BuildError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the "
                              f"transition over the lag, ill-conditioned for the {self.predictor} predictor's); "
                              "use --oosm replay")
-        self._check_disturbance()
+        self._check_disturbance(implicit)
 
-    def _check_disturbance(self) -> None:
+    def _check_disturbance(self, implicit: bool) -> None:
         kind, tau = self.disturbance, self.tau
         if kind is None:
             if tau is not None:
@@ -69,7 +70,8 @@ class Options:
         if kind not in DISTURBANCES:
             raise BuildError(f"--disturbance must be one of {', '.join(DISTURBANCES)}, got {kind!r}")
         if self.predictor != "held":
-            raise BuildError(f"--disturbance needs --predictor held (the {self.predictor} predictor has no "
+            chosen = f", the default with --oosm {self.oosm}," if implicit else ""
+            raise BuildError(f"--disturbance needs --predictor held (the {self.predictor} predictor{chosen} has no "
                              "disturbance states)")
         if kind == "gauss_markov":
             if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau <= 0:

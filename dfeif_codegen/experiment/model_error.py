@@ -14,7 +14,7 @@ draw comes from the run's seed through its own stream (spawn key 3 of the seed, 
 network, noise and initial-state streams): every filter, method and delay row of one seed sees
 the same plant, so their results stay paired, and a run is reproducible from its seed. A
 relative change of 100% or more (|r| + s >= 1, or 3 s for a Gaussian) could flip a parameter's
-sign and is refused.
+sign and is refused, and so is an absolute offset that could make a parameter 0 or flip it.
 
 Scenario TOML:
 
@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.symbolic.disturbance import finite_number
 
 DRAWS = ("none", "uniform", "normal")
 KEYS = {"relative", "absolute", "draw", "spread", "params"}
@@ -64,13 +65,28 @@ class ParamError:
                                         f"(its parameters: {', '.join(known) or 'none'})")
         if self.active and not known:
             raise ScenarioError(f"{where('model_error')}: model {model.name} has no parameters to perturb")
-        rel, _, spread = self._vectors(model)
+        rel, ab, spread = self._vectors(model)
         reach = np.abs(rel) + (TRUNCATION if self.draw == "normal" else 1.0) * spread * (self.draw != "none")
         if np.any(reach >= 1.0):
             i = int(np.argmax(reach))
             raise ScenarioError(f"{where('relative' if rel[i] else 'spread')}: parameter {known[i]} could change "
                                 f"by {100 * reach[i]:.0f}% of its value (sign flip): keep |relative| + "
                                 f"{'3 x ' if self.draw == 'normal' else ''}spread below 1")
+        self._check_absolute(model, ab, reach, where)
+
+    def _check_absolute(self, model, ab, reach, where) -> None:
+        """An absolute offset may not make a parameter 0 or flip its sign, even at the draw's
+        edge: the plant would divide by 0 or run another system (as a relative one >= 100%)."""
+        for i, q in enumerate(model.parameters):
+            p0 = float(q.value)
+            if not ab[i] or p0 == 0:      # a parameter the model leaves at 0 may take any value
+                continue
+            edges = (p0 * (1.0 - reach[i]) + ab[i], p0 * (1.0 + reach[i]) + ab[i])
+            bad = [v for v in edges if v == 0 or (v > 0) != (p0 > 0)]
+            if bad:
+                raise ScenarioError(f"{where(f'absolute.{q.name}')}: the model's {q.name} = {p0:g} plus {ab[i]:g} "
+                                    f"reaches {bad[0]:g} (zero or sign flip): keep |absolute| below "
+                                    f"{abs(p0) * (1.0 - reach[i]):g}")
 
     def stds(self, model) -> np.ndarray:
         """Each parameter's relative error, as a standard deviation (model order): the draw's when
@@ -189,8 +205,7 @@ def from_table(table: dict, fail) -> ParamError:
         if key not in KEYS:
             fail(f"model_error.{key}", f"unknown field (expected one of {', '.join(sorted(KEYS))})")
 
-    def number(value) -> bool:
-        return isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+    number = finite_number
 
     def named(key) -> tuple:
         value = table.get(key, {})
@@ -242,6 +257,8 @@ def from_option(text: str) -> ParamError:
             number = float("nan")
         if not name.strip() or not np.isfinite(number):
             raise ScenarioError(f"{where}: '{item}' is neither a spread (0.2) nor NAME=RELATIVE (R=0.2)")
+        if name.strip() in offsets:
+            raise ScenarioError(f"{where}: {text}: {name.strip()} is given twice; give distinct parameter names")
         offsets[name.strip()] = number
     return ParamError(relative=tuple(sorted(offsets.items())))
 

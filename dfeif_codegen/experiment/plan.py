@@ -7,6 +7,7 @@ measurement method, and the EKF/UKF judge the recordings of the replay + differe
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 from dfeif_codegen.errors import ScenarioError, SetupError
@@ -88,15 +89,24 @@ class Plan:
         return sum(len(k) for k in self.wanted.values())
 
 
-def check_outputs(json_path, plot_dir, csv=None, results=None) -> None:
-    """Output paths and matplotlib, before any run."""
-    from dfeif_codegen.paths import writable_dir, writable_file
+def check_outputs(json_path, plot_dir, csv=None, results=None, inputs=None, resume=None) -> None:
+    """Output paths and matplotlib, before any run: each a new file, or this command's own earlier
+    output of its kind; none of them an input (`inputs`: {what: path}) or another output."""
+    from dfeif_codegen.experiment import sweep
+    from dfeif_codegen.experiment.report import SimulationResult
+    from dfeif_codegen.paths import replaceable_file, writable_dir
 
-    if json_path is not None and json_path != "-":
-        writable_file(json_path, "--json")
-    for flag, path in (("--csv", csv), ("--results", results)):
+    outputs = (("--json", None if json_path == "-" else json_path, SimulationResult.is_json),
+               ("--csv", csv, sweep.is_csv), ("--results", results, sweep.is_records))
+    for flag, path, ours in outputs:
         if path is not None:
-            writable_file(path, flag)
+            given = {**(inputs or {}), **({"--resume file": resume} if flag != "--results" else {})}
+            replaceable_file(path, flag, "simulate", ours, given)
+    named = [(flag, path) for flag, path, _ in outputs if path is not None]
+    for i, (flag, path) in enumerate(named):
+        for other, there in named[:i]:
+            if os.path.abspath(path) == os.path.abspath(there):
+                raise ScenarioError(f"{flag} {path}: also given to {other}; give each output its own path")
     if plot_dir:
         writable_dir(plot_dir, "--plot")
         try:

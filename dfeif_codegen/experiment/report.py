@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dfeif_codegen import paths
 from dfeif_codegen.experiment import closed_loop as ex
 
 
@@ -45,6 +46,9 @@ class Table:
             raise KeyError(f"{metric}: every run of {self.reference} {self.method} {self.fusion} failed")
         return np.stack([np.asarray(r[metric][part], dtype=float) if r.get("runs") else np.full_like(ok[0], np.nan)
                          for r in self.rows])
+
+
+JSON_KEYS = ("settings", "rows", "states", "tables", "bounds", "failures", "figures", "paired")   # to_dict's
 
 
 @dataclass
@@ -90,6 +94,11 @@ class SimulationResult:
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict())
+
+    @staticmethod
+    def is_json(path) -> bool:
+        """Whether `path` holds a `to_json` an earlier run wrote (--json): its top-level keys."""
+        return paths.json_keys(path) == set(JSON_KEYS)
 
     def report(self) -> str:
         """The tables as `codegen simulate` prints them."""
@@ -280,3 +289,5 @@ def _print_report(out, r: SimulationResult) -> None:
         print(f"\n{len(r.failures)} run(s) failed (left out of the averages):", file=out)
         for line in r.failures[:10]:
             print(f"  {line}", file=out)
+        if len(r.failures) > 10:
+            print(f"  ... and {len(r.failures) - 10} more (every one in --json's \"failures\")", file=out)

@@ -220,15 +220,11 @@ class _Reader:
 
     def number(self, table, section, key, default, positive=False, allow_zero=True, integer=False):
         value = table.get(key, default)
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if integer:
-            ok = ok and float(value).is_integer()
-        if ok and value != value:
-            ok = False
+        ok = disturbances.finite_number(value) and (not integer or float(value).is_integer())
         if ok and positive and (value < 0 or (value == 0 and not allow_zero)):
             ok = False
         if not ok:
-            kind = "an integer" if integer else "a number"
+            kind = "an integer" if integer else "a finite number"
             sign = " > 0" if positive and not allow_zero else (" >= 0" if positive else "")
             self.fail(f"{section}.{key}", f"must be {kind}{sign}, got {value!r}")
         return int(value) if integer else float(value)
@@ -236,10 +232,10 @@ class _Reader:
     def numbers(self, table, section, key, default, positive=True):
         value = table.get(key, default)
         items = value if isinstance(value, list) else [value]
-        if not items or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items) \
+        if not items or not all(disturbances.finite_number(v) for v in items) \
                 or (positive and not all(v > 0 for v in items)):
-            self.fail(f"{section}.{key}", f"must be {'a positive' if positive else 'a'} number or a non-empty list "
-                                          f"of them, got {value!r}")
+            self.fail(f"{section}.{key}", f"must be {'a positive' if positive else 'a'} finite number or a non-empty "
+                                          f"list of them, got {value!r}")
         return [float(v) for v in items]
 
     def names(self, table, section, key, default, allowed):

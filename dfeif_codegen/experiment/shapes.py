@@ -73,7 +73,8 @@ def _numbers(text: str | None, m: int, flag: str) -> list[float] | None:
     except ValueError:
         raise ScenarioError(f"{flag} {text}: needs a number or {m} comma-separated numbers") from None
     if len(values) not in (1, m) or not all(np.isfinite(values)):
-        raise ScenarioError(f"{flag} {text}: needs 1 or {m} finite numbers (one per flat output)")
+        raise ScenarioError(f"{flag} {text}: needs {'1 finite number' if m == 1 else f'1 or {m} finite numbers'} "
+                            "(one per flat output)")
     return values * m if len(values) == 1 else values
 
 

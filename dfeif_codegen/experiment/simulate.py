@@ -91,7 +91,7 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
     `param_error` replaces the scenario's [model_error] (experiment/model_error.from_option).
     `predictor`: the filters' prediction, "held" (u held) or "brunovsky" (the chapter's); None:
     the default, and brunovsky for retrodiction (the only one it can use)."""
-    check_outputs(json_path, plot, csv, results)
+    check_outputs(json_path, plot, csv, results, {"model file": model, "scenario file": scenario}, resume)
     derivation.derive(model, max_seconds, max_memory)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, param_error,
              predictor)

@@ -49,7 +49,7 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
-from dfeif_codegen.experiment import disturbance_calibration, disturbance_choice, offsets_calibration, pole_margin, shapes
+from dfeif_codegen.experiment import baseline_check, disturbance_calibration, disturbance_choice, offsets_calibration, pole_margin, shapes
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.trajectory import flags
@@ -365,16 +365,10 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
         raise ScenarioError(f"--offsets {offsets}: needs --disturbance and a non-zero --param-error (its chains' q is "
                             "calibrated on the loops the disturbance calibration runs under that error)")
     path = Path(out) if out else None
-    if path is not None and path.exists():
-        try:
-            first = path.read_text(encoding="utf-8").split("\n", 1)[0]
-        except (OSError, UnicodeDecodeError):
-            first = ""
-        if not first.startswith(MARKER):
-            raise ScenarioError(f"--out {path}: exists and was not written by `codegen scenario`; not overwriting it")
     if path is not None:
-        from dfeif_codegen.paths import writable_file
-        writable_file(path, "--out")
+        from dfeif_codegen.paths import first_line, replaceable_file
+        replaceable_file(path, "--out", "scenario", lambda p: first_line(p).startswith(MARKER),
+                         {"model file": model, "trajectory file": trajectory})
     flat = derivation.derive(model, max_seconds, max_memory)
     if plant_error is not None:
         plant_error.check(flat.model, lambda key: "--param-error")
@@ -387,6 +381,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
                                          shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period)))
     try:
         text, _ = starting_scenario(model, ref, file, dist, plant_error, wanted)
+        text, _ = baseline_check.kept(text, model, str(path or "<generated>"))
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
                             f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "

@@ -33,6 +33,7 @@ import numpy as np
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
+from dfeif_codegen.paths import first_line
 
 _CODES: dict = {}          # compiled loops of this worker process (set by the pool's initializer)
 
@@ -272,9 +273,31 @@ class Records:
             self.file.close()
 
 
+CSV_HEAD = ("reference", "method", "fusion", "row", "seed", "error")   # --csv's first columns
+RECORD_START = '{"id": '   # how a --results line begins (Records.write)
+
+
+def is_csv(path: Path) -> bool:
+    """Whether `path` is a --csv file an earlier run wrote (its header line)."""
+    return first_line(path).startswith(",".join(CSV_HEAD) + ",")
+
+
+def is_records(path: Path) -> bool:
+    """Whether `path` is a --results file an earlier run wrote: empty (no run finished) or
+    starting with a run record (the whole first line, or a torn one from an interruption)."""
+    line = first_line(path, limit=2 ** 24)
+    if path.stat().st_size == 0:
+        return True
+    try:
+        rec = json.loads(line)
+    except ValueError:
+        return line.startswith(RECORD_START) and path.stat().st_size == len(line.encode())
+    return isinstance(rec, dict) and {"id", "engine", "runs", "metrics"} <= set(rec)
+
+
 def write_csv(path, rows: list[tuple], n: int, nodes: int) -> None:
     """rows: (reference, method, fusion, row number, seed, metrics or error text)."""
-    head = ["reference", "method", "fusion", "row", "seed", "error"]
+    head = list(CSV_HEAD)
     head += [f"rmse_master_x{j + 1}" for j in range(n)] + [f"rmse_tracking_x{j + 1}" for j in range(n)]
     head += [f"rmse_node{i + 1}_x{j + 1}" for i in range(nodes) for j in range(n)]
     head += ["trace_master"] + [f"trace_node{i + 1}" for i in range(nodes)]

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from dfeif_codegen.errors import ScenarioError
+from dfeif_codegen.paths import MAX_TABLE_BYTES, read_bytes
 
 MIN_ROWS = 2
 KIND = "trajectory"   # the reference name a scenario lists for its file
@@ -75,11 +76,11 @@ class Trajectory:
 def read(path: Path, smoothing: float = 0.0) -> Trajectory:
     """The CSV at `path`, checked for what does not depend on the model (header, numbers, time)."""
     shown = str(path)
+    raw = read_bytes(path, shown, ScenarioError, "trajectory", MAX_TABLE_BYTES)
     try:
-        raw = path.read_bytes()
         text = raw.decode("utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{shown}: cannot read the trajectory: {getattr(exc, 'strerror', None) or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{shown}: cannot read the trajectory: {exc}") from None
     rows = list(csv.reader(text.splitlines()))
     lines = [i + 1 for i, row in enumerate(rows) if row and any(c.strip() for c in row)]
     if not lines:

@@ -76,7 +76,10 @@ class FlatController:
         if self._det_nominal is None:
             self._det_nominal = self.flat.nominal_det()
         det = np.linalg.det(G)
-        if not np.isfinite(det) or not abs(det) >= self.singular_rtol * self._det_nominal:
+        if not np.all(np.isfinite(x)) or not np.isfinite(det):
+            raise SingularControl(f"det G(x) = {det:.3g} at x = {np.array2string(x, precision=4)}: the estimate the "
+                                  "law is given has diverged")
+        if not abs(det) >= self.singular_rtol * self._det_nominal:
             raise SingularControl(f"det G(x) = {det:.3g} is below {self.singular_rtol:g} of its nominal "
                                   f"{self._det_nominal:.3g} at x = {np.array2string(x, precision=4)}")
         if self._held is None:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.paths import writable_file
+from dfeif_codegen.paths import json_keys, replaceable_file
 from dfeif_codegen.reproduction import document
 from dfeif_codegen.reproduction.tasks import FULL, QUICK, check_out, run_task
 
@@ -88,6 +88,28 @@ def _publish(text: str, data: dict, out: Path, doc: Path) -> list[str]:
     return written
 
 
+GENERATED = "This document is generated: `codegen reproduce"   # near the top of every rendering
+
+
+def check_doc(doc: Path) -> None:
+    """`--doc FILE` and the data file beside it, before any run: new, or written by an earlier
+    `codegen reproduce` (the document's generated line; the data's keys)."""
+    replaceable_file(doc, "--doc", "reproduce", lambda p: GENERATED in _head(p))
+    data = doc.with_suffix(".json")
+    if data != doc:
+        replaceable_file(data, "--doc (its data file)", "reproduce",
+                         lambda p: {"runs", "quick", "tasks", "chapter", "facts"} <= json_keys(p))
+
+
+def _head(path: Path) -> str:
+    """The first lines of a file, leniently decoded ("" when it cannot be read)."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(4096).decode("utf-8", "replace")
+    except OSError:
+        return ""
+
+
 def reproduce(runs: int = 100, out: str = "reproduce", *, workers: int | None = None, scheduler: str | None = None,
               quick: bool = False, doc: str | None = None, quiet: bool = False) -> Reproduction:
     """Run (or reuse) every task, derive the numbers, render the document into OUT and, with
@@ -95,9 +117,9 @@ def reproduce(runs: int = 100, out: str = "reproduce", *, workers: int | None = 
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 2:
         raise ScenarioError(f"--runs {runs}: at least 2 (the tables give 95% intervals over the runs)")
     folder = Path(out)
+    if doc:                 # before check_out, which makes OUT
+        check_doc(Path(doc))
     check_out(folder)
-    if doc:
-        writable_file(doc, "--doc")
     from dfeif_codegen import api
 
     start = time.time()

@@ -12,6 +12,7 @@ Brunovsky chain has no place for them).
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,7 +130,12 @@ def from_table(table: dict, fail) -> Disturbance:
 
 def finite_number(v) -> bool:
     """A finite TOML number (a bool is an int to Python, not a number to a scenario)."""
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and abs(v) != float("inf")
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(v)
+    except OverflowError:       # a TOML integer beyond a double's range
+        return False
 
 
 def numbers(value, key: str, fail, allow_zero: bool, per: str = "chain") -> tuple:

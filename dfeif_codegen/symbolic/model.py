@@ -16,7 +16,7 @@ import sympy as sp
 from dfeif_codegen.errors import ModelError
 from dfeif_codegen.paths import parse_toml, read_text
 from dfeif_codegen.symbolic.expr_parser import parse_expression
-from dfeif_codegen.symbolic.model_parts import (CLASHING_WORDS, MODEL_NAME_LIMIT, _NAME, Measurement, Model,
+from dfeif_codegen.symbolic.model_parts import (CLASHING_WORDS, MODEL_NAME_LIMIT, _NAME, _twice, Measurement, Model,
                                                 Output, Parameter, Variable, _finite, _where)
 
 __all__ = ["CLASHING_WORDS", "MODEL_NAME_LIMIT", "Measurement", "Model", "Output", "Parameter", "Variable",
@@ -168,9 +168,10 @@ def _declare(doc: _Doc, states: list, inputs: list, parameters: list, dynamics: 
     """Every name declared once; the symbols of states, parameters and [dynamics.definitions]."""
     seen: dict[str, str] = {}
     for kind, items in (("states", states), ("inputs", inputs), ("parameters", parameters)):
-        for item in items:
+        for i, item in enumerate(items):
             if item.name in seen:
-                raise ModelError(f"{doc.where(kind)}: '{item.name}' is declared twice ({seen[item.name]} and {kind})")
+                raise ModelError(f"{doc.where(f'{kind}#{i}')}: '{item.name}' is declared twice "
+                                 f"({_twice(seen[item.name][:-1], kind[:-1])})")
             seen[item.name] = kind
     doc.symbols.update({v.name: sp.Symbol(v.name) for v in states + parameters})
     for key, expr_text in _table(dynamics, "definitions", doc.source, required=False).items():

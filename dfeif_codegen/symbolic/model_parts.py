@@ -9,7 +9,7 @@ from __future__ import annotations
 import keyword
 import re
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import sympy as sp
 
@@ -187,14 +187,16 @@ class Model:
     def _check(self) -> None:
         n, m = len(self.states), len(self.inputs)
         names: dict[str, str] = {}
-        for kind, items in (("state", self.states), ("input", self.inputs), ("parameter", self.parameters)):
-            for item in items:
+        groups: tuple[tuple[str, Sequence[Variable | Parameter]], ...] = (
+            ("state", self.states), ("input", self.inputs), ("parameter", self.parameters))
+        for kind, items in groups:
+            for i, item in enumerate(items):
+                at = self.where(f"{kind}s#{i}")    # the item's own table, not the first one
                 if not c_safe(item.name) or keyword.iskeyword(item.name) or item.name in _RESERVED:
-                    raise ModelError(f"{self.where(kind + 's')}: {item.name!r} is not a usable {kind} name "
+                    raise ModelError(f"{at}: {item.name!r} is not a usable {kind} name "
                                      "(letters, digits, _; no C or Python keyword; at most 31 characters)")
                 if item.name in names:
-                    raise ModelError(
-                        f"{self.where(kind + 's')}: '{item.name}' is declared twice ({names[item.name]} and {kind})")
+                    raise ModelError(f"{at}: '{item.name}' is declared twice ({_twice(names[item.name], kind)})")
                 names[item.name] = kind
         for q in self.parameters:
             if not isinstance(q.value, (int, float)) or q.value != q.value or abs(q.value) == float("inf"):
@@ -255,6 +257,11 @@ class Model:
         outs = [o.name for o in self.outputs]
         if len(set(outs)) != len(outs):
             raise ModelError(f"{self.where('outputs')}: flat output names must be unique")
+
+
+def _twice(first: str, second: str) -> str:
+    """Where a name was declared twice: 'as a state and as a parameter', or 'among the parameters'."""
+    return f"among the {first}s" if first == second else f"as a {first} and as a {second}"
 
 
 def _where(source: str, lines: Mapping[str, int], key: str) -> str:

@@ -1,0 +1,112 @@
+"""Input files read boundedly and output files replaced only when the toolkit wrote them
+(dfeif_codegen/paths.py): a FIFO or a huge file is refused before it is read, and each
+command's earlier output of its kind is recognised (so a rerun to the same path works) while
+anything else at that path is left alone."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import threading
+from pathlib import Path
+
+import pytest
+
+from dfeif_codegen import cli
+from dfeif_codegen.check import bench
+from dfeif_codegen.errors import ModelError
+from dfeif_codegen.paths import MAX_TEXT_BYTES, OutputPathError, read_text
+from dfeif_codegen.reproduction import run as reproduction
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = "[scenario]\nduration = 1.0\nruns = 1\nmetrics_from = 0.2\nreferences = [\"seesaw\"]\n"
+
+
+def test_a_fifo_is_refused_without_waiting_for_a_writer(tmp_path):
+    """A FIFO would block the read until a writer came; the writer here comes after 20 s, so a
+    reader that blocked would see an empty file and fail differently (and late)."""
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no FIFOs on this system")
+    fifo = tmp_path / "m.toml"
+    os.mkfifo(fifo)
+    timer = threading.Timer(20.0, lambda: open(fifo, "w").close())
+    timer.daemon = True
+    timer.start()
+    try:
+        with pytest.raises(ModelError, match=r"m\.toml: cannot read model file \(not a regular file"):
+            read_text(fifo, "m.toml", ModelError, "model")
+    finally:
+        timer.cancel()
+
+
+def test_a_file_over_the_size_limit_is_refused_and_one_at_it_is_read(tmp_path):
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"#" * (MAX_TEXT_BYTES + 1))
+    with pytest.raises(ModelError, match=f"big.toml: model file of {MAX_TEXT_BYTES + 1} bytes: at most 16 MiB"):
+        read_text(big, "big.toml", ModelError, "model")
+    big.write_bytes(b"#" * (MAX_TEXT_BYTES - 1) + b"\n")
+    assert len(read_text(big, "big.toml", ModelError, "model")) == MAX_TEXT_BYTES
+
+
+def test_crlf_input_reads_as_before(tmp_path):
+    """Line ends as open()'s text mode gave them (the model's line numbers count on it)."""
+    path = tmp_path / "s.toml"
+    path.write_bytes(b"a = 1\r\nb = 2\rc = 3\n")
+    assert read_text(path, "s.toml", ModelError, "scenario") == "a = 1\nb = 2\nc = 3\n"
+
+
+def _simulate(tmp_path, capsys, *extra) -> int:
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SMALL)
+    code = cli.main(["simulate", "--scenario", str(scenario), "--engine", "reference", "--quiet", *extra])
+    capsys.readouterr()
+    return code
+
+
+def test_simulate_replaces_its_own_outputs_and_nothing_else(tmp_path, capsys):
+    """A rerun to the same --json/--csv/--results paths replaces them (each recognised as
+    simulate's); a torn results file from an interrupted run is still its own."""
+    out = {"--json": tmp_path / "r.json", "--csv": tmp_path / "r.csv", "--results": tmp_path / "r.jsonl"}
+    argv = [a for flag, path in out.items() for a in (flag, str(path))]
+    assert _simulate(tmp_path, capsys, *argv) == 0
+    first = {flag: path.read_bytes() for flag, path in out.items()}
+    assert set(json.loads(first["--json"])) >= {"settings", "tables"}
+    assert first["--csv"].startswith(b"reference,method,fusion,row,seed,error,rmse_master_x1,")
+    assert json.loads(first["--results"].splitlines()[0])["engine"] == "reference"
+    out["--results"].write_bytes(first["--results"][:40])     # torn mid-record, but still recognisably its own
+    out["--csv"].write_bytes(first["--csv"].splitlines(keepends=True)[0])
+    assert _simulate(tmp_path, capsys, *argv) == 0
+    assert out["--csv"].read_bytes() == first["--csv"]          # the same seed, the same rows
+    assert out["--results"].read_bytes() == first["--results"]
+
+
+def test_simulate_leaves_another_programs_json_alone(tmp_path, capsys):
+    mine = tmp_path / "mine.json"
+    mine.write_text('{"settings": {}, "tables": []}\n')     # close, but not simulate's key set
+    assert _simulate(tmp_path, capsys, "--json", str(mine)) == 2
+    assert mine.read_text() == '{"settings": {}, "tables": []}\n'
+
+
+def test_bench_and_reproduce_recognise_their_committed_outputs(tmp_path):
+    """BENCHMARKS.md and docs/experiment.md (with its data file), copied, are replaceable by
+    their commands; a user's file of the same name is not."""
+    shutil.copy(ROOT / "BENCHMARKS.md", tmp_path / "B.md")
+    bench.check_out(str(tmp_path / "B.md"))
+    shutil.copy(ROOT / "docs" / "experiment.md", tmp_path / "e.md")
+    shutil.copy(ROOT / "docs" / "experiment.json", tmp_path / "e.json")
+    reproduction.check_doc(tmp_path / "e.md")
+    (tmp_path / "e.json").write_text("{}\n")
+    with pytest.raises(OutputPathError, match="e.json: exists and was not written by codegen reproduce"):
+        reproduction.check_doc(tmp_path / "e.md")
+    (tmp_path / "B.md").write_text("# My benchmarks\n")
+    with pytest.raises(OutputPathError, match="B.md: exists and was not written by codegen bench"):
+        bench.check_out(str(tmp_path / "B.md"))
+
+
+def test_the_documents_generated_line_is_in_its_template():
+    """check_doc recognises the document by this line: the template must keep writing it."""
+    from dfeif_codegen.reproduction import document
+
+    assert reproduction.GENERATED in document.template_text()
+    assert reproduction.GENERATED in (ROOT / "docs" / "experiment.md").read_text()[:4096]
