@@ -110,3 +110,15 @@ def test_the_documents_generated_line_is_in_its_template():
 
     assert reproduction.GENERATED in document.template_text()
     assert reproduction.GENERATED in (ROOT / "docs" / "experiment.md").read_text()[:4096]
+
+
+def test_network_bench_leaves_a_users_file_alone(tmp_path, capsys):
+    """`codegen network --bench FILE` rewrites the network section of a report of ours; a user's
+    file of that name is refused before anything is measured, and left as it was."""
+    from dfeif_codegen import cli
+
+    notes = tmp_path / "notes.md"
+    notes.write_text("my notes\n")
+    assert cli.main(["network", "--bench", str(notes)]) == 2
+    assert notes.read_text() == "my notes\n"
+    assert "--bench " + str(notes) + ": exists and was not written by codegen bench" in capsys.readouterr().err

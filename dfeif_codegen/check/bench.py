@@ -30,12 +30,12 @@ NETWORK_MARK = "<!-- codegen network --bench -->"
 TITLE = "# Benchmarks"    # the first line of every report (bench_report) and of net/bench.py's
 
 
-def check_out(out: str, model: str | None = None) -> None:
+def check_out(out: str, model: str | None = None, flag: str = "--out", command: str = "bench") -> None:
     """`--out FILE`, before any measurement: a new file, or a report of ours (its title line;
     the network section `codegen network --bench` added is kept), never the model file."""
     from dfeif_codegen.paths import first_line, replaceable_file
 
-    replaceable_file(out, "--out", "bench", lambda p: first_line(p) == TITLE, {"model file": model})
+    replaceable_file(out, flag, command, lambda p: first_line(p) == TITLE, {"model file": model})
 
 
 def keep_network_section(text: str, previous: str) -> str:

@@ -208,6 +208,11 @@ def write(path: Path, fig: dict) -> None:
 
 
 def run_bench(out: Path) -> dict:
+    """Measure, then write the network section into `out`: a new file or a report of ours
+    (checked before measuring, as `codegen bench --out`)."""
+    from dfeif_codegen.check.bench import check_out
+
+    check_out(str(out), flag="--bench", command="bench or codegen network --bench")
     with tempfile.TemporaryDirectory(prefix="codegen-network-bench-") as tmp:
         fig = measure(Path(tmp))
     write(out, fig)
