@@ -28,8 +28,8 @@ _API = {
     "load_model": ("dfeif_codegen.symbolic.model", "load"),
     "from_sympy": ("dfeif_codegen.symbolic.model", "from_sympy"),
     "derive": ("dfeif_codegen.symbolic.flatness", "derive"),
-    "build": ("dfeif_codegen.api", "build"),
-    "check_build": ("dfeif_codegen.api", "check_build"),
+    "build": ("dfeif_codegen.codegen.build", "build"),
+    "check_build": ("dfeif_codegen.codegen.build", "check"),
     "load": ("dfeif_codegen.check.loader", "load"),
     "inspect": ("dfeif_codegen.symbolic.inspect_model", "inspect"),
     "verify": ("dfeif_codegen.check.verify", "verify"),
@@ -60,12 +60,14 @@ _API = {
 __all__ = ["__version__", *_API]
 
 if TYPE_CHECKING:  # never run: the names above for type checkers, without loading anything
-    from dfeif_codegen.api import build, check_build, simulate
+    from dfeif_codegen.api import simulate
     from dfeif_codegen.budget import BudgetError
     from dfeif_codegen.check.bench import bench
     from dfeif_codegen.check.loader import (ArgError, CError, DuplicateError, LagError, NonFiniteError,
                                             SequenceError, SingularError, load)
     from dfeif_codegen.check.verify import verify
+    from dfeif_codegen.codegen.build import build
+    from dfeif_codegen.codegen.build import check as check_build
     from dfeif_codegen.codegen.options import BuildError
     from dfeif_codegen.errors import CodegenError, MismatchError, ModelError, ScenarioError, SetupError
     from dfeif_codegen.experiment.starter import scenario

@@ -6,20 +6,12 @@ the name the CLI's `--engine` takes. The other commands' functions are reached d
 
 from __future__ import annotations
 
-import functools
-import os
-from typing import Callable, ParamSpec, TypeVar
-
 from dfeif_codegen.check import closed_loop_c
-from dfeif_codegen.codegen import build as _build
-from dfeif_codegen.codegen.options import BuildError
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import simulate as experiment
 from dfeif_codegen.experiment import sweep
+from dfeif_codegen.experiment.closed_loop import MAX_LAG
 from dfeif_codegen.experiment.report import SimulationResult
-
-_P = ParamSpec("_P")
-_R = TypeVar("_R")
 
 ENGINES: dict[str, sweep.Engine] = {"c": closed_loop_c.ENGINE, "reference": sweep.REFERENCE}
 
@@ -32,7 +24,7 @@ def engine_named(name: str) -> sweep.Engine:
 
 
 def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int | None = None, seed: int = 0,
-             nodes: int | None = None, max_lag: int = 32, oosm: str | list[str] | None = None,
+             nodes: int | None = None, max_lag: int = MAX_LAG, oosm: str | list[str] | None = None,
              fusion: str | list[str] | None = None, reference: str | list[str] | None = None,
              filters: str | list[str] | None = None, plot: str | None = None, json_path: str | None = None,
              quiet: bool = False, engine: str = "c", workers: int | None = None, scheduler: str | None = None,
@@ -58,19 +50,3 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
         plot=plot, json_path=json_path, quiet=quiet, workers=workers, scheduler=scheduler, results=results,
         csv=csv, resume=resume, max_seconds=max_seconds, max_memory=max_memory, param_error=param_error,
         predictor=predictor)
-
-
-def _out_checked(fn: Callable[_P, _R]) -> Callable[_P, _R]:
-    """`fn(spec, out, ...)` with `out` checked to be a path first: None or a number would
-    otherwise be a TypeError from pathlib, not the BuildError every other bad option is."""
-    @functools.wraps(fn)
-    def checked(*args: _P.args, **kwargs: _P.kwargs) -> _R:
-        out = args[1] if len(args) > 1 else kwargs.get("out", "generated")
-        if not isinstance(out, (str, os.PathLike)):
-            raise BuildError(f"--out must be a folder path (a str or a pathlib.Path), got {out!r}")
-        return fn(*args, **kwargs)
-    return checked
-
-
-build = _out_checked(_build.build)
-check_build = _out_checked(_build.check)

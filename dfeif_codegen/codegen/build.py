@@ -142,6 +142,15 @@ def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
                       disturbance=disturbance, tau=tau)
 
 
+def out_folder(out: object) -> None:
+    """`out` must name a folder: None or a number would otherwise be a TypeError from pathlib,
+    and an empty string the current folder by accident; both a BuildError like any bad option."""
+    if not isinstance(out, (str, os.PathLike)):
+        raise BuildError(f"--out must be a folder path (a str or a pathlib.Path), got {out!r}")
+    if isinstance(out, str) and not out.strip():
+        raise BuildError(f"--out {out!r}: an empty path (give a folder; . for the current one)")
+
+
 def check(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float | None = None,
@@ -151,6 +160,7 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
     raised before the derivation. Nothing is written."""
+    out_folder(out)
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor,
                                  disturbance, tau)
     target = Path(out) / m.name
@@ -180,8 +190,7 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     brunovsky with retrodict (the only one it can use). `disturbance` ("random_walk",
     "gauss_markov" with its time constant `tau`, or "integrated_random_walk"): disturbance
     states per chain (symbolic/disturbance.py)."""
-    if isinstance(out, str) and not out.strip():
-        raise BuildError(f"--out {out!r}: an empty path (give a folder; . for the current one)")
+    out_folder(out)
     from dfeif_codegen.paths import writable_dir
     writable_dir(out, "--out")
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor,

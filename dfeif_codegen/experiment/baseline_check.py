@@ -12,11 +12,11 @@ from __future__ import annotations
 import re
 
 from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.experiment.closed_loop import MAX_LAG
 from dfeif_codegen.experiment.nees_match import first_loss, links_text
 from dfeif_codegen.experiment.plan import make_config
 
 SEEDS = (0, 1)      # simulate's first runs: `simulate --runs 2` on the scenario then runs clean
-MAX_LAG = 32        # simulate's default window
 
 
 def kept(text: str, spec: str, source: str) -> tuple[str, list[str]]:

@@ -63,6 +63,9 @@ BASELINES = ("discard", "as-current")
 METHODS = OOSM + BASELINES
 
 
+MAX_LAG = 32  # the late-measurement window of a run (steps), unless a scenario or option says
+
+
 @dataclass(frozen=True)
 class Config:
     """Everything one run needs, as plain picklable data (per-chain values broadcast)."""
@@ -87,7 +90,7 @@ class Config:
     noise_std: tuple = (None, None)   # per node: std per channel, or None for the model's
     sensor: tuple = (Link(), Link())  # camera -> node link per node
     uplink: tuple = (Link(), Link())  # node -> master link per node
-    max_lag: int = 32
+    max_lag: int = MAX_LAG
     method: str = "replay"            # one of METHODS
     fusion: str = "difference"
     predictor: str | None = None      # the filters' prediction (reference/predictor.py); None: held,

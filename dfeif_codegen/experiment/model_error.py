@@ -205,11 +205,9 @@ def from_table(table: dict, fail) -> ParamError:
         if key not in KEYS:
             fail(f"model_error.{key}", f"unknown field (expected one of {', '.join(sorted(KEYS))})")
 
-    number = finite_number
-
     def named(key) -> tuple:
         value = table.get(key, {})
-        if not isinstance(value, dict) or not all(number(v) for v in value.values()):
+        if not isinstance(value, dict) or not all(finite_number(v) for v in value.values()):
             fail(f"model_error.{key}", f"must be a table of parameter = number, got {value!r}")
         return tuple(sorted((str(k), float(v)) for k, v in value.items()))
 
@@ -221,7 +219,7 @@ def from_table(table: dict, fail) -> ParamError:
         spread = named("spread")
         if "params" in table:
             fail("model_error.params", "give either spread per parameter (a table) or params, not both")
-    elif number(spread_value):
+    elif finite_number(spread_value):
         params = table.get("params", [ALL])
         if not isinstance(params, list) or not params or not all(isinstance(p, str) for p in params):
             fail("model_error.params", f"must be a non-empty list of parameter names, got {params!r}")

@@ -79,7 +79,7 @@ def result_of(p: Plan, o: Outcome) -> SimulationResult:
 
 
 def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: str = "paper", runs: int | None = None,
-             seed: int = 0, nodes: int | None = None, max_lag: int = 32, oosm=None, fusion=None, reference=None,
+             seed: int = 0, nodes: int | None = None, max_lag: int = ex.MAX_LAG, oosm=None, fusion=None, reference=None,
              filters=None, plot: str | None = None, json_path: str | None = None, quiet: bool = False,
              workers: int | None = None, scheduler: str | None = None, results: str | None = None,
              csv: str | None = None, resume: str | None = None, max_seconds: float | None = None,
