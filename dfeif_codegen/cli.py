@@ -77,8 +77,8 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--singular-rtol", type=float, default=1e-6, metavar="R",
                    help="control returns ERR_SINGULAR when |det G| < R * |det G(nominal)| (default 1e-6)")
     p.add_argument("--force", action="store_true",
-                   help="build even where OUT/<model> holds files an earlier build did not write "
-                        "(the build's own files are replaced, the others kept)")
+                   help="build even where OUT/<model> holds files an earlier build did not write or "
+                        "that were edited since (the build's own files are replaced, the others kept)")
     _budget_options(p)
 
 

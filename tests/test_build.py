@@ -17,7 +17,7 @@ import jinja2
 import pytest
 
 from dfeif_codegen import cli
-from dfeif_codegen.codegen import build, provenance, render
+from dfeif_codegen.codegen import build, output, provenance, render
 from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import model
@@ -186,7 +186,7 @@ def test_bad_input_is_one_line_exit_2_and_keeps_old_output(tmp_path, argv, fragm
 
 def test_failure_while_writing_leaves_old_output(tmp_path, monkeypatch):
     files = {"a.h": "old a\n", "b.c": "old b\n", "manifest.json": '{"files": {"a.h": {}, "b.c": {}}}'}
-    build.write_atomic(tmp_path, "m", files)
+    output.write_atomic(tmp_path, "m", files)
     calls = {"n": 0}
     real_write = Path.write_bytes
 
@@ -197,7 +197,7 @@ def test_failure_while_writing_leaves_old_output(tmp_path, monkeypatch):
         return real_write(self, data)
     monkeypatch.setattr(Path, "write_bytes", flaky)
     with pytest.raises(build.BuildError, match="No space left"):
-        build.write_atomic(tmp_path, "m", {"a.h": "new a\n", "b.c": "new b\n", "c.c": "new c\n",
+        output.write_atomic(tmp_path, "m", {"a.h": "new a\n", "b.c": "new b\n", "c.c": "new c\n",
                                            "manifest.json": "{}"})
     monkeypatch.undo()
     assert tree(tmp_path / "m") == {k: v.encode() for k, v in files.items()}
@@ -225,7 +225,7 @@ def test_replaces_its_own_stale_files_but_not_the_users(tmp_path):
     assert cli_run("build", "--out", str(tmp_path)).returncode == 0
     folder = tmp_path / "dc_motor_link"
     manifest = json.loads((folder / "manifest.json").read_text())
-    manifest["files"]["stale.c"] = {"bytes": 4, "sha256": "0" * 64}
+    manifest["files"]["stale.c"] = {"bytes": 4, "sha256": hashlib.sha256(b"old\n").hexdigest()}
     (folder / "manifest.json").write_text(json.dumps(manifest))
     (folder / "stale.c").write_text("old\n")
     assert cli_run("build", "--out", str(tmp_path)).returncode == 0
@@ -233,6 +233,24 @@ def test_replaces_its_own_stale_files_but_not_the_users(tmp_path):
     (folder / "mine.c").write_text("mine\n")
     result = cli_run("build", "--out", str(tmp_path))
     assert result.returncode == 2 and "mine.c" in result.stderr and (folder / "mine.c").read_text() == "mine\n"
+
+
+def test_a_hand_edited_file_is_not_replaced_without_force(tmp_path):
+    """A generated file changed since the build wrote it (sha256 unlike the manifest's) stops the
+    next build (exit 2, the file named and kept); one whose lines a checkout turned into CRLF is
+    not an edit; --force replaces the edit with the generated text."""
+    assert cli_run("build", "--out", str(tmp_path)).returncode == 0
+    node = tmp_path / "dc_motor_link" / "dc_motor_link_node.c"
+    generated = node.read_bytes()
+    node.write_bytes(generated.replace(b"\n", b"\r\n"))
+    assert cli_run("build", "--out", str(tmp_path)).returncode == 0
+    assert node.read_bytes() == generated
+    node.write_bytes(generated + b"/* my fix */\n")
+    result = cli_run("build", "--out", str(tmp_path))
+    assert result.returncode == 2 and "dc_motor_link_node.c" in result.stderr and "changed since" in result.stderr
+    assert result.stderr.count("\n") == 1 and node.read_bytes().endswith(b"/* my fix */\n")
+    assert cli_run("build", "--out", str(tmp_path), "--force").returncode == 0
+    assert node.read_bytes() == generated
 
 
 def test_strict_undefined():

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from dfeif_codegen.codegen import build as build_mod
+from dfeif_codegen.codegen import output
 
 MODEL = "dc_motor_link"
 
@@ -138,6 +139,6 @@ def test_stale_temp_folders_are_cleaned(tmp_path):
     (tmp_path / f".{MODEL}.{dead.pid}.xyz98765.new" / "half.c").write_text("int")
     mine = tmp_path / f".{MODEL}.{os.getpid()}.live0000.new"
     mine.mkdir()
-    build_mod.clean_stale(tmp_path, MODEL)
+    output.clean_stale(tmp_path, MODEL)
     assert tree(tmp_path / MODEL) == want
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == [mine.name]

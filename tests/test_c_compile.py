@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from dfeif_codegen import angles
-from dfeif_codegen.codegen import build, render
+from dfeif_codegen.codegen import build, output, render
 from dfeif_codegen.codegen.options import Options
 from dfeif_codegen.symbolic import discretize, flatness, model
 
@@ -94,7 +94,7 @@ def built(tmp_path_factory):
     def get(variant: str) -> Path:
         if variant not in cache:
             name, opts = VARIANTS[variant]
-            cache[variant] = build.write_atomic(root / variant, _flat(name).model.name, render_files(name, **opts))
+            cache[variant] = output.write_atomic(root / variant, _flat(name).model.name, render_files(name, **opts))
         return cache[variant]
     return get
 
