@@ -17,6 +17,7 @@ from dfeif_codegen.errors import ModelError
 from dfeif_codegen.experiment import closed_loop
 from dfeif_codegen.reference.control import FlatController, SingularControl
 from dfeif_codegen.symbolic import flatness, model
+from test_c_compile import Lib
 
 SQRT_MOTOR = Path(__file__).parent / "data" / "sqrt_motor.toml"
 K, KS, C, J, R, L = 0.5, 1.0, 0.05, 0.02, 2.0, 0.005  # the file's parameter values
@@ -114,6 +115,29 @@ def test_near_singular_control_refuses_in_c_and_reference(flat, lib):
         ctl(zeta, flags)
     # ten times more current is 1e-6 of nominal: accepted again
     assert c_control(lib, flat.phi_num(np.array([0.0, 0.0, 1.01e-6])), flags, ctl.gains)[0] == 0
+
+
+@pytest.mark.parametrize("kind", ["node", "master"])
+def test_init_refuses_a_prior_outside_the_domain(flat, lib, kind):
+    # the held predictor evaluates G-bar = 2 k I/(J L) at the estimate whatever the input, so from
+    # a prior with no real current every predict is NaN: init refuses it (ERR_ARG, the struct's
+    # bytes as they were) and takes the nominal state and one inside, near the boundary
+    c = Lib(lib, "sqrt_motor")
+    P0, R, q = np.diag([1e-4, 1e-2, 1.0]), np.array([1e-6]), np.array([1.0])
+    init = (lambda s, x: c("node_init", s, x, P0, R, q)) if kind == "node" else \
+        (lambda s, x: c("master_init", s, x, P0, q))
+    nominal = flat.phi_num(flatness.nominal_state(flat.model))
+    for x0, inside in (([-0.5, 0.0, 0.0], False), ([0.5, 0.0, -30.0], False), ([0.5, 0.0, -20.0], True),
+                       (nominal, True)):
+        x0 = np.array(x0, dtype=float)
+        assert ((J * x0[2] + C * x0[1] + KS * x0[0]) / K > 0) == inside      # I^2, the closed form
+        s = c.new(kind)
+        pattern = bytes((7 * i + 3) % 256 for i in range(len(s.raw)))
+        ctypes.memmove(s, pattern, len(pattern))
+        if inside:
+            assert init(s, x0) == 0 and s.raw != pattern
+        else:
+            assert init(s, x0) == -1 and s.raw == pattern       # ERR_ARG, the struct untouched
 
 
 def test_undeclared_domain_with_two_branches_is_refused(tmp_path):

@@ -121,7 +121,8 @@ extern const uint8_t dc_motor_link_chain_angle[DC_MOTOR_LINK_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define DC_MOTOR_LINK_OK 0
-/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
+/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD, x0 outside
+ * the model's domain */
 #define DC_MOTOR_LINK_ERR_ARG (-1)
 /** late measurement outside the window (lag < 1, > NMAX, before step 0 or a mid-run start) */
 #define DC_MOTOR_LINK_ERR_LAG (-2)
@@ -257,7 +258,9 @@ size_t dc_motor_link_master_size(void);
 size_t dc_motor_link_packet_size(void);
 
 /* ---- node ------------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
+/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0.
+ * ERR_ARG if the model is not defined at x0 (F-bar or G-bar not finite): no input predicts out of
+ * it, and it is no state of the model (a finite value, so not ERR_NONFINITE). */
 int dc_motor_link_node_init(dc_motor_link_node* node, const dc_motor_link_real x0[DC_MOTOR_LINK_NX],
                             const dc_motor_link_real P0[DC_MOTOR_LINK_NXX],
                             const dc_motor_link_real R[DC_MOTOR_LINK_NYY],
@@ -288,7 +291,8 @@ int dc_motor_link_node_packet(const dc_motor_link_node* node, dc_motor_link_pack
 int dc_motor_link_node_health(const dc_motor_link_node* node, dc_motor_link_health* health);
 
 /* ---- master ----------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
+/** Start at step 0 with prior (x0, P0) and the process-noise densities q; ERR_ARG if the
+ * model is not defined at x0, as for node_init. */
 int dc_motor_link_master_init(dc_motor_link_master* master,
                               const dc_motor_link_real x0[DC_MOTOR_LINK_NX],
                               const dc_motor_link_real P0[DC_MOTOR_LINK_NXX],

@@ -30,6 +30,10 @@ int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_r
 int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_motor_link_real q[1],
                                       dc_motor_link_real P1[6]);
 
+/* dc_motor_link_kern_domain:(x[3])->(F,G) */
+int dc_motor_link_kern_domain(const dc_motor_link_real x[3], dc_motor_link_real F[1],
+                              dc_motor_link_real G[1]);
+
 /* dc_motor_link_kern_predict:(x[3],P[3x3],u,q,centre)->(x1[3],P1[3x3]) */
 int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
                                const dc_motor_link_real u[1], const dc_motor_link_real q[1],

@@ -1,7 +1,7 @@
 /* DO NOT EDIT: dc_motor_link module, generated from template kernels.c.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* Node filter kernels (the master reuses predict): node_predict, update, info, node_predict_P,
- * predict.
+ * domain, predict.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
@@ -541,6 +541,43 @@ int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_mo
     w[8] = (w[8] * w[11]);
     w[1] = (w[1] + w[8]);
     P1[5] = w[1];
+    return 0;
+    return 0;
+}
+
+/* dc_motor_link_kern_domain:(x[3])->(F,G) */
+int dc_motor_link_kern_domain(const dc_motor_link_real x[3], dc_motor_link_real F[1],
+                              dc_motor_link_real G[1])
+{
+    dc_motor_link_real w[6];
+    w[0] = -10000.;
+    w[1] = 2.5000000000000000e-01;
+    w[2] = x[1];
+    w[1] = (w[1] * w[2]);
+    w[3] = 4.0000000000000001e-02;
+    w[4] = x[2];
+    w[3] = (w[3] * w[4]);
+    w[1] = (w[1] + w[3]);
+    w[3] = 2.5000000000000001e-04;
+    w[3] = (w[3] * w[4]);
+    w[1] = (w[1] + w[3]);
+    w[3] = 1.0000000000000001e-01;
+    w[3] = (w[3] * w[2]);
+    w[1] = (w[1] + w[3]);
+    w[3] = 1.4715000000000000e+00;
+    w[4] = x[0];
+    w[5] = sin(w[4]);
+    w[3] = (w[3] * w[5]);
+    w[1] = (w[1] + w[3]);
+    w[3] = 3.6787500000000002e-03;
+    w[3] = (w[3] * w[2]);
+    w[4] = cos(w[4]);
+    w[3] = (w[3] * w[4]);
+    w[1] = (w[1] + w[3]);
+    w[0] = (w[0] * w[1]);
+    F[0] = w[0];
+    w[0] = 5000.;
+    G[0] = w[0];
     return 0;
     return 0;
 }

@@ -192,6 +192,10 @@ int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], c
         if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_cov_ok(P0) == 0)) {
             rc = DC_MOTOR_LINK_ERR_ARG;
         }
+        /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+        if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_in_domain(x0) == 0)) {
+            rc = DC_MOTOR_LINK_ERR_ARG;
+        }
     }
     if (rc == DC_MOTOR_LINK_OK) {
         (void)memset(master, 0, sizeof(*master));

@@ -179,6 +179,18 @@ int dc_motor_link_cov_ok(const real* A)
     return dc_motor_link_spd_in(A, NX, L, d);
 }
 
+int dc_motor_link_in_domain(const real* x)
+{
+    real F[NY];
+    real G[DC_MOTOR_LINK_NYY];
+    int ok = 0;
+    (void)dc_motor_link_kern_domain(x, F, G);
+    if ((dc_motor_link_finite(F, NY) != 0) && (dc_motor_link_finite(G, DC_MOTOR_LINK_NYY) != 0)) {
+        ok = 1;
+    }
+    return ok;
+}
+
 int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const real P0[NXX],
                             const real R[DC_MOTOR_LINK_NYY], const real q[DC_MOTOR_LINK_NQ])
 {
@@ -208,6 +220,10 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
     }
     /* P0 must be symmetric positive definite */
     if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_cov_ok(P0) == 0)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    }
+    /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+    if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_in_domain(x0) == 0)) {
         rc = DC_MOTOR_LINK_ERR_ARG;
     }
     if (rc == DC_MOTOR_LINK_OK) {

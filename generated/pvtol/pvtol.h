@@ -112,7 +112,8 @@ extern const uint8_t pvtol_chain_angle[PVTOL_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define PVTOL_OK 0
-/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
+/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD, x0 outside
+ * the model's domain */
 #define PVTOL_ERR_ARG (-1)
 /** late measurement outside the window (lag < 1, > NMAX, before step 0 or a mid-run start) */
 #define PVTOL_ERR_LAG (-2)
@@ -248,7 +249,9 @@ size_t pvtol_master_size(void);
 size_t pvtol_packet_size(void);
 
 /* ---- node ------------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
+/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0.
+ * ERR_ARG if the model is not defined at x0 (F-bar or G-bar not finite): no input predicts out of
+ * it, and it is no state of the model (a finite value, so not ERR_NONFINITE). */
 int pvtol_node_init(pvtol_node* node, const pvtol_real x0[PVTOL_NX], const pvtol_real P0[PVTOL_NXX],
                     const pvtol_real R[PVTOL_NYY], const pvtol_real q[PVTOL_NQ]);
 /** Right after init, for a node started mid-run (its prior is the one of step 0, not of the
@@ -270,7 +273,8 @@ int pvtol_node_packet(const pvtol_node* node, pvtol_packet* packet);
 int pvtol_node_health(const pvtol_node* node, pvtol_health* health);
 
 /* ---- master ----------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
+/** Start at step 0 with prior (x0, P0) and the process-noise densities q; ERR_ARG if the
+ * model is not defined at x0, as for node_init. */
 int pvtol_master_init(pvtol_master* master, const pvtol_real x0[PVTOL_NX],
                       const pvtol_real P0[PVTOL_NXX], const pvtol_real q[PVTOL_NQ]);
 /**

@@ -147,6 +147,9 @@ static inline int pvtol_spd(const real* A, int n)
 
 /* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */
 int pvtol_cov_ok(const real* A);
+/* 1 if the model is defined at the absolute state x (a prior at init): F-bar and G-bar finite
+ * there, which every held prediction out of x evaluates whatever the input (defined in node.c). */
+int pvtol_in_domain(const real* x);
 /* OK, or why the master cannot take a packet's covariances (ERR_WIRE_COVARIANCE, _GAIN). */
 int pvtol_packet_check(const pvtol_packet* pk);
 /* master_fuse, writing the master only if commit (0: would it fuse?). */

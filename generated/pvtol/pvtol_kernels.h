@@ -21,6 +21,9 @@ int pvtol_kern_update(const pvtol_real prior[44], const pvtol_real e[2], const p
 /* pvtol_kern_node_predict_P:(P[36],q[2])->(P1[36]) */
 int pvtol_kern_node_predict_P(const pvtol_real P[36], const pvtol_real q[2], pvtol_real P1[36]);
 
+/* pvtol_kern_domain:(x[8])->(F[2],G[2x2]) */
+int pvtol_kern_domain(const pvtol_real x[8], pvtol_real F[2], pvtol_real G[4]);
+
 /* pvtol_kern_info:(x[8],P[8x8],c[8])->(Y[8x8],y[8],piv[8]) */
 int pvtol_kern_info(const pvtol_real x[8], const pvtol_real P[64], const pvtol_real c[8],
                     pvtol_real Y[64], pvtol_real y[8], pvtol_real piv[8]);

@@ -1,7 +1,7 @@
 /* DO NOT EDIT: pvtol module, generated from template kernels.c.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build pvtol`. */
-/* Node filter kernels (the master reuses predict): node_predict, update, node_predict_P, info,
- * predict. Printed as C loops (over static parts, if any): info.
+/* Node filter kernels (the master reuses predict): node_predict, update, node_predict_P, domain,
+ * info, predict. Printed as C loops (over static parts, if any): info.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
@@ -1330,6 +1330,120 @@ int pvtol_kern_node_predict_P(const pvtol_real P[36], const pvtol_real q[2], pvt
     w[1] = (w[1] * w[5]);
     w[32] = (w[32] + w[1]);
     P1[35] = w[32];
+    return 0;
+    return 0;
+}
+
+/* pvtol_kern_domain:(x[8])->(F[2],G[2x2]) */
+int pvtol_kern_domain(const pvtol_real x[8], pvtol_real F[2], pvtol_real G[4])
+{
+    pvtol_real w[18];
+    w[0] = -1.4285714285714286e+00;
+    w[1] = x[2];
+    w[2] = 9.8100000000000005e+00;
+    w[3] = x[6];
+    w[4] = (w[2] + w[3]);
+    w[5] = casadi_hypot(w[1], w[4]);
+    w[6] = (w[0] / w[5]);
+    w[6] = (w[6] * w[4]);
+    w[7] = 6.8670000000000000e+00;
+    w[8] = x[7];
+    w[9] = (w[7] * w[8]);
+    w[10] = 9.6236100000000008e+01;
+    w[11] = casadi_sq(w[1]);
+    w[11] = (w[10] + w[11]);
+    w[12] = casadi_sq(w[3]);
+    w[11] = (w[11] + w[12]);
+    w[12] = 1.9620000000000001e+01;
+    w[13] = (w[12] * w[3]);
+    w[11] = (w[11] + w[13]);
+    w[13] = sqrt(w[11]);
+    w[9] = (w[9] / w[13]);
+    w[14] = 6.9999999999999996e-01;
+    w[15] = (w[14] * w[1]);
+    w[16] = x[3];
+    w[15] = (w[15] * w[16]);
+    w[15] = (w[15] / w[13]);
+    w[9] = (w[9] + w[15]);
+    w[15] = (w[14] * w[3]);
+    w[15] = (w[15] * w[8]);
+    w[15] = (w[15] / w[13]);
+    w[9] = (w[9] + w[15]);
+    w[6] = (w[6] * w[9]);
+    w[15] = (w[1] * w[8]);
+    w[15] = (w[15] / w[11]);
+    w[13] = -9.8100000000000005e+00;
+    w[17] = (w[13] * w[16]);
+    w[17] = (w[17] / w[11]);
+    w[15] = (w[15] + w[17]);
+    w[17] = (w[16] * w[3]);
+    w[17] = (w[17] / w[11]);
+    w[15] = (w[15] - w[17]);
+    w[17] = (w[1] * w[15]);
+    w[6] = (w[6] - w[17]);
+    w[6] = (w[6] * w[15]);
+    w[0] = (w[0] / w[5]);
+    w[0] = (w[0] * w[4]);
+    w[0] = (w[0] * w[15]);
+    w[0] = (w[0] * w[9]);
+    w[6] = (w[6] + w[0]);
+    F[0] = w[6];
+    w[6] = 1.4285714285714286e+00;
+    w[0] = (w[6] * w[1]);
+    w[9] = (w[2] + w[3]);
+    w[15] = casadi_hypot(w[1], w[9]);
+    w[0] = (w[0] / w[15]);
+    w[7] = (w[7] * w[8]);
+    w[4] = casadi_sq(w[1]);
+    w[10] = (w[10] + w[4]);
+    w[4] = casadi_sq(w[3]);
+    w[10] = (w[10] + w[4]);
+    w[12] = (w[12] * w[3]);
+    w[10] = (w[10] + w[12]);
+    w[12] = sqrt(w[10]);
+    w[7] = (w[7] / w[12]);
+    w[4] = (w[14] * w[1]);
+    w[4] = (w[4] * w[16]);
+    w[4] = (w[4] / w[12]);
+    w[7] = (w[7] + w[4]);
+    w[14] = (w[14] * w[3]);
+    w[14] = (w[14] * w[8]);
+    w[14] = (w[14] / w[12]);
+    w[7] = (w[7] + w[14]);
+    w[0] = (w[0] * w[7]);
+    w[8] = (w[1] * w[8]);
+    w[8] = (w[8] / w[10]);
+    w[14] = (w[13] * w[16]);
+    w[14] = (w[14] / w[10]);
+    w[8] = (w[8] + w[14]);
+    w[16] = (w[16] * w[3]);
+    w[16] = (w[16] / w[10]);
+    w[8] = (w[8] - w[16]);
+    w[9] = (w[9] * w[8]);
+    w[0] = (w[0] - w[9]);
+    w[0] = (w[0] * w[8]);
+    w[9] = (w[6] * w[1]);
+    w[9] = (w[9] / w[15]);
+    w[9] = (w[9] * w[8]);
+    w[9] = (w[9] * w[7]);
+    w[0] = (w[0] + w[9]);
+    F[1] = w[0];
+    w[0] = (w[6] * w[1]);
+    w[9] = (w[2] + w[3]);
+    w[9] = casadi_hypot(w[1], w[9]);
+    w[0] = (w[0] / w[9]);
+    G[0] = w[0];
+    w[2] = (w[2] + w[3]);
+    w[0] = casadi_hypot(w[1], w[2]);
+    w[6] = (w[6] / w[0]);
+    w[6] = (w[6] * w[2]);
+    G[1] = w[6];
+    w[6] = 200.;
+    w[13] = (w[13] - w[3]);
+    w[13] = (w[6] * w[13]);
+    G[2] = w[13];
+    w[6] = (w[6] * w[1]);
+    G[3] = w[6];
     return 0;
     return 0;
 }

@@ -171,6 +171,10 @@ int pvtol_master_init(pvtol_master* master, const real x0[NX], const real P0[NXX
         if ((rc == PVTOL_OK) && (pvtol_cov_ok(P0) == 0)) {
             rc = PVTOL_ERR_ARG;
         }
+        /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+        if ((rc == PVTOL_OK) && (pvtol_in_domain(x0) == 0)) {
+            rc = PVTOL_ERR_ARG;
+        }
     }
     if (rc == PVTOL_OK) {
         (void)memset(master, 0, sizeof(*master));

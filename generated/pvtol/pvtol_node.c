@@ -179,6 +179,18 @@ int pvtol_cov_ok(const real* A)
     return pvtol_spd_in(A, NX, L, d);
 }
 
+int pvtol_in_domain(const real* x)
+{
+    real F[NY];
+    real G[PVTOL_NYY];
+    int ok = 0;
+    (void)pvtol_kern_domain(x, F, G);
+    if ((pvtol_finite(F, NY) != 0) && (pvtol_finite(G, PVTOL_NYY) != 0)) {
+        ok = 1;
+    }
+    return ok;
+}
+
 int pvtol_node_init(pvtol_node* node, const real x0[NX], const real P0[NXX],
                     const real R[PVTOL_NYY], const real q[PVTOL_NQ])
 {
@@ -213,6 +225,10 @@ int pvtol_node_init(pvtol_node* node, const real x0[NX], const real P0[NXX],
     }
     /* P0 must be symmetric positive definite */
     if ((rc == PVTOL_OK) && (pvtol_cov_ok(P0) == 0)) {
+        rc = PVTOL_ERR_ARG;
+    }
+    /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+    if ((rc == PVTOL_OK) && (pvtol_in_domain(x0) == 0)) {
         rc = PVTOL_ERR_ARG;
     }
     if (rc == PVTOL_OK) {

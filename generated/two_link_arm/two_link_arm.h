@@ -127,7 +127,8 @@ extern const uint8_t two_link_arm_chain_angle[TWO_LINK_ARM_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define TWO_LINK_ARM_OK 0
-/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
+/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD, x0 outside
+ * the model's domain */
 #define TWO_LINK_ARM_ERR_ARG (-1)
 /** late measurement outside the window (lag < 1, > NMAX, before step 0 or a mid-run start) */
 #define TWO_LINK_ARM_ERR_LAG (-2)
@@ -263,7 +264,9 @@ size_t two_link_arm_master_size(void);
 size_t two_link_arm_packet_size(void);
 
 /* ---- node ------------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
+/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0.
+ * ERR_ARG if the model is not defined at x0 (F-bar or G-bar not finite): no input predicts out of
+ * it, and it is no state of the model (a finite value, so not ERR_NONFINITE). */
 int two_link_arm_node_init(two_link_arm_node* node, const two_link_arm_real x0[TWO_LINK_ARM_NX],
                            const two_link_arm_real P0[TWO_LINK_ARM_NXX],
                            const two_link_arm_real R[TWO_LINK_ARM_NYY],
@@ -293,7 +296,8 @@ int two_link_arm_node_packet(const two_link_arm_node* node, two_link_arm_packet*
 int two_link_arm_node_health(const two_link_arm_node* node, two_link_arm_health* health);
 
 /* ---- master ----------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
+/** Start at step 0 with prior (x0, P0) and the process-noise densities q; ERR_ARG if the
+ * model is not defined at x0, as for node_init. */
 int two_link_arm_master_init(two_link_arm_master* master,
                              const two_link_arm_real x0[TWO_LINK_ARM_NX],
                              const two_link_arm_real P0[TWO_LINK_ARM_NXX],

@@ -29,6 +29,10 @@ int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real
 int two_link_arm_kern_node_predict_P(const two_link_arm_real P[21], const two_link_arm_real q[2],
                                      two_link_arm_real P1[21]);
 
+/* two_link_arm_kern_domain:(x[6])->(F[2],G[2x2]) */
+int two_link_arm_kern_domain(const two_link_arm_real x[6], two_link_arm_real F[2],
+                             two_link_arm_real G[4]);
+
 /* two_link_arm_kern_predict:(x[6],P[6x6],u[2],q[2],centre[2])->(x1[6],P1[6x6]) */
 int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
                               const two_link_arm_real u[2], const two_link_arm_real q[2],

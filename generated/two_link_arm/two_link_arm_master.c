@@ -194,6 +194,10 @@ int two_link_arm_master_init(two_link_arm_master* master, const real x0[NX], con
         if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_cov_ok(P0) == 0)) {
             rc = TWO_LINK_ARM_ERR_ARG;
         }
+        /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+        if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_in_domain(x0) == 0)) {
+            rc = TWO_LINK_ARM_ERR_ARG;
+        }
     }
     if (rc == TWO_LINK_ARM_OK) {
         (void)memset(master, 0, sizeof(*master));

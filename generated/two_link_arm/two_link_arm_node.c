@@ -201,6 +201,18 @@ int two_link_arm_cov_ok(const real* A)
     return two_link_arm_spd_in(A, NX, L, d);
 }
 
+int two_link_arm_in_domain(const real* x)
+{
+    real F[NY];
+    real G[TWO_LINK_ARM_NYY];
+    int ok = 0;
+    (void)two_link_arm_kern_domain(x, F, G);
+    if ((two_link_arm_finite(F, NY) != 0) && (two_link_arm_finite(G, TWO_LINK_ARM_NYY) != 0)) {
+        ok = 1;
+    }
+    return ok;
+}
+
 int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const real P0[NXX],
                            const real R[TWO_LINK_ARM_NYY], const real q[TWO_LINK_ARM_NQ])
 {
@@ -236,6 +248,10 @@ int two_link_arm_node_init(two_link_arm_node* node, const real x0[NX], const rea
     }
     /* P0 must be symmetric positive definite */
     if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_cov_ok(P0) == 0)) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    }
+    /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+    if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_in_domain(x0) == 0)) {
         rc = TWO_LINK_ARM_ERR_ARG;
     }
     if (rc == TWO_LINK_ARM_OK) {

@@ -105,7 +105,8 @@ extern const uint8_t unicycle_chain_angle[UNICYCLE_NY];
 
 /* ---- return codes ---------------------------------------------------------------------------- */
 #define UNICYCLE_OK 0
-/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD */
+/** NULL pointer, gamma or present[] not 0/1, q < 0, R not symmetric, P0 not SPD, x0 outside
+ * the model's domain */
 #define UNICYCLE_ERR_ARG (-1)
 /** late measurement outside the window (lag < 1, > NMAX, before step 0 or a mid-run start) */
 #define UNICYCLE_ERR_LAG (-2)
@@ -241,7 +242,9 @@ size_t unicycle_master_size(void);
 size_t unicycle_packet_size(void);
 
 /* ---- node ------------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0. */
+/** Start at step 0 with prior (x0, P0); R (NY x NY) symmetric positive definite, q >= 0.
+ * ERR_ARG if the model is not defined at x0 (F-bar or G-bar not finite): no input predicts out of
+ * it, and it is no state of the model (a finite value, so not ERR_NONFINITE). */
 int unicycle_node_init(unicycle_node* node, const unicycle_real x0[UNICYCLE_NX],
                        const unicycle_real P0[UNICYCLE_NXX], const unicycle_real R[UNICYCLE_NYY],
                        const unicycle_real q[UNICYCLE_NQ]);
@@ -267,7 +270,8 @@ int unicycle_node_packet(const unicycle_node* node, unicycle_packet* packet);
 int unicycle_node_health(const unicycle_node* node, unicycle_health* health);
 
 /* ---- master ----------------------------------------------------------------------------- */
-/** Start at step 0 with prior (x0, P0) and the process-noise densities q. */
+/** Start at step 0 with prior (x0, P0) and the process-noise densities q; ERR_ARG if the
+ * model is not defined at x0, as for node_init. */
 int unicycle_master_init(unicycle_master* master, const unicycle_real x0[UNICYCLE_NX],
                          const unicycle_real P0[UNICYCLE_NXX], const unicycle_real q[UNICYCLE_NQ]);
 /**

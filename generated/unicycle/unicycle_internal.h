@@ -147,6 +147,9 @@ static inline int unicycle_spd(const real* A, int n)
 
 /* 1 if the NX x NX matrix A (a P0 at init) is symmetric positive definite (defined in node.c). */
 int unicycle_cov_ok(const real* A);
+/* 1 if the model is defined at the absolute state x (a prior at init): F-bar and G-bar finite
+ * there, which every held prediction out of x evaluates whatever the input (defined in node.c). */
+int unicycle_in_domain(const real* x);
 /* OK, or why the master cannot take a packet's covariances (ERR_WIRE_COVARIANCE, _GAIN). */
 int unicycle_packet_check(const unicycle_packet* pk);
 /* master_fuse, writing the master only if commit (0: would it fuse?). */

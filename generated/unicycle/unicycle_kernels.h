@@ -28,6 +28,9 @@ int unicycle_kern_info(const unicycle_real x[4], const unicycle_real P[16],
 int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real q[2],
                                  unicycle_real P1[10]);
 
+/* unicycle_kern_domain:(x[4])->(F[2],G[2x2]) */
+int unicycle_kern_domain(const unicycle_real x[4], unicycle_real F[2], unicycle_real G[4]);
+
 /* unicycle_kern_predict:(x[4],P[4x4],u[2],q[2],centre[2])->(x1[4],P1[4x4]) */
 int unicycle_kern_predict(const unicycle_real x[4], const unicycle_real P[16],
                           const unicycle_real u[2], const unicycle_real q[2],

@@ -1,7 +1,7 @@
 /* DO NOT EDIT: unicycle module, generated from template kernels.c.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build unicycle`. */
 /* Node filter kernels (the master reuses predict): node_predict, update, info, node_predict_P,
- * predict.
+ * domain, predict.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
@@ -507,6 +507,28 @@ int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real 
     w[1] = (w[1] * w[8]);
     w[7] = (w[7] + w[1]);
     P1[9] = w[7];
+    return 0;
+    return 0;
+}
+
+/* unicycle_kern_domain:(x[4])->(F[2],G[2x2]) */
+int unicycle_kern_domain(const unicycle_real x[4], unicycle_real F[2], unicycle_real G[4])
+{
+    unicycle_real w[3];
+    w[0] = 0.;
+    F[0] = w[0];
+    F[1] = w[0];
+    w[0] = x[1];
+    w[1] = x[3];
+    w[2] = casadi_hypot(w[0], w[1]);
+    w[2] = (w[0] / w[2]);
+    G[0] = w[2];
+    w[2] = casadi_hypot(w[0], w[1]);
+    w[2] = (w[1] / w[2]);
+    G[1] = w[2];
+    w[1] = (-w[1]);
+    G[2] = w[1];
+    G[3] = w[0];
     return 0;
     return 0;
 }

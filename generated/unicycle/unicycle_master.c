@@ -171,6 +171,10 @@ int unicycle_master_init(unicycle_master* master, const real x0[NX], const real 
         if ((rc == UNICYCLE_OK) && (unicycle_cov_ok(P0) == 0)) {
             rc = UNICYCLE_ERR_ARG;
         }
+        /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+        if ((rc == UNICYCLE_OK) && (unicycle_in_domain(x0) == 0)) {
+            rc = UNICYCLE_ERR_ARG;
+        }
     }
     if (rc == UNICYCLE_OK) {
         (void)memset(master, 0, sizeof(*master));

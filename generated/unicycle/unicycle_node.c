@@ -188,6 +188,18 @@ int unicycle_cov_ok(const real* A)
     return unicycle_spd_in(A, NX, L, d);
 }
 
+int unicycle_in_domain(const real* x)
+{
+    real F[NY];
+    real G[UNICYCLE_NYY];
+    int ok = 0;
+    (void)unicycle_kern_domain(x, F, G);
+    if ((unicycle_finite(F, NY) != 0) && (unicycle_finite(G, UNICYCLE_NYY) != 0)) {
+        ok = 1;
+    }
+    return ok;
+}
+
 int unicycle_node_init(unicycle_node* node, const real x0[NX], const real P0[NXX],
                        const real R[UNICYCLE_NYY], const real q[UNICYCLE_NQ])
 {
@@ -223,6 +235,10 @@ int unicycle_node_init(unicycle_node* node, const real x0[NX], const real P0[NXX
     }
     /* P0 must be symmetric positive definite */
     if ((rc == UNICYCLE_OK) && (unicycle_cov_ok(P0) == 0)) {
+        rc = UNICYCLE_ERR_ARG;
+    }
+    /* x0 in the model's domain: else no input predicts out of it (the centre is 0 here) */
+    if ((rc == UNICYCLE_OK) && (unicycle_in_domain(x0) == 0)) {
         rc = UNICYCLE_ERR_ARG;
     }
     if (rc == UNICYCLE_OK) {

@@ -35,8 +35,9 @@ from dfeif_codegen.codegen.options import Options
 # Kernels whose work array is a local of the kernel, not a parameter: then no store into it can
 # alias an argument, and the compiler keeps the intermediates in registers (the node's kernels,
 # called once per step on the hot path; measured: about half their instructions; and info, whose
-# Cortex-M4F code this halves at n = 10).
-LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_finish", "info")
+# Cortex-M4F code this halves at n = 10; and domain, called at init only, so that its callers
+# need no work array).
+LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_finish", "info", "domain")
 
 # node_predict and info are printed as loops (`Loop`) when their straight-line code would have
 # more operations (CasADi's count) than their limit here. The limits differ because what the
@@ -100,6 +101,7 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
         node_predict = held.node_predict(h, name("node_predict"))
         filt = [held.predict(h, name("predict")), node_predict, node.update(s, name("update")), info]
         filt += [held.node_predict_P(h, name("node_predict_P"))] if opts.oosm == "replay" else []
+        filt += [held.domain(h, name("domain"))]
     else:
         node_predict = node.node_predict(s, name("node_predict"))
         filt = [node.predict(s, name("predict")), node_predict, node.update(s, name("update")), info]

@@ -1,6 +1,7 @@
 """The held-input predictor's kernels (`--predictor held`, the default; docs/mathematics.md
 section 3; the reference's is reference/predictor.py): the node's and the master's prediction,
-and the covariance-only step a node's replay carries its checkpoints with; above
+the covariance-only step a node's replay carries its checkpoints with, and F-bar, G-bar at a
+prior (`domain`: init refuses a prior outside the model's domain); above
 kernels.LOOP_OPS["held_covariance"] the node's two printed as loops over small parts
 (`node_predict_loop`, the master's calls the node's).
 
@@ -62,6 +63,19 @@ def node_predict(h: Held, name: str) -> ca.Function:
     P1 = h.covariance(unpack(post[n:], n), q)
     return ca.Function(name, [post, u, q, c], [h.mean(post[:n], u, c), pack(P1)], ["post", "u", "q", "centre"],
                        ["x1", "P1"])
+
+
+def domain(h: Held, name: str) -> ca.Function:
+    """F-bar and G-bar at an absolute state x (a prior at init, whose centre is 0; disturbance
+    states are not read): the first stage of every prediction out of x evaluates F + G u there,
+    so where either is not finite no input predicts out of x. A trial prediction with some fixed
+    u would not do: its second stage depends on u (at sqrt_motor's nominal equilibrium u = 0 lets
+    the current decay below the model's domain and gives NaN, u = R I predicts)."""
+    x, u = sym("x", h.n), sym("u", h.m)
+    v = sampling.remainder_sx(h.flat, x[:h.flat.n], u, h.p)
+    F = ca.substitute(v, u, ca.SX.zeros(h.m))
+    G = ca.jacobian(v, u)
+    return ca.Function(name, [x], [ca.densify(F), ca.densify(G)], ["x"], ["F", "G"])
 
 
 def node_predict_P(h: Held, name: str) -> ca.Function:
