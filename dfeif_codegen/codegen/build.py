@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import jinja2
+import numpy as np
 
 from dfeif_codegen import __version__, budget
 from dfeif_codegen.symbolic import flatness, model
@@ -89,6 +90,7 @@ def context(flat, opts: Options) -> dict:
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(), "model_ts": m.ts,
         # the held predictor's linearization input (benchmarks drive the filters with it)
         "input_nominal": [float(u) for u in nominal_point(flat)[1]] if opts.predictor == "held" else [],
+        "example_start": example_start(flat),
         "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
         # the CI Hessian's data: H (M x M), or its factor G (M x n^2) when that step is cheaper
         "ci_factor": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_grad"), 0),
@@ -122,6 +124,25 @@ def extension_context(flat, ts: float) -> dict | None:
         offset += r
     return {"nxi": len(names), "names": [_comment(s) for s in names], "chains": chains,
             "inputs": [_comment(u) for u in ext.inputs]}
+
+
+def example_start(flat) -> list[float]:
+    """Where the example program starts its plant and filters, and its reference's drift: the
+    model's nominal state in canonical coordinates with each chain's derivatives above the first
+    set to 0 (a unicycle moves at its nominal speed: at rest its extension is singular; an arm
+    whose nominal torque is 0 would start falling), where the model is defined and G regular;
+    else the nominal state itself; else the origin."""
+    with np.errstate(all="ignore"):
+        zeta = np.asarray(flat.phi_num(flatness.nominal_state(flat.model)), dtype=float)
+        moving = zeta.copy()
+        for head, r in zip(flat.heads, flat.degrees):
+            moving[head + 2:head + r] = 0.0
+        for cand in (moving, zeta):
+            if np.all(np.isfinite(cand)) and np.all(np.isfinite(flat.F_num(cand))):
+                G = np.asarray(flat.G_num(cand), dtype=float)
+                if np.all(np.isfinite(G)) and abs(np.linalg.det(G)) > 0:
+                    return [float(v) for v in cand]
+    return [0.0] * flat.n
 
 
 def generate(m: model.Model, opts: Options, progress=None) -> dict[str, str]:

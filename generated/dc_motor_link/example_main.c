@@ -52,14 +52,29 @@ static void plant(real zeta[NX], const real u[NY])
     memcpy(zeta, x1, sizeof(x1));
 }
 
+/* Where plant and filters start: the model's nominal state in canonical coordinates (the
+ * disturbance states, if any, at 0). */
+static const real start[NX] = {
+    0.0, /* theta_0 */
+    0.0, /* theta_1 */
+    0.0 /* theta_2 */
+};
+
+/* Reference flags: chain j moves as from the start with its top derivative 0 (a polynomial in
+ * t), plus 0.3 sin(0.5 t + j), and their derivatives. */
 static void reference(real t, real flags[DC_MOTOR_LINK_NFLAGS])
 {
-    int j, i;
+    int j, i, l;
     for (j = 0; j < NY; j++) {
         real amp = 0.3;
         for (i = 0; i <= degree[j]; i++) {
             real phase = 0.5 * t + (real)j + (real)i * 1.5707963267948966;
-            flags[offset[j] + j + i] = amp * SIN(phase);
+            real drift = 0, term = 1;
+            for (l = i; l < degree[j]; l++) {
+                drift += term * start[offset[j] + l];
+                term = term * t / (real)(l - i + 1);
+            }
+            flags[offset[j] + j + i] = drift + amp * SIN(phase);
             amp = amp * 0.5;
         }
     }
@@ -80,8 +95,8 @@ int main(void)
     int i, j, k, rc = 0;
     uint32_t saturated = 0;
 
-    memset(zeta, 0, sizeof(zeta));
-    memset(x0, 0, sizeof(x0));
+    memcpy(zeta, start, sizeof(zeta));
+    memcpy(x0, start, sizeof(x0));
     memset(P0, 0, sizeof(P0));
     memset(R, 0, sizeof(R));
     for (i = 0; i < NX; i++) {
