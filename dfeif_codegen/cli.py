@@ -262,6 +262,8 @@ def build(args: argparse.Namespace) -> int:
     else:
         print(f"  sizeof: node {sizes['node']} B, master {sizes['master']} B, packet {sizes['packet']} B "
               f"(host compiler)")
+    if warning := o.stack_warning(module.n):
+        print(f"codegen build: warning: {warning}", file=sys.stderr)
     return 0
 
 
