@@ -8,6 +8,7 @@ import argparse
 import os
 import shlex
 import sys
+from pathlib import Path
 
 from dfeif_codegen import __version__
 from dfeif_codegen.errors import CodegenError
@@ -261,6 +262,8 @@ def build(args: argparse.Namespace) -> int:
     else:
         print(f"  sizeof: node {sizes['node']} B, master {sizes['master']} B, packet {sizes['packet']} B "
               f"(host compiler)")
+    if warning := o.stack_warning(module.n):
+        print(f"codegen build: warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -314,8 +317,6 @@ def reproduce(args: argparse.Namespace) -> int:
 
 
 def bench(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from dfeif_codegen.check import bench
 
     bench.check_out(args.out, args.model)
@@ -338,7 +339,8 @@ def scenario(args: argparse.Namespace) -> int:
     text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
                             offset=args.offset, phase=args.phase, period=args.period,
                             disturbance=args.disturbance, tau=args.tau, param_error=args.param_error,
-                            offsets=args.offsets, trajectory=args.trajectory, smoothing=args.smoothing, **_budget(args))
+                            offsets=args.offsets, trajectory=args.trajectory, smoothing=args.smoothing,
+                            progress=lambda line: print(line, file=sys.stderr, flush=True), **_budget(args))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 
@@ -349,8 +351,6 @@ def network(args: argparse.Namespace) -> int:
     from dfeif_codegen.net import run
 
     if args.bench:
-        from pathlib import Path
-
         from dfeif_codegen.net import bench
 
         harness.host_compiler()

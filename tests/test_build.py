@@ -320,3 +320,37 @@ def test_cmake_and_make_carry_the_size_flags(fresh):
     make = (fresh / "dc_motor_link" / "dc_motor_link.mk").read_text()
     assert "target_compile_options(dc_motor_link PRIVATE\n        " + " ".join(flags) + ")" in cmake
     assert "DC_MOTOR_LINK_LIB_CFLAGS := " + " ".join(flags) in make
+
+
+def _node_frames(host_cc, folder: Path) -> dict[str, int]:
+    """`-fstack-usage`'s frame per function of the generated node.c in `folder` (-O2)."""
+    subprocess.run([host_cc, "-std=c99", "-O2", "-fstack-usage", "-c", str(folder / "dc_motor_link_node.c"),
+                    "-o", str(folder / "node.o")], check=True, capture_output=True)
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r":(\w+)\t(\d+)\t", (folder / "node.su").read_text())}
+
+
+def test_replay_stack_is_the_compilers_and_warned_past_8_kib(tmp_path, host_cc):
+    """The replay's frame grows with --max-lag: `-fstack-usage` on the generated node reports
+    replay()'s frame at NMAX 32 and 4096, and the growth between the two is the estimate's to
+    the byte (every array a multiple of 16 bytes there, so no alignment slack; the frame's fixed
+    part, spills and inlined callees, cancels). `codegen build` warns past 8 KiB with that
+    figure, and says nothing at the default NMAX. A retrodicting node's frames do not grow."""
+    frame, said, retro = {}, {}, {}
+    for lag in (32, 4096):
+        result = cli_run("build", "--out", str(tmp_path / str(lag)), "--max-lag", str(lag))
+        assert result.returncode == 0, result.stderr
+        said[lag] = result.stderr
+        frame[lag] = _node_frames(host_cc, tmp_path / str(lag) / "dc_motor_link")["replay"]
+        other = tmp_path / f"retro{lag}"
+        assert build.build("dc_motor_link", other, max_lag=lag, oosm="retrodict").n == 3
+        retro[lag] = _node_frames(host_cc, other / "dc_motor_link")
+    estimate = {lag: Options(ts=0.01, max_lag=lag).replay_stack(3) for lag in frame}      # the motor: n = 3
+    assert frame[4096] - frame[32] == estimate[4096] - estimate[32]
+    assert 0 <= frame[32] - estimate[32] <= 256, (frame, estimate)      # the fixed part: a few n-sized arrays
+    assert said[32] == ""
+    lines = said[4096].strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("codegen build: warning: ")
+    assert f"about {estimate[4096]} bytes on the stack" in lines[0] and "--max-lag 4096" in lines[0]
+    assert estimate[4096] > 8 * 1024 > Options(ts=0.01).replay_stack(3)
+    assert retro[32] == retro[4096]
+    assert Options(ts=0.01, max_lag=4096, oosm="retrodict", predictor="brunovsky").replay_stack(3) == 0

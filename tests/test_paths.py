@@ -122,3 +122,49 @@ def test_network_bench_leaves_a_users_file_alone(tmp_path, capsys):
     assert cli.main(["network", "--bench", str(notes)]) == 2
     assert notes.read_text() == "my notes\n"
     assert "--bench " + str(notes) + ": exists and was not written by codegen bench" in capsys.readouterr().err
+
+
+def test_reproduce_replaces_its_own_figures_and_no_one_elses(tmp_path, capsys):
+    """`reproduce --doc` copies figures beside the document: a file at a figure's path that is
+    not a matplotlib PNG (a user's) is refused before any run, named, and left as it was, as is
+    a user's OUT/experiment.md; a figure an earlier rendering copied there is replaced. A figure
+    new to this rendering is checked when its name is known, before anything is written."""
+    doc = tmp_path / "e.md"
+    shutil.copy(ROOT / "docs" / "experiment.md", doc)
+    shutil.copy(ROOT / "docs" / "experiment.json", tmp_path / "e.json")
+    figure = tmp_path / "figures" / "compare_dc_motor_link.png"
+    figure.parent.mkdir()
+    figure.write_bytes(b"my own chart\n")
+    argv = ["reproduce", "--quick", "--runs", "2", "--quiet", "--out", str(tmp_path / "out")]
+    assert cli.main([*argv, "--doc", str(doc)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{figure}: exists and was not written by codegen reproduce" in err[0]
+    assert figure.read_bytes() == b"my own chart\n" and not (tmp_path / "out").exists()    # refused before any run
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "experiment.md").write_text("my notes\n")
+    assert cli.main(argv) == 2
+    assert "experiment.md: exists and was not written by codegen reproduce" in capsys.readouterr().err
+    assert (tmp_path / "out" / "experiment.md").read_text() == "my notes\n"
+
+    theirs = (ROOT / "docs" / "figures" / "compare_two_link_arm.png").read_bytes()   # another rendering's
+    figure.write_bytes(theirs)
+    reproduction.check_doc(doc)
+    out = tmp_path / "out"
+    fresh = (ROOT / "docs" / "figures" / "compare_dc_motor_link.png").read_bytes()
+    (out / "figures" / "motor").mkdir(parents=True)
+    (out / "figures" / "compare_dc_motor_link.png").write_bytes(fresh)
+    (out / "figures" / "motor" / "fig1.png").write_bytes(fresh)
+    text = "x\n![chart](figures/compare_dc_motor_link.png)\n![one](figures/motor/fig1.png)\n"
+    (tmp_path / "figures" / "motor").mkdir()
+    (tmp_path / "figures" / "motor" / "fig1.png").write_text("a user's file at a new figure's name\n")
+    with pytest.raises(OutputPathError, match="fig1.png: exists and was not written by codegen reproduce"):
+        reproduction.publish(text, {}, out, doc)
+    assert figure.read_bytes() == theirs and doc.read_bytes() == (ROOT / "docs" / "experiment.md").read_bytes()
+    assert (tmp_path / "e.json").read_bytes() == (ROOT / "docs" / "experiment.json").read_bytes()
+    (tmp_path / "figures" / "motor" / "fig1.png").unlink()
+    reproduction.publish(text, {}, out, doc)
+    assert figure.read_bytes() == fresh and (tmp_path / "figures" / "motor" / "fig1.png").read_bytes() == fresh
+    assert doc.read_text() == text
+    (out / "experiment.md").unlink()        # the user's notes, moved away
+    inside = reproduction.publish(text, {}, out, out / "experiment.md")     # --doc inside OUT: figures in place
+    assert inside[-1] == str(out / "figures" / "motor" / "fig1.png") and (out / "experiment.md").read_text() == text

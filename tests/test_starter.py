@@ -115,10 +115,38 @@ def test_too_fast_a_mode_is_named(tmp_path, capsys):
     model = tmp_path / "flex_40ms.toml"
     model.write_text(FLEX_JOINT.replace("ts = 0.01", "ts = 0.04"))
     assert cli.main(["scenario", str(model), "--out", str(tmp_path / "s.toml")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "does not close" in err
+    *said, err = capsys.readouterr().err.strip().splitlines()     # the calibration's progress, then the error
+    assert err.startswith("codegen scenario: error:") and "does not close" in err
+    assert said and not any(": error:" in line for line in said)
     _reported(err, omega)
     assert not (tmp_path / "s.toml").exists()
+
+
+def test_progress_is_on_stderr_and_agrees_with_the_calibration_log(capsys):
+    """The motor's calibration (a minute; a stiff model's, many) says each stage as it starts and
+    each NEES evaluation on stderr, in order; stdout is the scenario alone. The evaluations said
+    are the ones the scenario's own log counts, the NEES it settled on among them at its q."""
+    import re
+
+    from dfeif_codegen.experiment import starter
+
+    assert cli.main(["scenario", "dc_motor_link"]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith(starter.MARKER) and "codegen scenario:" not in out
+    scenario.loads(out, "<stdout>").check_model(ex._flat("dc_motor_link"))
+    lines = err.splitlines()
+    assert lines and all(line.startswith("codegen scenario: ") for line in lines), err
+    stages = ["q from the one-step residual along the reference", "closed-loop round 1 of",
+              "scaling q until the master's NEES", "master NEES at q = ", "the replay loop under the hardest delays",
+              "baseline discard:", "baseline as-current:"]
+    at = [next(i for i, line in enumerate(lines) if line[len("codegen scenario: "):].startswith(s)) for s in stages]
+    assert at == sorted(at), lines
+    said = [(m.group(1), float(m.group(2))) for m in
+            map(re.compile(r"master NEES at q = (\[.*?\]): ([0-9.e+-]+) \(").search, lines) if m]
+    logged = re.search(r"master NEES over 8 runs without delays: ([0-9.e+-]+) at q = (\[.*?\]) \((.*)", out)
+    assert (logged.group(2), pytest.approx(float(logged.group(1)), rel=5e-3)) in said, (said, logged.group(0))
+    tries = re.search(r"not reached in (\d+) tries", logged.group(3))
+    assert len(said) == (int(tries.group(1)) if tries else len(said)) >= 1
 
 
 def test_refuses_to_overwrite_a_foreign_file(tmp_path, capsys):

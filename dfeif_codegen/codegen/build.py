@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -45,6 +46,7 @@ class GeneratedModule:
     name: str
     options: Options
     files: tuple[str, ...]
+    n: int = 0          # the filters' state dimension (NX), as the header defines it
 
 
 def _comment(text: str) -> str:
@@ -100,8 +102,8 @@ def context(flat, opts: Options) -> dict:
         "cmake_version": provenance.cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,
         # the node stores P priors every `check_every` steps (replay recomputes the ones between
-        # with the P recursion); a retrodiction restarts that recursion, so it keeps every one
-        "check_every": kernels.CHECK_EVERY if opts.oosm == "replay" else 1,
+        # with the P recursion), `ncheck` of them (Options.checkpoints)
+        "check_every": opts.check_every, "ncheck": opts.checkpoints,
         "sz_w": {k["name"][len(p) + 6:]: k["sz_w"] for k in kernel_list},
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
         "extension": extension_context(flat, opts.ts),
@@ -221,7 +223,8 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
     compiles = (lambda folder: compile_check_folder(folder, m.name)) if compile_check else None
     target = write_atomic(Path(out), m.name, files, force=force, check=compiles)
-    return GeneratedModule(target, m.name, opts, tuple(files))
+    nx = re.search(rf"^#define {m.name.upper()}_NX (\d+)$", files[f"{m.name}.h"], re.M)  # derived in a child
+    return GeneratedModule(target, m.name, opts, tuple(files), int(nx.group(1)) if nx else 0)
 
 
 def compile_check_folder(folder: Path, name: str) -> None:

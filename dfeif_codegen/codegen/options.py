@@ -14,6 +14,14 @@ NODES_LIMIT = 16
 OOSM_METHODS = ("replay", "retrodict")
 FUSION_RULES = ("difference", "paper", "ci")
 PRECISIONS = ("double", "float")
+# A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
+# canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
+# quarter (and packing halves it) for at most 3 extra P steps per late measurement.
+CHECK_EVERY = 4
+# `codegen build` warns when the replay's stack frame passes this: Cortex-M main stacks are
+# typically 1-8 KiB (a CMSIS startup file's default is 1 KiB, an RTOS task's often less), and an
+# overflow there corrupts memory silently, only on a late measurement's replay.
+REPLAY_STACK_WARN = 8 * 1024
 
 
 class BuildError(CodegenError):
@@ -92,6 +100,38 @@ class Options:
         if self.predictor != for_method(None, self.oosm):
             out.append(f"--predictor {self.predictor}")
         return " ".join(out)
+
+    @property
+    def check_every(self) -> int:
+        """Steps between the node's stored P priors: a retrodiction restarts the P recursion at
+        the late step, so it keeps every one."""
+        return CHECK_EVERY if self.oosm == "replay" else 1
+
+    @property
+    def checkpoints(self) -> int:
+        """NODE_NCHECK: enough stored P priors to hold the one at or before the window's oldest step."""
+        return (self.max_lag + self.check_every - 1) // self.check_every + 1
+
+    def replay_stack(self, n: int) -> int:
+        """Bytes of the local arrays of node_replay.c.j2's replay() for n filter states (0 with
+        retrodict, whose locals do not grow with NMAX): the undo copies old_x[NMAX * NX] and
+        old_P[NODE_NCHECK_REALS] and the carried prior[NX + NPP]. Why: they grow with --max-lag
+        (147 KB of double at 4096 on the motor) on the stack of whoever feeds a late frame."""
+        if self.oosm != "replay":
+            return 0
+        npp = n * (n + 1) // 2
+        reals = self.max_lag * n + self.checkpoints * npp + n + npp
+        return reals * (4 if self.precision == "float" else 8)
+
+    def stack_warning(self, n: int) -> str:
+        """One line when the replay's frame (replay_stack) passes REPLAY_STACK_WARN, else ""."""
+        size = self.replay_stack(n)
+        if size <= REPLAY_STACK_WARN:
+            return ""
+        return (f"the late-measurement replay keeps about {size} bytes on the stack of the caller of "
+                f"node_update_delayed (--max-lag {self.max_lag}, {n} states, {self.precision}; over "
+                f"{REPLAY_STACK_WARN // 1024} KiB, more than a typical Cortex-M main stack): give that task the "
+                "stack, or lower --max-lag")
 
     def disturbance_states(self) -> Disturbance | None:
         """The disturbance model the constants are built for (its densities are runtime values,

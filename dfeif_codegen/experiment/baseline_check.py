@@ -19,14 +19,16 @@ from dfeif_codegen.experiment.plan import make_config
 SEEDS = (0, 1)      # simulate's first runs: `simulate --runs 2` on the scenario then runs clean
 
 
-def kept(text: str, spec: str, source: str) -> tuple[str, list[str]]:
+def kept(text: str, spec: str, source: str, progress=None) -> tuple[str, list[str]]:
     """The scenario `text` with only the baselines that keep every loop, and a log line per one
-    left out (why, and where)."""
+    left out (why, and where); `progress(line)` hears each baseline as its loops start."""
     sc = scenario_mod.loads(text, source)
     nodes = len(sc.noise_scale)
     delayed = [row for row in sc.grid if row.p > 0]
     keep, log = [], []
     for method in sc.baselines:
+        if progress:
+            progress(f"baseline {method}: its loops on the {len(delayed)} delayed rows, seeds {SEEDS[0]}-{SEEDS[-1]}")
         configs = [make_config(sc, spec, nodes, MAX_LAG, sc.references[0], row, method, sc.fusion[0], seed)
                    for row in delayed for seed in SEEDS]
         loss = first_loss(configs)

@@ -37,23 +37,27 @@ def first_loss(configs) -> tuple[int, str] | None:
     return None
 
 
-def close_with_delays(q, config, seeds, links, log) -> tuple[np.ndarray, list[str]]:
+def close_with_delays(q, config, seeds, links, log, progress=None) -> tuple[np.ndarray, list[str]]:
     """Under the hardest delays the estimate rides the model's prediction for many steps, and a q
     matched without delays can lose the loop (the maglev of the tests drifts onto its magnet).
     Run the replay loop there (simulate's divergence tests) and raise q by half a decade until it
-    closes; past DELAY_STEPS keep the NEES-matched q and say so."""
+    closes; past DELAY_STEPS keep the NEES-matched q and say so. `progress(line)` hears each q
+    tried as its loops start."""
     def lost(q) -> str | None:
         loss = first_loss(dataclasses.replace(config(q, s, NEES_SECONDS), sensor=tuple(links), watch_nees=True)
                           for s in seeds)
         return loss and loss[1]
 
     where = links_text(links)
+    say = progress or (lambda line: None)
+    say(f"the replay loop under the hardest delays ({where}) at q = {fmt(q)}")
     first = lost(q)
     first = first and first.split(" (")[0]
     if first is None:
         return q, log
     for step in range(1, DELAY_STEPS + 1):
         raised = q * 10 ** (step / 2)
+        say(f"the loop was lost there ({first}): q x {10 ** (step / 2):.3g} ({step} of at most {DELAY_STEPS})")
         if lost(raised) is None:
             log.append(f"under the hardest delays ({where}) the loop was lost ({first}): q x {10 ** (step / 2):.3g} "
                        f"-> {fmt(raised)} closes it")
@@ -100,7 +104,8 @@ def _master_nees(config, q, seeds) -> float:
     return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
 
 
-def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEES_FLOOR) -> tuple[np.ndarray, list[str]]:
+def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEES_FLOOR,
+               progress=None) -> tuple[np.ndarray, list[str]]:
     """Scale q (every chain alike, keeping the residual's proportions) until the master's NEES,
     averaged over `seeds` closed loops without delays of NEES_SECONDS (the length of a
     scenario's runs: the NEES of a filter with little process noise drifts over a run, so a
@@ -111,7 +116,8 @@ def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEE
     does not describe, and the estimate's own error feeds back through u. `nees(q)`: another
     measure of the master's NEES at q than `seeds` closed loops of `config`; `floor`: how far
     below the start q may go when the first loop closed (None: no floor, for a filter whose
-    start is not the residual's scale and which does not close the loop)."""
+    start is not the residual's scale and which does not close the loop); `progress(line)` hears
+    each evaluation's NEES."""
     n = flat.n
     nees_at = nees or (lambda qq: _master_nees(config, qq, seeds))
     tried = []                                   # (log scale, log NEES / n)
@@ -120,6 +126,10 @@ def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEE
     floored = False
     while len(tried) < NEES_EVALS and lost <= NEES_LOST:
         value = nees_at(q * math.exp(scale))
+        if progress:
+            progress(f"master NEES at q = {fmt(q * math.exp(scale))}: " + (
+                f"{value:.3g} ({len(tried) + 1} of at most {NEES_EVALS})" if math.isfinite(value)
+                else f"a loop lost ({lost + 1} of at most {NEES_LOST + 1} losses)"))
         if not math.isfinite(value):
             lost += 1
             scale = _after_loss(tried, scale, lost)

@@ -31,19 +31,23 @@ def lost_corner(config, poles, errors, links) -> str | None:
     return None if loss is None else f"{errors[loss[0]].describe()}: {loss[1].split(' (')[0]}"
 
 
-def hold(config, poles, plant_error, model, links, log: list[str]) -> tuple[list[float], list[str]]:
+def hold(config, poles, plant_error, model, links, log: list[str], progress=None) -> tuple[list[float], list[str]]:
     """The poles (slowed if need be) whose loops hold every corner of `plant_error`, and the log;
-    without an error (None or inactive) or delays (`links` None) the poles as they are."""
+    without an error (None or inactive) or delays (`links` None) the poles as they are.
+    `progress(line)` hears each set of poles as its loops start."""
     if plant_error is None or not plant_error.active or links is None:
         return list(poles), log
     errors = plant_error.corners(model)
     where = links_text(links)
+    say = progress or (lambda line: None)
+    say(f"poles {fmt(poles)} on the error's {len(errors)} corners under {where}")
     first = lost_corner(config, poles, errors, links)
     if first is None:
         log.append(f"poles {fmt(poles)} hold the loop on the error's {len(errors)} corners under {where}")
         return list(poles), log
     for step in range(1, STEPS + 1):
         slower = [float(f"{p * SLOWER ** step:.3g}") for p in poles]
+        say(f"poles {fmt(slower)} on the error's {len(errors)} corners ({step} of at most {STEPS})")
         if lost_corner(config, slower, errors, links) is None:
             log.append(f"poles {fmt(poles)} lost the loop on a corner of the error under {where} ({first}); "
                        f"{fmt(slower)} hold all {len(errors)}")

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import json
 import math
 from pathlib import Path
 from typing import NamedTuple
@@ -52,6 +51,7 @@ from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.experiment import baseline_check, disturbance_calibration, disturbance_choice, offsets_calibration, pole_margin, shapes
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
+from dfeif_codegen.experiment.shapes import toml_list
 from dfeif_codegen.experiment.trajectory import flags
 from dfeif_codegen.symbolic.disturbance import Disturbance
 
@@ -114,16 +114,19 @@ class Calibrated(NamedTuple):
 
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
-              duration: float = 5.0, seed: int = 1000, rounds: int = 3,
-              shape: shapes.Shape | None = None, delays: tuple | None = None, **options) -> Calibrated:
+              duration: float = 5.0, seed: int = 1000, rounds: int = 3, shape: shapes.Shape | None = None,
+              delays: tuple | None = None, progress=None, **options) -> Calibrated:
     """q per chain and a log of the rounds (see the module docstring). `options`: the filters'
     settings of the closed loops (closed_loop.Config fields, e.g. the predictor the scenario
     selects), so q is calibrated for the filter that will run; `delays`: the camera links
     (network.Link per node) of the scenario's hardest delay row, which q must also close, and
     with a `plant_error` the poles too (pole_margin). With `disturbance` among the options (a
     Disturbance, its densities ignored): its calibrated densities, and the `offsets` option
-    (reference/offsets.Offsets) with its chains' q calibrated."""
+    (reference/offsets.Offsets) with its chains' q calibrated. `progress(line)` hears each stage
+    as it starts and each NEES evaluation (a stiff model's loops take minutes)."""
+    say = progress or (lambda line: None)
     shape = shape or shapes.from_domains(flat)
+    say("q from the one-step residual along the reference")
     q = _reference_q(flat, spec, ts, substeps, shape)
     floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
                              for a, c in zip(shape.amplitude, flat.chains)])
@@ -142,7 +145,8 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     offsets = options.pop("offsets", None)
     if dist is not None:      # the loops are closed by the chapter's filter (module docstring)
         options["predictor"] = "brunovsky"
-    for _ in range(rounds):
+    for k in range(rounds):
+        say(f"closed-loop round {k + 1} of at most {rounds}: q from the residual along a {duration:g} s loop")
         cfg = config(q, seed)
         try:
             res = ex.run(cfg)
@@ -150,34 +154,10 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             q = q * 10
             log.append(f"closed loop diverged: q x 10 -> {_fmt(q)}")
             continue
+        if dist is not None:
+            return _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, log, say)
         k0 = int(round(cfg.metrics_from / ts))
         rec = res.recording      # the residual of the predictor the loop ran
-        if dist is not None:
-            held = _held_residual_q(flat, ts, cfg, res, k0)
-            q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:]), q)
-            log.append(f"along the closed loop: q = {_fmt(held)} (held), {_fmt(q)} (the loop's filter)")
-            held, log = _white_q(flat, held * np.min(q / held), config, seed, log)
-            # a model error drawn per run makes each run's NEES another (1.1 to 12.6 between the 5%
-            # and 95% points at 5% on the motor): the draw's orthogonal-array design stands in for
-            # it (model_error.ParamError.design), the fixed model takes its two runs
-            drawn = cfg.plant_error.draw != "none"
-            errors = cfg.plant_error.design(flat.model) if drawn else [cfg.plant_error] * NEES_RUNS
-            seeds = [seed + i for i in range(len(errors))]
-            loops = [ex.run(dataclasses.replace(config(q, s, NEES_SECONDS), plant_error=e))
-                     for s, e in zip(seeds, errors)]
-            match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees)  # noqa: E731
-            hold = lambda qq, d, lg: pole_margin.hold(  # noqa: E731
-                lambda j: dataclasses.replace(config(qq, seed + j, NEES_SECONDS), predictor="held", disturbance=d),
-                poles, cfg.plant_error, flat.model, delays, lg)
-            if dist.kind == disturbance_calibration.AUTO:
-                held, log, dist, poles = disturbance_choice.choose(flat, held, loops, match, NEES_TOL, log, hold)
-            else:
-                held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
-                poles, log = hold(held, dist, log)
-            if offsets is not None:     # a reference filter that closes no loop here: no floor
-                free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None)  # noqa: E731
-                offsets, log = offsets_calibration.chains_q(held, loops, offsets, free, log)
-            return Calibrated(held, log, poles, dist, offsets)
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
                                  getattr(rec, "predictor", "brunovsky")), q)
         log.append(f"along the closed loop: q = {_fmt(q)}")
@@ -185,16 +165,54 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     if dist is not None:
         raise ArithmeticError(f"every closed loop of the calibration diverged (q up to {_fmt(q)})")
     seeds = [seed + i for i in range(NEES_RUNS)]
-    q, log = match_nees(flat, q, config, seeds, log)
+    say(f"scaling q until the master's NEES over {NEES_RUNS} runs of {NEES_SECONDS:g} s without delays is n")
+    q, log = match_nees(flat, q, config, seeds, log, progress=say)
     if delays is None or NO_LOOP in log[-1]:
         return Calibrated(q, log, list(poles))
-    q, log = close_with_delays(q, config, seeds, delays, log)
+    q, log = close_with_delays(q, config, seeds, delays, log, progress=say)
     poles, log = pole_margin.hold(lambda j: config(q, seed + j, NEES_SECONDS), poles, options.get("plant_error"),
-                                  flat.model, delays, log)
+                                  flat.model, delays, log, progress=say)
     return Calibrated(q, log, poles)
 
 
-def _white_q(flat, start, config, seed: int, log: list[str]) -> tuple[np.ndarray, list[str]]:
+def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, log, say) -> Calibrated:
+    """`calibrate` with disturbance states, from its first closed loop `cfg` (result `res`, q
+    `q`, closed by the chapter's filter): the held filter's white q, the densities (of `dist`'s
+    kind, or the kind chosen), the poles and, with `offsets`, the offset filter's chains' q."""
+    ts = cfg.ts
+    k0 = int(round(cfg.metrics_from / ts))
+    rec = res.recording      # the residual of the predictor the loop ran
+    held = _held_residual_q(flat, ts, cfg, res, k0)
+    q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:]), q)
+    log.append(f"along the closed loop: q = {_fmt(held)} (held), {_fmt(q)} (the loop's filter)")
+    held, log = _white_q(flat, held * np.min(q / held), config, seed, log, say)
+    # a model error drawn per run makes each run's NEES another (1.1 to 12.6 between the 5%
+    # and 95% points at 5% on the motor): the draw's orthogonal-array design stands in for
+    # it (model_error.ParamError.design), the fixed model takes its two runs
+    drawn = cfg.plant_error.draw != "none"
+    errors = cfg.plant_error.design(flat.model) if drawn else [cfg.plant_error] * NEES_RUNS
+    seeds = [seed + i for i in range(len(errors))]
+    say(f"the calibration's {len(errors)} loops under the model error, closed by the chapter's filter")
+    loops = [ex.run(dataclasses.replace(config(q, s, NEES_SECONDS), plant_error=e))
+             for s, e in zip(seeds, errors)]
+    match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, progress=say)  # noqa: E731
+    hold = lambda qq, d, lg: pole_margin.hold(  # noqa: E731
+        lambda j: dataclasses.replace(config(qq, seed + j, NEES_SECONDS), predictor="held", disturbance=d),
+        poles, cfg.plant_error, flat.model, delays, lg, progress=say)
+    say(f"disturbance densities ({dist.kind}): scaled until the held filter's NEES on those loops is n")
+    if dist.kind == disturbance_calibration.AUTO:
+        held, log, dist, poles = disturbance_choice.choose(flat, held, loops, match, NEES_TOL, log, hold)
+    else:
+        held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
+        poles, log = hold(held, dist, log)
+    if offsets is not None:     # a reference filter that closes no loop here: no floor
+        say("the offset filter's chains: q scaled until its NEES on those loops is n")
+        free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None, progress=say)  # noqa: E731
+        offsets, log = offsets_calibration.chains_q(held, loops, offsets, free, log)
+    return Calibrated(held, log, poles, dist, offsets)
+
+
+def _white_q(flat, start, config, seed: int, log: list[str], say) -> tuple[np.ndarray, list[str]]:
     """The held filter's q for the white part: NEES-matched on loops the held filter closes on
     the exact model, as a scenario without disturbance states gets it; the disturbance states
     then take only what the model error adds. `start`: the held one-step residual's proportions
@@ -206,7 +224,8 @@ def _white_q(flat, start, config, seed: int, log: list[str]) -> tuple[np.ndarray
     fail outright (every scale of q lost at 7e-6)."""
     def exact(q, run_seed, duration=NEES_SECONDS):
         return dataclasses.replace(config(q, run_seed, duration), predictor="held", plant_error=ex.EXACT_MODEL)
-    q, log = match_nees(flat, start, exact, [seed + i for i in range(NEES_RUNS)], log)
+    say("the held filter's white part: q scaled until its NEES on the exact model is n")
+    q, log = match_nees(flat, start, exact, [seed + i for i in range(NEES_RUNS)], log, progress=say)
     log[-1] = "the held filter's white part: " + log[-1]
     return q, log
 
@@ -220,27 +239,15 @@ def _held_residual_q(flat, ts, cfg, res, k0) -> np.ndarray:
     return implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:], "held")
 
 
-def _reference_lines(shape: shapes.Shape, file: str | None) -> list[str]:
-    """The [reference] table: the shape's numbers, or the user's CSV (`file`: relative to it)."""
-    if shape.trajectory is not None:
-        smoothing = [f"smoothing = {shape.trajectory.smoothing:g}"] if shape.trajectory.smoothing else []
-        return ["[reference]           # the user's trajectory (columns t, each flat output, <name>_d<k>)",
-                f"file = {json.dumps(file)}", *smoothing, ""]
-    return [f"[reference]           # {shape.kind}, from the flat outputs' declared domains",
-            f"amplitude = {_toml_list(shape.amplitude)}", f"period = {shape.period:g}",
-            f"offset = {_toml_list(shape.offset)}", f"phase = {_toml_list(shape.phase)}",
-            f"cycles = {_toml_list(shape.cycles)}", "harmonics = 4", ""]
-
-
 def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | None = None,
                       disturbance: Disturbance | None = None, plant_error=None,
-                      offsets=None) -> tuple[str, list[str]]:
+                      offsets=None, progress=None) -> tuple[str, list[str]]:
     """The TOML text of a starting scenario for model `spec`, and the calibration log; `file`:
     how the scenario names a trajectory shape's CSV; `disturbance` (its densities ignored):
     calibrated for the held filter with those states; `plant_error` (model_error.ParamError):
     the calibration's plants have it, and so has the scenario (its [model_error] table);
     `offsets` (reference/offsets.Offsets, with a disturbance): the [offsets] table, its chains'
-    q calibrated on the same loops."""
+    q calibrated on the same loops; `progress` as calibrate's."""
     flat = ex._flat(spec)
     shape = shape or shapes.from_domains(flat)
     model = flat.model
@@ -257,9 +264,10 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
         ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance}) | \
         ({} if offsets is None else {"offsets": offsets})
     q, log, poles, disturbance, offsets = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape,
-                                                    delays=paper.grid[-1].links(len(noise_std)), **options)
+                                                    delays=paper.grid[-1].links(len(noise_std)), progress=progress,
+                                                    **options)
     omega = shapes.fastest_oscillation(flat, spec, ts, shape=shape)
-    fast = _fast_mode(omega, ts)
+    fast = shapes.fast_mode(omega, ts)
     if NO_LOOP in log[-1]:     # no closed loop of the NEES stage survived: nothing was calibrated
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged or lost "
                             f"its closed loop "
@@ -288,34 +296,24 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
         'baselines = ["discard", "as-current"]',
         "",
         "[filter]",
-        f"q = {_toml_list(q)}               # per chain: the one-step residual, scaled to NEES = n",
-        f"p0_std = {_toml_list(p0_std)}   # per derivative order",
+        f"q = {toml_list(q)}               # per chain: the one-step residual, scaled to NEES = n",
+        f"p0_std = {toml_list(p0_std)}   # per derivative order",
         "initial_error = true",
         "",
         "[control]",
         f"poles = {poles[0]:g}              # every pole at -{poles[0] * ts:.3g}/Ts",
         "",
-        *_reference_lines(shape, file),
+        *shapes.reference_table(shape, file),
     ]
     for i, node_std in enumerate(noise_std):
         lines += ["[[nodes]]", f"noise_scale = {1.0 if i == 0 else 1.25:g}" if node_std is None
-                  else f"noise_std = {_toml_list(node_std)}", ""]
+                  else f"noise_std = {toml_list(node_std)}", ""]
     lines += ["[uplink]", "p = 0.0", "d = 0", "p_drop = 0.0", ""]
     for row in paper.grid:
         lines += ["[[grid]]", f"d = {row.d}", f"p = {row.p:g}", ""]
     lines += _extra_tables(plant_error, disturbance)
     lines += [] if offsets is None else offsets_calibration.table(offsets, model, plant_error)
     return "\n".join(lines), log
-
-
-def _fast_mode(omega: float, ts: float) -> str:
-    """What to say of a plant mode turning more than 0.3 rad per period (eigenvalues of the plant's
-    Jacobian along the reference): said where loops were lost or past 1 rad, since the held
-    predictor samples such a mode exactly (a stiff flexible joint tracks to 0.5% of its swing at
-    0.94 rad per period, 18% at 1.8, not at all at 3.7); the period proposed turns it 0.3 rad."""
-    return "" if omega * ts <= 0.3 else (f"the plant oscillates at up to {omega:.3g} rad/s, {omega * ts:.2f} rad per "
-                                         f"period at Ts = {ts:g} s: a period of about {0.3 / omega:.2g} s "
-                                         f"(scenario.ts) may close it, at {ts * omega / 0.3:.0f} times the work")
 
 
 def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
@@ -331,21 +329,17 @@ def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
         lines += ["# a disturbance per chain on its top derivative" + (" and its rate" if disturbance.order == 2 else "")
                   + " (run with --predictor held);",
                   "# q: their densities, scaled so that the master's NEES averages n",
-                  "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {_toml_list(disturbance.q)}"]
+                  "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {toml_list(disturbance.q)}"]
         lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
         lines += [""]
     return lines
-
-
-def _toml_list(values) -> str:
-    return "[" + ", ".join(f"{float(v):.4g}" for v in values) + "]"
 
 
 def scenario(model: str, out: str | None = None, max_seconds: float | None = None,
              max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
              phase=None, period: float | None = None, trajectory: str | None = None,
              smoothing: float = 0.0, disturbance: str | None = None, tau: float | None = None,
-             param_error: str | None = None, offsets: str | None = None) -> str:
+             param_error: str | None = None, offsets: str | None = None, progress=None) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
     derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `trajectory`: a CSV of
@@ -354,7 +348,9 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     (one of disturbance.KINDS; `tau` the Gauss-Markov time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
     --param-error`): the calibration's plants and the scenario get that model error; `offsets`
-    ("NAME,..."; with both): an [offsets] table for those parameters (offsets_calibration)."""
+    ("NAME,..."; with both): an [offsets] table for those parameters (offsets_calibration).
+    `progress(line)` hears each stage of the calibration as it starts and each NEES evaluation:
+    after every check of the input, so that bad input stays one line."""
     dist = disturbance_calibration.from_options(disturbance, tau)
     plant_error = None
     if param_error is not None:
@@ -379,9 +375,10 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     else:
         ref, file = shapes.of_trajectory(flat, trajectory, smoothing, path,
                                          shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period)))
+    say = progress and (lambda line: progress(f"codegen scenario: {line}"))    # after every check of the input
     try:
-        text, _ = starting_scenario(model, ref, file, dist, plant_error, wanted)
-        text, _ = baseline_check.kept(text, model, str(path or "<generated>"))
+        text, _ = starting_scenario(model, ref, file, dist, plant_error, wanted, say)
+        text, _ = baseline_check.kept(text, model, str(path or "<generated>"), say)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
                             f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "

@@ -10,6 +10,7 @@ templates/docs/experiment.md.j2 (document.py), with the figures in OUT/figures.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import sys
 import time
@@ -17,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.paths import json_keys, replaceable_file
+from dfeif_codegen.paths import OutputPathError, json_keys, replaceable_file
 from dfeif_codegen.reproduction import document
 from dfeif_codegen.reproduction.tasks import FULL, QUICK, check_out, run_task
 
@@ -69,45 +70,91 @@ def _comparison_figures(data: dict, out: Path) -> None:
         t["figures"].append(str(path.relative_to(out)))
 
 
-def _publish(text: str, data: dict, out: Path, doc: Path) -> list[str]:
+def publish(text: str, data: dict, out: Path, doc: Path) -> list[str]:
     """docs/experiment.md, the data it was rendered from (docs/experiment.json: a test renders
-    it again and compares) and the figures it shows (copied beside it, same relative paths)."""
+    it again and compares) and the figures it shows (copied beside it, same relative paths).
+    Every figure's path is checked before anything is written: the document's earlier figures
+    were checked before the runs (check_doc), a new figure's name is known only now."""
+    figures = figure_links(text)
+    try:
+        check_figures(doc.parent, figures)
+    except OutputPathError as exc:
+        raise OutputPathError(f"{exc} (the runs are kept in {out / 'tasks'}: a rerun only renders)") from None
     doc.parent.mkdir(parents=True, exist_ok=True)
     data_file = doc.with_suffix(".json")
     data_file.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
     written = [str(doc), str(data_file)]
-    for line in text.splitlines():
-        start = line.find("](figures/")
-        if line.startswith("![") and start > 0:
-            rel = line[start + 2:line.index(")", start)]
-            target = doc.parent / rel
-            target.parent.mkdir(parents=True, exist_ok=True)
+    for rel in figures:
+        target = doc.parent / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if target.resolve() != (out / rel).resolve():    # --doc inside OUT: the figure is there already
             shutil.copyfile(out / rel, target)
-            written.append(str(target))
+        written.append(str(target))
     doc.write_text(text, encoding="utf-8")
     return written
 
 
 GENERATED = "This document is generated: `codegen reproduce"   # near the top of every rendering
+FIGURE_LINK = re.compile(r"^!\[[^\]]*\]\((figures/[^)]+)\)", re.M)
+# every PNG matplotlib saves names it in a tEXt chunk right after the header (docs/figures/*.png)
+MATPLOTLIB_PNG = (b"\x89PNG\r\n\x1a\n", b"tEXtSoftware\x00Matplotlib version")
+
+
+def figure_links(text: str) -> list[str]:
+    """The figures a rendering shows, relative to it: its `![...](figures/...)` lines."""
+    return FIGURE_LINK.findall(text)
+
+
+def is_figure(path: Path) -> bool:
+    """A figure this command copied: a PNG saved by matplotlib (its magic bytes, then matplotlib
+    named in its first chunks). Why no stricter mark: the committed figures carry none, and a
+    user's file there is a photo, a diagram or notes, not a matplotlib PNG."""
+    head = _head(path)
+    return head.startswith(MATPLOTLIB_PNG[0]) and MATPLOTLIB_PNG[1] in head[:256]
+
+
+def check_figures(folder: Path, figures: list[str]) -> None:
+    """Each of `figures` (relative to `folder`) new, or a figure of an earlier rendering."""
+    for rel in figures:
+        target = folder / rel
+        if target.parent.is_dir():     # else publish makes the folder, empty
+            replaceable_file(target, "--doc (its figure)", "reproduce", is_figure)
 
 
 def check_doc(doc: Path) -> None:
-    """`--doc FILE` and the data file beside it, before any run: new, or written by an earlier
-    `codegen reproduce` (the document's generated line; the data's keys)."""
-    replaceable_file(doc, "--doc", "reproduce", lambda p: GENERATED in _head(p))
+    """`--doc FILE`, the data file beside it and the figures its earlier rendering shows, before
+    any run: new, or written by an earlier `codegen reproduce` (the document's generated line;
+    the data's keys; a matplotlib PNG)."""
+    replaceable_file(doc, "--doc", "reproduce", lambda p: GENERATED in _text(p))
     data = doc.with_suffix(".json")
     if data != doc:
-        replaceable_file(data, "--doc (its data file)", "reproduce",
-                         lambda p: {"runs", "quick", "tasks", "chapter", "facts"} <= json_keys(p))
+        replaceable_file(data, "--doc (its data file)", "reproduce", _is_data)
+    if doc.is_file():
+        check_figures(doc.parent, figure_links(doc.read_text(encoding="utf-8", errors="replace")))
 
 
-def _head(path: Path) -> str:
-    """The first lines of a file, leniently decoded ("" when it cannot be read)."""
+def check_results(out: Path) -> None:
+    """OUT/experiment.md and OUT/experiment.json, before any run: new, or an earlier rendering's."""
+    if out.is_dir():
+        replaceable_file(out / "experiment.md", "--out", "reproduce", lambda p: GENERATED in _text(p))
+        replaceable_file(out / "experiment.json", "--out", "reproduce", _is_data)
+
+
+def _is_data(path: Path) -> bool:
+    return {"runs", "quick", "tasks", "chapter", "facts"} <= json_keys(path)
+
+
+def _head(path: Path) -> bytes:
+    """The first 4 KiB of a file (b"" when it cannot be read)."""
     try:
         with open(path, "rb") as fh:
-            return fh.read(4096).decode("utf-8", "replace")
+            return fh.read(4096)
     except OSError:
-        return ""
+        return b""
+
+
+def _text(path: Path) -> str:
+    return _head(path).decode("utf-8", "replace")
 
 
 def reproduce(runs: int = 100, out: str = "reproduce", *, workers: int | None = None, scheduler: str | None = None,
@@ -119,6 +166,7 @@ def reproduce(runs: int = 100, out: str = "reproduce", *, workers: int | None = 
     folder = Path(out)
     if doc:                 # before check_out, which makes OUT
         check_doc(Path(doc))
+    check_results(folder)
     check_out(folder)
     from dfeif_codegen import api
 
@@ -137,5 +185,5 @@ def reproduce(runs: int = 100, out: str = "reproduce", *, workers: int | None = 
     (folder / "experiment.md").write_text(text, encoding="utf-8")
     written = [str(folder / "experiment.json"), str(folder / "experiment.md")]
     if doc:
-        written += _publish(text, data, folder, Path(doc))
+        written += publish(text, data, folder, Path(doc))
     return Reproduction(data, text, str(folder), time.time() - start, written)

@@ -69,11 +69,6 @@ LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_f
 LOOP_OPS = {"node_predict": 2500, "info": 500, "master_gain": 1000, "fuse_finish_difference": 900,
             "master_info": 500, "fuse_finish": 500, "advance": 500, "held_covariance": 1200}
 
-# A replay node stores the P prior of every CHECK_EVERY-th step only (the P recursion of the
-# canonical model reads neither x nor z, so the others are recomputed): 4 cuts the ring's P to a
-# quarter (and packing halves it) for at most 3 extra P steps per late measurement.
-CHECK_EVERY = 4
-
 
 @dataclass
 class KernelSet:
