@@ -176,3 +176,18 @@ def parse_toml(text: str, source: str, error: type[CodegenError]) -> dict:
     except RecursionError:
         raise error(f"{source}: malformed TOML: nested too deeply") from None
 
+
+# every PNG matplotlib saves names it in a tEXt chunk right after the header (docs/figures/*.png)
+MATPLOTLIB_PNG = (b"\x89PNG\r\n\x1a\n", b"tEXtSoftware\x00Matplotlib version")
+
+
+def is_matplotlib_png(path: Path) -> bool:
+    """A figure one of our commands saved: a PNG written by matplotlib (its magic bytes, then
+    matplotlib named in its first chunks). Why no stricter mark: the committed figures carry
+    none, and a user's file of that name is a photo, a diagram or notes, not a matplotlib PNG."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(256)
+    except OSError:
+        return False
+    return head.startswith(MATPLOTLIB_PNG[0]) and MATPLOTLIB_PNG[1] in head

@@ -296,3 +296,20 @@ def test_simulate_filters_plot_draws_the_comparison(tmp_path):
     assert cli.main(["simulate", "--scenario", str(scen), "--quiet", "--filters", "df,ekf",
                      "--plot", str(tmp_path / "figs")]) == 0
     assert (tmp_path / "figs" / "compare_seesaw_filters.png").stat().st_size > 10_000
+
+
+def test_a_bad_scenario_file_is_refused_before_the_derivation(tmp_path, monkeypatch, capsys):
+    """The model's derivation can take a minute (a user's 3-D quadrotor: 60 s to its budget);
+    a scenario file that cannot be read, or a field of it that is wrong, is said before it."""
+    from dfeif_codegen.experiment import derivation
+
+    def derive(*_args, **_kwargs):
+        raise AssertionError("derived before the scenario file was checked")
+    monkeypatch.setattr(derivation, "derive", derive)
+    assert cli.main(["simulate", "dc_motor_link", "--scenario", str(tmp_path / "nope.toml")]) == 2
+    assert "nope.toml" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[scenario]\nruns = -3\n")
+    assert cli.main(["simulate", "dc_motor_link", "--scenario", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.toml" in err[0] and "runs" in err[0]

@@ -168,3 +168,28 @@ def test_reproduce_replaces_its_own_figures_and_no_one_elses(tmp_path, capsys):
     (out / "experiment.md").unlink()        # the user's notes, moved away
     inside = reproduction.publish(text, {}, out, out / "experiment.md")     # --doc inside OUT: figures in place
     assert inside[-1] == str(out / "figures" / "motor" / "fig1.png") and (out / "experiment.md").read_text() == text
+
+
+def test_simulate_plot_replaces_its_own_figures_and_no_one_elses(tmp_path, capsys):
+    """`simulate --plot DIR` saves figures under names of its own: a user's file at one of them
+    is refused once the plan names it, before any run (exit 2, the path named, the file kept,
+    nothing written); a figure an earlier --plot saved there (a matplotlib PNG) may be replaced."""
+    from types import SimpleNamespace
+
+    from dfeif_codegen.experiment.plan import check_figures
+
+    plots = tmp_path / "plots"
+    plots.mkdir()
+    mine = plots / "fig10_sinusoid_delays.png"
+    mine.write_bytes(b"\x89PNG\r\n\x1a\nmy own chart")
+    argv = ["simulate", "dc_motor_link", "--runs", "1", "--reference", "sinusoid", "--quiet", "--plot", str(plots)]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{mine}: exists and was not written by codegen simulate" in err[0]
+    assert mine.read_bytes() == b"\x89PNG\r\n\x1a\nmy own chart" and [p.name for p in plots.iterdir()] == [mine.name]
+    mine.write_bytes((ROOT / "docs" / "figures" / "compare_dc_motor_link.png").read_bytes())
+    plan = SimpleNamespace(refs=["sinusoid"], nodes=2, filters=["ekf"])
+    check_figures(str(plots), plan)                  # an earlier figure: no error
+    (plots / "compare_sinusoid_filters.png").write_text("notes\n")
+    with pytest.raises(OutputPathError, match="compare_sinusoid_filters.png: exists and was not written"):
+        check_figures(str(plots), plan)

@@ -188,6 +188,21 @@ def comparison_figure(path, title, flat, row_labels, series):
     _save(plt, fig, title, path)
 
 
+def figure_names(ref: str, nodes: int) -> list[str]:
+    """The files `--plot` writes per reference: Figs 9 and 10, one per node, the master under
+    delays, its error without and with delays."""
+    last = 11 + nodes
+    return [f"fig09_{ref}_master_no_delay.png", f"fig10_{ref}_delays.png",
+            *(f"fig{11 + i}_{ref}_node{i + 1}_delay.png" for i in range(nodes)),
+            f"fig{last}_{ref}_master_delay.png",
+            f"fig{last + 1}_{ref}_master_error_no_delay.png", f"fig{last + 1}_{ref}_master_error_delay.png"]
+
+
+def comparison_name(ref: str) -> str:
+    """The file `--filters ... --plot` adds per reference."""
+    return f"compare_{ref}_filters.png"
+
+
 def simulation_figures(directory: str, figures: dict, flat, metrics_from: float = 1.0) -> list[str]:
     """`simulate --plot`: PNG figures like the chapter's Figs 9-13: states against the
     reference, the estimation error with its +-3 sigma band (its share of steps inside counted
@@ -207,30 +222,31 @@ def simulation_figures(directory: str, figures: dict, flat, metrics_from: float 
         how = f"{fig['method']} + {fig['fusion']}"
         b = {**b, "row": row_text(b["row"])}
         t = np.asarray(a["t"])
-        states_figure(save(folder / f"fig09_{ref}_master_no_delay.png"),
+        names = figure_names(ref, len(b["node_x"]))
+        states_figure(save(folder / names[0]),
                            f"Fig. 9: {name}, master estimate without delays ({ref} reference, {how})", flat,
                            t, np.asarray(a["x"]), np.asarray(a["zeta"]), np.asarray(a["ref"]), np.asarray(a["u"]),
                            who="master estimate")
         ts = float(t[1] - t[0]) if len(t) > 1 else 1.0
-        delay_figure(save(folder / f"fig10_{ref}_delays.png"),
+        delay_figure(save(folder / names[1]),
                           f"Fig. 10: {name}, camera -> node delays at {b['row']} ({ref} run; the seed's draws, "
                           "the same for every reference): late with probability p by 1..d_i steps",
                           np.asarray(b["t"]), b["delays"], ts)
         node_x = np.asarray(b["node_x"])
         for i in range(node_x.shape[0]):
-            states_figure(save(folder / f"fig{11 + i}_{ref}_node{i + 1}_delay.png"),
+            states_figure(save(folder / names[2 + i]),
                                f"Fig. {11 + i}: {name}, node {i + 1} under delays {b['row']} ({ref})", flat,
                                b["t"], node_x[i], np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
                                who=f"node {i + 1} estimate")
         last = 11 + node_x.shape[0]
-        states_figure(save(folder / f"fig{last}_{ref}_master_delay.png"),
+        states_figure(save(folder / names[-3]),
                            f"Fig. {last}: {name}, master under delays {b['row']} ({ref}, {how})", flat,
                            b["t"], np.asarray(b["x"]), np.asarray(b["zeta"]), np.asarray(b["ref"]), np.asarray(b["u"]),
                            who="master estimate")
         for key, label in (("no_delay", "without delays"), ("delay", f"under delays {b['row']}")):
             d = fig[key]
             if "P_diag" in d:
-                error_figure(save(folder / f"fig{last + 1}_{ref}_master_error_{key}.png"),
+                error_figure(save(folder / names[-2 if key == "no_delay" else -1]),
                                   f"{name}: master estimation error {label} ({ref}, {how})", flat,
                                   np.asarray(d["t"]), np.asarray(d["x"]), np.asarray(d["zeta"]), np.asarray(d["P_diag"]),
                                   metrics_from)
@@ -250,7 +266,7 @@ def filters_figures(directory: str, result, flat) -> list[str]:
                 series[k] = (table.mean("rmse_master"), table.ci95("rmse_master"))
             except KeyError:            # every run of this filter failed: nothing to draw
                 continue
-        path = Path(directory) / f"compare_{ref}_filters.png"
+        path = Path(directory) / comparison_name(ref)
         comparison_figure(path, f"{flat.model.name}: master RMSE per filter, same recordings ({ref})", flat,
                           labels, series)
         written.append(str(path))

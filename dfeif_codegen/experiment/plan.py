@@ -8,6 +8,7 @@ measurement method, and the EKF/UKF judge the recordings of the replay + differe
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from dataclasses import dataclass
 
 from dfeif_codegen.errors import ScenarioError, SetupError
@@ -113,6 +114,20 @@ def check_outputs(json_path, plot_dir, csv=None, results=None, inputs=None, resu
             import matplotlib  # noqa: F401
         except ImportError:
             raise SetupError("--plot needs matplotlib: pip install 'dfeif-codegen[plot]'") from None
+
+
+def check_figures(plot_dir: str, p: Plan) -> None:
+    """The figures `--plot` will write, once the plan names them and before any run: each new,
+    or a figure saved earlier (a matplotlib PNG), never a user's file of the same name."""
+    from dfeif_codegen.experiment.figures import comparison_name, figure_names
+    from dfeif_codegen.paths import is_matplotlib_png, replaceable_file
+
+    if not Path(plot_dir).is_dir():
+        return                    # made by the figures, empty
+    for ref in p.refs:
+        names = figure_names(ref, p.nodes) + ([comparison_name(ref)] if p.filters else [])
+        for name in names:
+            replaceable_file(Path(plot_dir) / name, "--plot", "simulate", is_matplotlib_png)
 
 
 def _filters_of(filters) -> list[str]:

@@ -22,8 +22,9 @@ from typing import Any
 
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation, model_error, pairing, sweep
+from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.experiment.execute import Outcome, execute
-from dfeif_codegen.experiment.plan import FILTERS, Plan, _pick, check_outputs, configurations, make_config, plan
+from dfeif_codegen.experiment.plan import FILTERS, Plan, _pick, check_figures, check_outputs, configurations, make_config, plan
 from dfeif_codegen.experiment.report import SimulationResult, Table, row_label
 from dfeif_codegen.experiment.stats import chi2_quantile, mean_ci, nees_band, summarize, t_quantile
 from dfeif_codegen.reference import predictor as predictors
@@ -92,9 +93,12 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
     `predictor`: the filters' prediction, "held" (u held) or "brunovsky" (the chapter's); None:
     the default, and brunovsky for retrodiction (the only one it can use)."""
     check_outputs(json_path, plot, csv, results, {"model file": model, "scenario file": scenario}, resume)
+    scenario_mod.load(scenario)     # the file's own checks (fields, reference file) before the derivation
     derivation.derive(model, max_seconds, max_memory)
     p = plan(model, scenario, runs, seed, nodes, max_lag, oosm, fusion, reference, filters, plot, param_error,
              predictor)
+    if plot:
+        check_figures(plot, p)
     o = execute(p, engine, bool(plot or json_path), workers, scheduler, results, resume, quiet)
     if csv:
         sweep.write_csv(csv, o.per_run, p.flat.n, nodes=p.nodes)

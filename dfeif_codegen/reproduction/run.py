@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.paths import OutputPathError, json_keys, replaceable_file
+from dfeif_codegen.paths import OutputPathError, is_matplotlib_png, json_keys, replaceable_file
 from dfeif_codegen.reproduction import document
 from dfeif_codegen.reproduction.tasks import FULL, QUICK, check_out, run_task
 
@@ -96,8 +96,6 @@ def publish(text: str, data: dict, out: Path, doc: Path) -> list[str]:
 
 GENERATED = "This document is generated: `codegen reproduce"   # near the top of every rendering
 FIGURE_LINK = re.compile(r"^!\[[^\]]*\]\((figures/[^)]+)\)", re.M)
-# every PNG matplotlib saves names it in a tEXt chunk right after the header (docs/figures/*.png)
-MATPLOTLIB_PNG = (b"\x89PNG\r\n\x1a\n", b"tEXtSoftware\x00Matplotlib version")
 
 
 def figure_links(text: str) -> list[str]:
@@ -105,20 +103,12 @@ def figure_links(text: str) -> list[str]:
     return FIGURE_LINK.findall(text)
 
 
-def is_figure(path: Path) -> bool:
-    """A figure this command copied: a PNG saved by matplotlib (its magic bytes, then matplotlib
-    named in its first chunks). Why no stricter mark: the committed figures carry none, and a
-    user's file there is a photo, a diagram or notes, not a matplotlib PNG."""
-    head = _head(path)
-    return head.startswith(MATPLOTLIB_PNG[0]) and MATPLOTLIB_PNG[1] in head[:256]
-
-
 def check_figures(folder: Path, figures: list[str]) -> None:
     """Each of `figures` (relative to `folder`) new, or a figure of an earlier rendering."""
     for rel in figures:
         target = folder / rel
         if target.parent.is_dir():     # else publish makes the folder, empty
-            replaceable_file(target, "--doc (its figure)", "reproduce", is_figure)
+            replaceable_file(target, "--doc (its figure)", "reproduce", is_matplotlib_png)
 
 
 def check_doc(doc: Path) -> None:
