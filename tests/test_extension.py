@@ -179,3 +179,24 @@ def test_fully_coupled_3dof_arm_with_motors_derives_within_60_cpu_seconds():
     np.testing.assert_allclose(flat.phi_inv_num(zeta), x, rtol=1e-9, atol=1e-9)
     M = _mass_matrix(q, [p["m1"], p["m2"], p["m3"]], [p["l1"], p["l2"], p["l3"]], [p["Jm1"], p["Jm2"], p["Jm3"]])
     np.testing.assert_allclose(flat.G_num(zeta), p["k_e"] / p["L"] * np.linalg.inv(M), rtol=1e-9, atol=1e-9)
+
+
+def test_an_undeclared_branch_names_each_variable_where_the_user_declared_it(tmp_path, capsys):
+    """The planar quadrotor without domains on its roll angle and its thrust: Phi^-1 has two
+    branches (thrust up or down). T is an input the extension made a state: the message sends
+    the user to its [[inputs]] entry, not to a `states[7]` the file does not have."""
+    from importlib import resources
+
+    from dfeif_codegen import cli
+    text = (resources.files("dfeif_codegen.models") / "pvtol.toml").read_text(encoding="utf-8")
+    text = text.replace("min = -1.2\nmax = 1.2\nnominal = 0.0\n", "").replace("min = 1.5\nmax = 15.0\n", "")
+    lines = text.splitlines()
+    th_line = lines.index('name = "th"')         # 1-based: the entry's [[states]] header, just above
+    t_line = lines.index('name = "T"')
+    path = tmp_path / "pvtol.toml"
+    path.write_text(text)
+    assert cli.main(["inspect", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "several branches for T, th" in err[0]
+    assert err[0].startswith(f"codegen inspect: error: {path}:{th_line}: states[3]:")
+    assert f"(T: {path}:{t_line}: inputs[1], an input the extension made a state)" in err[0]

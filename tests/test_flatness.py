@@ -89,3 +89,37 @@ def test_multi_input_linear_model_via_python_api():
     assert flat.degrees == [2, 1]
     assert sp.simplify(flat.F[0] + a * flat.zeta[0]) == 0 and flat.F[1] == 0
     assert flat.G == sp.eye(2)
+
+
+def test_a_stop_names_the_largest_expression_of_f_g_and_outputs():
+    """When the derivation stops on its budget, the message names the model's largest expression,
+    the likely culprit: a 3-D quadrotor's rotation terms sit in g (the thrust's column), and the
+    message named a one-symbol f entry instead."""
+    from dfeif_codegen.symbolic.flatness import _say
+    text = """
+[model]
+name = "g_heavy"
+ts = 0.01
+[[states]]
+name = "x"
+[[states]]
+name = "v"
+[[inputs]]
+name = "T"
+[[parameters]]
+name = "m"
+value = 1.0
+[dynamics.f]
+x = "v"
+v = "-m"
+[dynamics.g.T]
+v = "cos(x)*sin(v)*cos(x + v)/m"
+[[outputs]]
+name = "x"
+expr = "x"
+[measurement.noise]
+x = 0.001
+"""
+    told = []
+    _say(model.loads_toml(text, "g.toml"), told.append)("solving")
+    assert told == ["solving; largest expression g.toml:18: dynamics.g.T.v"]   # the text opens with a newline

@@ -183,6 +183,8 @@ def _say(model: Model, progress):
     if not progress:
         return lambda text: None
     named = {f"dynamics.f.{v.name}": e for v, e in zip(model.states, model.f)}
+    named |= {f"dynamics.g.{u.name}.{v.name}": model.g[i, j] for j, u in enumerate(model.inputs)
+              for i, v in enumerate(model.states) if model.g[i, j] != 0}
     named |= {f"outputs.{o.name}": o.expr for o in model.outputs}
     worst = max(named, key=lambda k: sp.count_ops(named[k]))
     return lambda text: progress(f"{text}; largest expression {model.where(worst)}")

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import itertools
 
+import re
+
 import numpy as np
 import sympy as sp
 
@@ -185,6 +187,19 @@ def _test_points(model: Model) -> np.ndarray:
     return np.vstack([rows, np.clip(near, lo, hi)])
 
 
+def _declared_at(model: Model, i: int) -> tuple[str, str]:
+    """Where the user declared state i (`file:line: key`) and how to name it: its [[states]]
+    entry, or for a state a dynamic extension made of an input (T, or its derivative T_d1), that
+    input's [[inputs]] entry."""
+    name = model.states[i].name
+    if f"states#{i}" in model._lines or not any(k.startswith("states#") for k in model._lines):
+        return model.where(f"states#{i}"), name
+    for j, u in enumerate(model.inputs):        # the extended model's inputs: T_d2 for T, in T's place
+        if re.sub(r"_d\d+$", "", u.name) == re.sub(r"_d\d+$", "", name):
+            return f"{model.where(f'inputs#{j}')}, an input the extension made a state", name
+    return model.where("states"), name
+
+
 def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Matrix:
     """Solve `Phi(x) = zeta` for x: one unknown at a time where the map is triangular, jointly
     otherwise. Where sympy returns several branches (a square root, an arcsine), keep the one
@@ -211,9 +226,11 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
         shown = " | ".join(", ".join(f"{v} = {e}" for v, e in c.items()) for c in candidates)
         free = [str(v) for v in candidates[0] if not declared[v]] if candidates else []
         if free and len(somewhere) > 1:
-            at = model.where(f"states#{index[next(iter(candidates[0]))]}")
-            raise ModelError(f"{at}: Phi^-1 has several branches for {names} ({shown}) and "
-                             f"{', '.join(free)} has no declared domain: add min/max to the state to choose one")
+            spots = [_declared_at(model, index[v]) for v in candidates[0] if not declared[v]]
+            others = "".join(f" ({name}: {at})" for at, name in spots[1:])
+            raise ModelError(f"{spots[0][0]}: Phi^-1 has several branches for {names} ({shown}) and "
+                             f"{' and '.join(name for _, name in spots)} {'has' if len(spots) == 1 else 'have'} "
+                             f"no declared domain{others}: add min/max to choose one")
         if everywhere:
             return everywhere[0]
         where_ = "its declared domain" if not free else "the test box [-1.3, 1.3]"
