@@ -200,3 +200,37 @@ def test_an_undeclared_branch_names_each_variable_where_the_user_declared_it(tmp
     assert len(err) == 1 and "several branches for T, th" in err[0]
     assert err[0].startswith(f"codegen inspect: error: {path}:{th_line}: states[3]:")
     assert f"(T: {path}:{t_line}: inputs[1], an input the extension made a state)" in err[0]
+
+
+def test_an_output_of_its_own_keeps_its_input_undelayed():
+    """The minimal extension: a unicycle carrying a turret (an output of its own, al' = wt).
+    Only v enters the dependent rows (x, y), so only v gets an integrator: relative degrees
+    (2, 2, 1) on 5 states. Delaying every input that enters the decoupling matrix (the rule
+    before) also put one on the turret: (2, 2, 2) on 6 states, an estimated turret acceleration
+    that no camera needs."""
+    from dfeif_codegen.symbolic import extension
+    extended, ext, io = extension.extend(model.load(str(DATA / "turret_robot.toml")))
+    assert io.degrees == [2, 2, 1] and extended.n == 5
+    assert ext.chains == {"v": ("v",), "w": (), "wt": ()}
+
+
+@pytest.mark.parametrize("body_rates", [True, False])
+def test_a_3d_quadrotor_gets_two_integrators_on_its_thrust(body_rates):
+    """Position rows (x, y, z) depend on T alone at relative degree 2; the yaw row has its own
+    torques (with body rates: two of them, through the Euler kinematics, which the rule before
+    refused as "not flat"; with Euler-angle rates one, which it delayed too: 16 states). The
+    textbook extension: T twice, relative degrees (4, 4, 4, 2), 14 states, the decoupling matrix
+    regular at the hover (its determinant there, by hand: T^2 / (m^3 Ix Iy Iz) up to sign)."""
+    from dfeif_codegen.symbolic import extension
+    text = (DATA / "quadrotor3d.toml").read_text()
+    if not body_rates:   # Euler-angle rates: the angles integrate their rates, driven by the torques
+        text = text.replace('phi = "p + sin(phi)*tan(theta)*q + cos(phi)*tan(theta)*r"', 'phi = "p"')
+        text = text.replace('theta = "cos(phi)*q - sin(phi)*r"', 'theta = "q"')
+        text = text.replace('psi = "(sin(phi)*q + cos(phi)*r)/cos(theta)"', 'psi = "r"')
+        text = text.replace('p = "(Iy - Iz)*q*r/Ix"', 'p = "0"').replace('q = "(Iz - Ix)*p*r/Iy"', 'q = "0"')
+        text = text.replace('r = "(Ix - Iy)*p*q/Iz"', 'r = "0"')
+    extended, ext, io = extension.extend(model.loads_toml(text, "quadrotor3d.toml"))
+    assert io.degrees == [4, 4, 4, 2] and extended.n == 14
+    assert ext.chains == {"T": ("T", "T_d1"), "tau_phi": (), "tau_theta": (), "tau_psi": ()}
+    m, Ix, Iy, Iz, T = 0.5, 0.0049, 0.0049, 0.0088, 4.905
+    assert abs(np.linalg.det(io.samples[0])) == pytest.approx(T ** 2 / (m ** 3 * Ix * Iy * Iz), rel=1e-9)

@@ -6,10 +6,13 @@ rate, the torque) enters neither yet. The dynamic extension algorithm (Descusse 
 Isidori, *Nonlinear Control Systems*, 3rd ed., sec. 5.4) delays the input channels that enter
 the decoupling matrix by one integrator each, and repeats on the extended system until its
 decoupling matrix is invertible; the extended system is then static-feedback linearizable when
-its relative degrees add up to its dimension. This module applies the algorithm in the case
-where the channels that enter the matrix are independent (the others enter it with zero
-columns: no input transformation is needed first), which covers mobile robots and planar and
-3-D quadrotors written with thrust and body rates or torques; otherwise it says why it stops.
+its relative degrees add up to its dimension. This module delays, at each step, the channels
+that enter the matrix's dependent rows (the outputs whose derivatives add no direction the
+others lack), not those entering rows of their own: the minimal extension for mobile robots and
+planar quadrotors, and for a robot with an independent extra actuator (a unicycle's turret). A
+3-D quadrotor's extension is derived too (two integrators on the thrust), but its Phi^-1 (a
+rotation's trigonometry in six unknowns) is beyond the symbolic solver (docs/mathematics.md §1).
+Where integrators do not cure the matrix, it says why it stops.
 
 The integrators' states are the controller's: it integrates them and applies the first of each
 chain (the original input) to the plant; the filters estimate the extended canonical state.
@@ -81,10 +84,24 @@ def delay(model: Model, channels: list[int]) -> Model:
     return replace(model, states=states, inputs=inputs, f=sp.Matrix(f), g=sp.Matrix(g_rows))
 
 
-def _singular_reason(model: Model, io: lie.IOStructure, entering: list[int]) -> str:
+def _singular_reason(model: Model, io: lie.IOStructure, entering: list[int], rows: list[int]) -> str:
     names = [model.inputs[j].name for j in entering]
+    outputs = ", ".join(model.outputs[i].name for i in rows)
     return (f"decoupling matrix rank {io.rank} < {model.m} at relative degrees {io.degrees}; "
-            f"{', '.join(names)} enter{'s' if len(names) == 1 else ''} it and the other inputs do not yet")
+            f"{', '.join(names)} enter{'s' if len(names) == 1 else ''} the dependent rows ({outputs})")
+
+
+def _entering_dependent_rows(io: lie.IOStructure) -> tuple[list[int], list[int]]:
+    """The input channels to delay: those entering a dependent row of the decoupling matrix (a row
+    whose removal leaves its generic rank, so that its output's derivative adds no direction the
+    others lack). A row of its own (a yaw driven by its torques) keeps its inputs undelayed: the
+    minimal extension (a 3-D quadrotor's two integrators on the thrust, not on the yaw torque
+    too); an input entering only rows of their own is needed there as it is. Also the rows."""
+    m = io.samples.shape[1]
+    dependent = [i for i in range(m)
+                 if max(lie.rank(np.delete(a, i, axis=0)) for a in io.samples) == io.rank]
+    nonzero = np.isfinite(io.samples) & (np.abs(io.samples) > lie.ZERO_TOL)        # (points, rows, cols)
+    return [j for j in range(m) if np.any(nonzero[:, dependent, j])], dependent
 
 
 def extend(model: Model, say=lambda text: None) -> tuple[Model, Extension, lie.IOStructure]:
@@ -101,17 +118,17 @@ def extend(model: Model, say=lambda text: None) -> tuple[Model, Extension, lie.I
                              "every sampled state of the declared domain")
         if io.rank == current.m:
             break
-        enters = ~np.all(np.isfinite(io.samples) & (np.abs(io.samples) <= lie.ZERO_TOL), axis=(0, 1))
-        entering = [j for j in range(current.m) if enters[j]]
-        if len(entering) != io.rank:
-            names = ", ".join(current.inputs[j].name for j in entering)
+        entering, rows = _entering_dependent_rows(io)
+        if not entering or len(entering) == current.m:
+            # an integrator on every input gives back the same matrix one derivative later
             raise ModelError(
                 f"{model.where('dynamics.g')}: the decoupling matrix is singular (rank {io.rank} < {current.m} at "
-                f"relative degrees {io.degrees}) and integrators on input channels do not cure it: the inputs "
-                f"entering it ({names}) enter dependent rows together: the outputs are not independent (not flat "
-                "with these outputs), or an input transformation is needed before a dynamic extension")
+                f"relative degrees {io.degrees}) and integrators on input channels do not cure it: every input "
+                "enters its dependent rows, and delaying them all leaves it as it is: the outputs are not "
+                "independent (not flat with these outputs), or an input transformation is needed first")
         say(f"dynamic extension: one integrator on {', '.join(current.inputs[j].name for j in entering)}")
-        steps.append(Delay(tuple(current.inputs[j].name for j in entering), _singular_reason(current, io, entering)))
+        reason = _singular_reason(current, io, entering, rows)
+        steps.append(Delay(tuple(current.inputs[j].name for j in entering), reason))
         for j in entering:
             chains[j].append(current.inputs[j].name)
         current = delay(current, entering)
