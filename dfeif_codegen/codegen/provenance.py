@@ -24,6 +24,8 @@ def model_hash(m: model.Model) -> str:
         "f": [sp.srepr(e) for e in m.f], "g": [sp.srepr(e) for e in m.g],
         "outputs": [[o.name, sp.srepr(o.expr), o.angle] for o in m.outputs],
     }
+    if m.inverse:   # only when given: the hashes of models without one stay as they were
+        doc["inverse"] = sorted(m.inverse.items())
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 

@@ -20,6 +20,7 @@ import sympy as sp
 
 from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic import numeric
+from dfeif_codegen.symbolic.given_inverse import given_entries
 from dfeif_codegen.symbolic.lie import domain_samples, interval, nominal_state
 from dfeif_codegen.symbolic.model import Model
 
@@ -204,22 +205,25 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
     """Solve `Phi(x) = zeta` for x: one unknown at a time where the map is triangular, jointly
     otherwise. Where sympy returns several branches (a square root, an arcsine), keep the one
     that round-trips at every one of BRANCH_POINTS states of the declared domain; on an undeclared
-    domain, refuse when more than one branch is valid somewhere (the sign would be a coin toss)."""
+    domain, refuse when more than one branch is valid somewhere (the sign would be a coin toss).
+    Entries given in the model's [inverse] table are solved first (checked by the same round
+    trips) and kept as written; the equations they answer are tried last."""
     x = list(model.x)
-    equations = [sp.expand_func(phi_i - z) for phi_i, z in zip(phi, zeta)]
-    solved: dict[sp.Symbol, sp.Expr] = {}
-    pending = list(equations)
+    pending = [sp.expand_func(phi_i - z) for phi_i, z in zip(phi, zeta)]
     rows = _test_points(model)
     real = {s: sp.Dummy(str(s), real=True) for s in list(x) + list(zeta) + list(model.p)}
     zeta_rows = np.column_stack([_evaluate(x, e.subs(model.param_values), rows) for e in phi])
     index = {v: i for i, v in enumerate(x)}
     declared = {v: s.bounded for v, s in zip(x, model.states)}
+    trip = (rows, zeta_rows, zeta, model.param_values, index)
+    given = given_entries(model, zeta, rows, zeta_rows, lambda c: _round_trips(c, *trip),
+                          lambda c: _float32_trips(c, *trip))
+    solved: dict = {v: v for v in given}   # known, but kept a symbol until the end: the equations stay small
 
     def pick(candidates: list[dict]) -> dict:
-        closed = [{v: sp.sympify(e).subs(solved) for v, e in c.items()} for c in candidates]
-        valid = [_round_trips(c, rows, zeta_rows, zeta, model.param_values, index) for c in closed]
-        valid = [ok & _float32_trips(c, rows, zeta_rows, zeta, model.param_values, index) if ok.all() else ok
-                 for c, ok in zip(closed, valid)]
+        closed = [{v: sp.sympify(e).subs(solved).subs(given) for v, e in c.items()} for c in candidates]
+        valid = [_round_trips(c, *trip) for c in closed]
+        valid = [ok & _float32_trips(c, *trip) if ok.all() else ok for c, ok in zip(closed, valid)]
         everywhere = [c for c, ok in zip(candidates, valid) if ok.all()]
         somewhere = [c for c, ok in zip(candidates, valid) if ok.any()]
         names = ", ".join(sorted(str(v) for v in candidates[0])) if candidates else "?"
@@ -241,7 +245,7 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
     progress = True
     while pending and progress:
         progress = False
-        for eq in list(pending):
+        for eq in sorted(pending, key=lambda e: bool(e.free_symbols & set(given))):  # given answer these: last
             eq_sub = eq.subs(solved)
             unknown = [v for v in x if v not in solved and eq_sub.has(v)]
             if len(unknown) == 1:
@@ -271,7 +275,12 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
             raise ModelError(f"{model.where('outputs')}: cannot invert Phi symbolically for "
                              f"{', '.join(map(str, rest))}")
         solved.update(pick(roots))
-    # back-substitute until every entry is a function of zeta only
+    return _back_substitute(x, solved | given, set(given))
+
+
+def _back_substitute(x: list, solved: dict, given: set) -> sp.Matrix:
+    """Phi^-1 with every entry a function of zeta only: the solved entries substituted into each
+    other; simplified where small, except the given ones, kept as the user wrote them."""
     inverse, unknowns = [solved[v] for v in x], set(x)
     for _ in range(len(x)):   # only entries that still hold a state: subs walks the whole tree
         todo = [i for i, e in enumerate(inverse) if sp.sympify(e).free_symbols & unknowns]
@@ -279,7 +288,7 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
             break
         for i in todo:
             inverse[i] = sp.sympify(inverse[i]).subs(solved)
-    return sp.Matrix(inverse).applyfunc(small_simplify)
+    return sp.Matrix([e if v in given else small_simplify(e) for v, e in zip(x, inverse)])
 
 
 LINEAR_NODES = 2000  # equations larger than this (tree nodes) that are linear in the unknowns: LU

@@ -24,7 +24,7 @@ __all__ = ["CLASHING_WORDS", "MODEL_NAME_LIMIT", "Measurement", "Model", "Output
 
 # Keys a model file may use, per section (a typo must not silently switch a feature off).
 SCHEMA = {
-    "": {"model", "states", "inputs", "parameters", "dynamics", "outputs", "measurement"},
+    "": {"model", "states", "inputs", "parameters", "dynamics", "outputs", "measurement", "inverse"},
     "model": {"name", "description", "ts"},
     "states": {"name", "unit", "description", "min", "max", "nominal"},
     "inputs": {"name", "unit", "description", "min", "max", "nominal"},
@@ -32,7 +32,9 @@ SCHEMA = {
     "dynamics": {"f", "g", "definitions"},
     "outputs": {"name", "expr", "angle"},
     "measurement": {"observe", "noise", "recover"},
+    "inverse": set(),   # keys are state names, checked by _inverse
 }
+FREE_SECTIONS = {"inverse"}   # sections whose keys are the model's own names, not a fixed set
 
 
 # --- TOML ------------------------------------------------------------------------------------
@@ -70,7 +72,7 @@ def _check_keys(data: Mapping, where) -> None:
             unknown(section, SCHEMA[""])
         entries = value if isinstance(value, list) else [value]
         for i, entry in enumerate(entries):
-            if not isinstance(entry, dict):
+            if not isinstance(entry, dict) or section in FREE_SECTIONS:
                 continue
             for key in entry:
                 if key not in SCHEMA[section]:
@@ -247,6 +249,23 @@ def _measurement(doc: _Doc, outputs: list[Output], parameters: list[Parameter]) 
     return Measurement(observe, {k: float(v) for k, v in noise.items()}, recover)
 
 
+def _inverse(doc: _Doc, states: list[Variable], inputs: list[Variable]) -> dict[str, str]:
+    """[inverse]: a user's closed forms of Phi^-1 entries, where sympy's solver does not finish (a
+    3-D quadrotor's attitude and thrust from its accelerations). A key names a state, an input (a
+    dynamic extension may make it a state) or an input's derivative (T_d1); the text is parsed and
+    checked once the canonical names are known (symbolic/given_inverse.py)."""
+    table = _table(doc.data, "inverse", doc.source, required=False)
+    stems = {u.name for u in inputs}
+    for key, text in table.items():
+        key_at = doc.where(f"inverse.{key}")
+        if key not in {s.name for s in states} and re.sub(r"_d\d+$", "", key) not in stems:
+            raise ModelError(f"{key_at}: '{key}' is not a state of the model (nor an input or an input's "
+                             "derivative a dynamic extension makes a state)")
+        if not isinstance(text, str):
+            raise ModelError(f"{key_at}: must be a string (an expression of the canonical names and parameters)")
+    return dict(table)
+
+
 def loads_toml(text: str, source: str = "<string>") -> Model:
     """A model from TOML text: every problem a ModelError naming the file, line and field."""
     doc = _Doc(text, source)
@@ -266,7 +285,8 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
     outputs = _outputs(doc)
     return Model(name=name, states=states, inputs=inputs, parameters=parameters, f=f, g=g, outputs=outputs,
                  ts=float(ts), description=str(head.get("description", "")),
-                 measurement=_measurement(doc, outputs, parameters), source=source, _lines=doc.lines)
+                 measurement=_measurement(doc, outputs, parameters), source=source, _lines=doc.lines,
+                 inverse=_inverse(doc, states, inputs))
 
 
 # --- built-ins -------------------------------------------------------------------------------

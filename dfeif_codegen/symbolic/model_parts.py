@@ -142,6 +142,9 @@ class Model:
     measurement: Measurement | None = None
     source: str = "<python>"
     _lines: Mapping[str, int] = field(default_factory=dict, repr=False)
+    # [inverse]: entries of Phi^-1 the user gives (state name -> text over the canonical names and
+    # parameters), kept as text: the canonical names exist only once the derivation has run
+    inverse: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.f = sp.Matrix(self.f)
