@@ -10,8 +10,9 @@ its relative degrees add up to its dimension. This module delays, at each step, 
 that enter the matrix's dependent rows (the outputs whose derivatives add no direction the
 others lack), not those entering rows of their own: the minimal extension for mobile robots and
 planar quadrotors, and for a robot with an independent extra actuator (a unicycle's turret). A
-3-D quadrotor's extension is derived too (two integrators on the thrust), but its Phi^-1 (a
-rotation's trigonometry in six unknowns) is beyond the symbolic solver (docs/mathematics.md §1).
+3-D quadrotor's extension is derived too (two integrators on the thrust); its Phi^-1 (a
+rotation's trigonometry) is beyond the symbolic solver and comes from the model's [inverse]
+table (docs/mathematics.md §1).
 Where integrators do not cure the matrix, it says why it stops.
 
 The integrators' states are the controller's: it integrates them and applies the first of each
