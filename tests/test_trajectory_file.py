@@ -259,3 +259,19 @@ def test_a_bad_trajectory_is_one_line_naming_file_and_row_or_column(tmp_path, ca
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Traceback" not in err, err
     assert "eight.toml:" in err and "reference.file" in err and expected in err, err
+
+
+def test_scenario_reads_its_trajectory_before_the_derivation(tmp_path, monkeypatch, capsys):
+    """`codegen scenario --trajectory F`: a missing file, or shape options beside one, are said
+    before the model's derivation (a minute for a large user model), in one line."""
+    from dfeif_codegen.experiment import derivation
+
+    def derive(*_args, **_kwargs):
+        raise AssertionError("derived before the trajectory file was read")
+    monkeypatch.setattr(derivation, "derive", derive)
+    missing = tmp_path / "nope.csv"
+    assert cli.main(["scenario", "dc_motor_link", "--trajectory", str(missing)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nope.csv" in err[0]
+    assert cli.main(["scenario", "dc_motor_link", "--trajectory", str(missing), "--period", "3"]) == 2
+    assert "--period do not apply" in capsys.readouterr().err

@@ -146,21 +146,27 @@ def from_trajectory(flat, traj) -> Shape:
     return Shape("trajectory", amp, offset, (0.0,) * m, (1,) * m, span, traj, rate)
 
 
-def of_trajectory(flat, trajectory: str, smoothing, out: Path | None, shaped: bool):
-    """The user's CSV as the starting scenario's reference, checked over its whole length (the
-    transform defined at every sample); and how the scenario will name it."""
-    import os
-
-    from dfeif_codegen.experiment import closed_loop as ex
+def read_trajectory(trajectory: str, smoothing, shaped: bool):
+    """The user's CSV, read and checked before the model's derivation (which may take a minute):
+    a missing or malformed file, or shape options beside it, are said first."""
     from dfeif_codegen.experiment import trajectory_file
-    from dfeif_codegen.experiment.trajectory import flags
 
     if shaped:
         raise ScenarioError("--trajectory: the file gives the reference; --shape, --amplitude, --offset, --phase "
                             "and --period do not apply")
     if not (isinstance(smoothing, (int, float)) and math.isfinite(smoothing) and smoothing >= 0):
         raise ScenarioError(f"--smoothing {smoothing}: needs a window of 0 or more seconds")
-    traj = trajectory_file.read(Path(trajectory), float(smoothing))
+    return trajectory_file.read(Path(trajectory), float(smoothing))
+
+
+def of_trajectory(flat, traj, trajectory: str, out: Path | None):
+    """The read CSV `traj` (from `trajectory`) as the starting scenario's reference, checked over
+    its whole length (the transform defined at every sample); and how the scenario will name it."""
+    import os
+
+    from dfeif_codegen.experiment import closed_loop as ex
+    from dfeif_codegen.experiment.trajectory import flags
+
     shape = from_trajectory(flat, traj)
     refs = traj.outputs([o.name for o in flat.model.outputs], flat.degrees)
     t = np.arange(int(round(shape.period / flat.model.ts))) * flat.model.ts

@@ -365,6 +365,8 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
         from dfeif_codegen.paths import first_line, replaceable_file
         replaceable_file(path, "--out", "scenario", lambda p: first_line(p).startswith(MARKER),
                          {"model file": model, "trajectory file": trajectory})
+    shaped = shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period))
+    traj = None if trajectory is None else shapes.read_trajectory(trajectory, smoothing, shaped)
     flat = derivation.derive(model, max_seconds, max_memory)
     if plant_error is not None:
         plant_error.check(flat.model, lambda key: "--param-error")
@@ -373,8 +375,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if trajectory is None:
         ref = shapes.fitting(flat, model, shape, amplitude, offset, phase, period)
     else:
-        ref, file = shapes.of_trajectory(flat, trajectory, smoothing, path,
-                                         shape != "sinusoid" or any(v is not None for v in (amplitude, offset, phase, period)))
+        ref, file = shapes.of_trajectory(flat, traj, trajectory, path)
     say = progress and (lambda line: progress(f"codegen scenario: {line}"))    # after every check of the input
     try:
         text, _ = starting_scenario(model, ref, file, dist, plant_error, wanted, say)
