@@ -118,9 +118,9 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
     _filter_options(p, many=True)
     p.add_argument("--reference", choices=["sinusoid", "seesaw", "trajectory"], action="append", help="(repeatable)")
     p.add_argument("--filters", action="append", metavar="LIST",
-                   help="df,ekf,ukf,brunovsky,offsets: also run these filters on the replay + difference "
-                        "recordings (Table VI); offsets (the held filter estimating the parameter offsets "
-                        "of the scenario's [offsets] table) is reference only")
+                   help="df,ekf,ukf,brunovsky,offsets,scheduled: also run these filters on the replay + "
+                        "difference recordings (Table VI); offsets (estimating the [offsets] table's parameters) "
+                        "and scheduled (its transition following the master's outputs) are reference only")
     p.add_argument("--param-error", metavar="SPREAD|NAME=REL,...", default=None,
                    help="model error, replacing the scenario's [model_error]: 0.2 draws each of the plant's "
                         "parameters per run within +-20%% of the model's; R=0.2,J=-0.1 fixed relative offsets; "
@@ -211,6 +211,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--offsets", default=None, metavar="NAME[,NAME...]",
                    help="with --disturbance and --param-error: an [offsets] table for simulate --filters "
                         "offsets, estimating these parameters' offsets, its chains' q calibrated")
+    p.add_argument("--scheduled", action="store_true", help="also q_scheduled, for simulate --filters scheduled")
     p.add_argument("--trajectory", metavar="FILE.csv",
                    help="track this CSV of the flat outputs (t, <output>, optionally <output>_d1, ...) instead of a shape")
     p.add_argument("--smoothing", type=float, default=0.0, metavar="S",
@@ -336,11 +337,10 @@ def bench(args: argparse.Namespace) -> int:
 def scenario(args: argparse.Namespace) -> int:
     from dfeif_codegen.experiment import starter
 
-    text = starter.scenario(args.model, out=args.out, shape=args.shape, amplitude=args.amplitude,
-                            offset=args.offset, phase=args.phase, period=args.period,
-                            disturbance=args.disturbance, tau=args.tau, param_error=args.param_error,
-                            offsets=args.offsets, trajectory=args.trajectory, smoothing=args.smoothing,
-                            progress=lambda line: print(line, file=sys.stderr, flush=True), **_budget(args))
+    keys = ("out", "shape", "amplitude", "offset", "phase", "period", "disturbance", "tau", "param_error",
+            "offsets", "scheduled", "trajectory", "smoothing")
+    text = starter.scenario(args.model, **{k: getattr(args, k) for k in keys}, **_budget(args),
+                            progress=lambda line: print(line, file=sys.stderr, flush=True))
     print(f"codegen scenario: wrote {args.out}" if args.out else text)
     return 0
 

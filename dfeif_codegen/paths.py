@@ -181,13 +181,28 @@ def parse_toml(text: str, source: str, error: type[CodegenError]) -> dict:
 MATPLOTLIB_PNG = (b"\x89PNG\r\n\x1a\n", b"tEXtSoftware\x00Matplotlib version")
 
 
+def file_head(path: Path, size: int = 4096) -> bytes:
+    """The first `size` bytes of a file (b"" when it cannot be read): enough to recognise what
+    wrote it without reading a large file."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(size)
+    except OSError:
+        return b""
+
+
 def is_matplotlib_png(path: Path) -> bool:
     """A figure one of our commands saved: a PNG written by matplotlib (its magic bytes, then
     matplotlib named in its first chunks). Why no stricter mark: the committed figures carry
     none, and a user's file of that name is a photo, a diagram or notes, not a matplotlib PNG."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(256)
-    except OSError:
-        return False
+    head = file_head(path, 256)
     return head.startswith(MATPLOTLIB_PNG[0]) and MATPLOTLIB_PNG[1] in head
+
+
+def check_figure_paths(folder: Path, names: list[str], flag: str, command: str) -> None:
+    """Each figure `folder/name` a command will save: new, or a figure saved earlier (a
+    matplotlib PNG), never a user's file of the same name. A missing folder is made empty."""
+    for name in names:
+        target = Path(folder) / name
+        if target.parent.is_dir():
+            replaceable_file(target, flag, command, is_matplotlib_png)

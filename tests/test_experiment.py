@@ -213,6 +213,11 @@ def test_builtin_scenario_is_the_paper_grid():
     assert cfg.q_ekf == ()
     sc.q_ekf = [5.0]
     assert make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[0], "replay", "difference", 0).q_ekf == (5.0,)
+    # and the scheduled filter's the loop's unless the scenario gives q_scheduled
+    assert cfg.q_scheduled == ()
+    sc.q_scheduled = [0.5]
+    cfg = make_config(sc, "dc_motor_link", 2, 32, "sinusoid", sc.grid[0], "replay", "difference", 0)
+    assert cfg.q_scheduled == (0.5,) and cfg.q == (20.0,)
 
 
 def test_simulate_json_end_to_end(tmp_path, capsys):
@@ -235,6 +240,8 @@ def test_simulate_json_end_to_end(tmp_path, capsys):
     ("[filter]\nq_brunovsky = 0.0\n", "filter.q_brunovsky"),
     ("[filter]\nq_ekf = [1.0, 2.0]\n", "filter.q_ekf"),
     ("[filter]\nq_ekf = -3.0\n", "filter.q_ekf"),
+    ("[filter]\nq_scheduled = [1.0, 2.0]\n", "filter.q_scheduled"),
+    ("[filter]\nq_scheduled = 0.0\n", "filter.q_scheduled"),
     ("[[grid]]\nd = [2, 3]\np = 1.5\n", "grid[1]"),
     ("[[nodes]]\nnoise_scale = 1.0\ncolour = 2\n", "nodes[1].colour"),
     ("[scenario]\nfusion = [\"average\"]\n", "scenario.fusion"),

@@ -287,12 +287,18 @@ def test_paired_ratios_under_model_error(tmp_path):
                 for s in range(3)]
         ratio = [compare.evaluate(r, "df")["rmse_master"] / compare.evaluate(r, "ekf")["rmse_master"] for r in runs]
         mean, half = simulate.mean_ci(ratio)
-        got = next(e for e in doc["paired"] if e["row"] == ri and e["filter"] == "ekf")
+        got = next(e for e in doc["paired"] if e["row"] == ri and e["filter"] == "ekf" and e["numerator"] == "df")
         np.testing.assert_allclose(got["mean"], mean, rtol=1e-12)
         np.testing.assert_allclose(got["ci95"], half, rtol=1e-12)
         assert got["pairs"] == 3
         same = next(e for e in doc["paired"] if e["row"] == ri and e["filter"] == "brunovsky")
         np.testing.assert_allclose(same["mean"], 1.0, rtol=1e-12)   # today the df filter is the chapter's
+        # each candidate is also paired with the EKF: the chapter's filter / EKF, per seed
+        theirs = [compare.evaluate(r, "brunovsky")["rmse_master"] / compare.evaluate(r, "ekf")["rmse_master"]
+                  for r in runs]
+        cand = next(e for e in doc["paired"] if e["row"] == ri and e["numerator"] == "brunovsky")
+        assert cand["filter"] == "ekf" and cand["pairs"] == 3
+        np.testing.assert_allclose(cand["mean"], simulate.mean_ci(theirs)[0], rtol=1e-12)
     text = result.report()
     assert "Table VII" in text and "every parameter uniform +-20%" in text and "seesaw" in text
 

@@ -111,6 +111,9 @@ class Config:
     # the EKF's and UKF's q where the comparison runs them (--filters ekf,ukf; empty: q): a
     # held filter with disturbance states is consistent at a q far below what theirs needs
     q_ekf: tuple = field(default=(), repr=False)
+    # the scheduled-transition filter's q where the comparison runs it (--filters scheduled;
+    # empty: q): a transition that follows the configuration leaves less for q to cover
+    q_scheduled: tuple = field(default=(), repr=False)
     # the filters' disturbance states (symbolic/disturbance.py), None: none; out of repr as above
     disturbance: Disturbance | None = field(default=None, repr=False)
     # reference "trajectory": the user's CSV (experiment/trajectory_file.py); out of repr like

@@ -36,6 +36,7 @@ from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.offsets import OffsetFilter, OffsetModel
 from dfeif_codegen.reference.physical import CanonicalMaps, PhysicalMaster, PhysicalModel, ReplayNode
+from dfeif_codegen.reference.scheduled import ScheduledFilter, ScheduledModel
 from dfeif_codegen.reference.ukf import UKF
 from dfeif_codegen.symbolic.disturbance import augment
 
@@ -45,7 +46,12 @@ FILTERS = {"ekf": EKF, "ukf": UKF}
 CANONICAL = ("df", "brunovsky")
 # the held filter with parameter-offset states (reference/offsets.py: a candidate, not generated)
 OFFSETS = "offsets"
-KINDS = (*CANONICAL, OFFSETS, *FILTERS)
+# the held filter with its covariance transition scheduled on the master's flat outputs
+# (reference/scheduled.py: a candidate, not generated)
+SCHEDULED = "scheduled"
+# the filters whose predict takes what the master broadcasts besides u (`model.input`)
+BROADCAST = (OFFSETS, SCHEDULED)
+KINDS = (*CANONICAL, OFFSETS, SCHEDULED, *FILTERS)
 
 
 class CanonicalModel(CanonicalMaps):
@@ -100,6 +106,8 @@ def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled
     if kind == OFFSETS:
         q = offsets.chains_q or q
         return OffsetFilter(OffsetModel(flat, ts, ex._per_chain(q, flat.m), offsets), compiled)
+    if kind == SCHEDULED:
+        return ScheduledFilter(ScheduledModel(flat, ts, np.array(q)), compiled)
     if kind in CANONICAL:   # "brunovsky" is the chapter's filter whatever the recording's predictor
         return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky",
                                              disturbance if kind == "df" else None), compiled)
@@ -144,7 +152,7 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
         for i, nd in enumerate(nodes):
             phys["node_x"][i, k], phys["node_P"][i, k] = nd.x, nd.P
         phys["x"][k], phys["P"][k] = master.x, master.P
-        w = pm.input(inputs[k], master.x) if kind == OFFSETS else inputs[k]   # with the point S_k is taken at
+        w = pm.input(inputs[k], master.x) if kind in BROADCAST else inputs[k]   # with what the master broadcasts
         for nd in nodes:
             nd.predict(w)
         master.predict(w)
@@ -170,7 +178,7 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None
     rec = res.recording
     try:
         with np.errstate(all="raise"):
-            q = {"brunovsky": res.config.q_brunovsky, "ekf": res.config.q_ekf,
+            q = {"brunovsky": res.config.q_brunovsky, SCHEDULED: res.config.q_scheduled, "ekf": res.config.q_ekf,
                  "ukf": res.config.q_ekf}.get(kind)
             out = run_on_recording(rec, kind, res.config.substeps, compiled, disturbance, q, offsets)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:

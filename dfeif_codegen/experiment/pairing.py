@@ -14,18 +14,19 @@ import numpy as np
 from dfeif_codegen.experiment.stats import mean_ci
 
 REFERENCE = "df"
+BASELINES = ("ekf", "ukf")   # what the candidates are measured against
 
 
 def _by_seed(per_run, ref: str, label: str, ri: int) -> dict:
     return {seed: m for r, lab, _, row, seed, m in per_run if r == ref and lab == label and row == ri}
 
 
-def ratios(per_run, ref: str, ri: int, kind: str, key: str = "rmse_master") -> dict:
-    """`REFERENCE`'s `key` over `kind`'s, per seed, then mean and 95% half-width per component;
+def ratios(per_run, ref: str, ri: int, kind: str, key: str = "rmse_master", numerator: str = REFERENCE) -> dict:
+    """`numerator`'s `key` over `kind`'s, per seed, then mean and 95% half-width per component;
     also both filters' mean master NEES over the same seeds."""
-    mine, theirs = _by_seed(per_run, ref, f"{REFERENCE}-replay", ri), _by_seed(per_run, ref, f"{kind}-replay", ri)
+    mine, theirs = _by_seed(per_run, ref, f"{numerator}-replay", ri), _by_seed(per_run, ref, f"{kind}-replay", ri)
     seeds = sorted(s for s in mine if s in theirs and isinstance(mine[s], dict) and isinstance(theirs[s], dict))
-    out: dict = {"pairs": len(seeds), "unpaired": len(set(mine) | set(theirs)) - len(seeds)}
+    out: dict = {"numerator": numerator, "pairs": len(seeds), "unpaired": len(set(mine) | set(theirs)) - len(seeds)}
     if not seeds:
         return out
     ratio = [np.asarray(mine[s][key], float) / np.asarray(theirs[s][key], float) for s in seeds]
@@ -36,9 +37,14 @@ def ratios(per_run, ref: str, ri: int, kind: str, key: str = "rmse_master") -> d
 
 
 def entries(per_run, refs, rows, kinds) -> list[dict]:
-    """Every other filter against REFERENCE, per reference and delay row (the JSON's "paired")."""
-    return [{"reference": ref, "row": ri, "filter": kind, **ratios(per_run, ref, ri, kind)}
-            for ref in refs for ri in range(len(rows)) for kind in kinds if kind != REFERENCE]
+    """Every other filter against REFERENCE, per reference and delay row (the JSON's "paired"),
+    then each other candidate (not df, not a baseline of BASELINES) against the EKF when both ran:
+    the comparison a user choosing between a candidate and the EKF reads."""
+    pairs = [(REFERENCE, kind) for kind in kinds if kind != REFERENCE]
+    if "ekf" in kinds:
+        pairs += [(kind, "ekf") for kind in kinds if kind not in (REFERENCE, *BASELINES)]
+    return [{"reference": ref, "row": ri, "filter": kind, **ratios(per_run, ref, ri, kind, numerator=top)}
+            for top, kind in pairs for ref in refs for ri in range(len(rows))]
 
 
 def print_ratios(out, paired: list[dict], rows, operations, row_label, n: int) -> None:
@@ -46,21 +52,22 @@ def print_ratios(out, paired: list[dict], rows, operations, row_label, n: int) -
     if not paired:
         return
     print(f"Table VII: master RMSE, derivative-free ({REFERENCE}) / each filter on the same recordings, "
-          "formed per seed then averaged (mean ± 95% CI; below 1: df more accurate); master NEES of both "
-          "over the same seeds; pairs (seeds where both ran; unpaired: either failed)", file=out)
+          "formed per seed then averaged (mean ± 95% CI; below 1: the first more accurate); master NEES of "
+          "both over the same seeds; pairs (seeds where both ran; unpaired: either failed). Then each other "
+          "candidate / ekf alike", file=out)
     head = "".join(f"{f'x{i + 1}':>19}" for i in range(n))
     for ref in dict.fromkeys(e["reference"] for e in paired):
         print(f"  {ref}", file=out)
-        print(f"  {'row':>14}  {'df / filter':12s}{head}   NEES df / filter   pairs", file=out)
+        print(f"  {'row':>14}  {'first / filter':24s}{head}   NEES first / filter   pairs", file=out)
         for e in (e for e in paired if e["reference"] == ref):
-            label = row_label(rows[e["row"]])
+            label, who = row_label(rows[e["row"]]), f"{e['numerator']} / {e['filter']}"
             if not e["pairs"]:
-                print(f"  {label:>14}  {e['filter']:12s}  no pair (every run of one filter failed)", file=out)
+                print(f"  {label:>14}  {who:24s}  no pair (every run of one filter failed)", file=out)
                 continue
             cells = "".join(f"{m:>11.3f} ± {h:5.3f}" if np.isfinite(h) else f"{m:>19.3f}"
                             for m, h in zip(e["mean"], e["ci95"]))
             extra = f" ({e['unpaired']} unpaired)" if e["unpaired"] else ""
-            print(f"  {label:>14}  {e['filter']:12s}{cells}   {e['nees'][0]:7.2f} / {e['nees'][1]:<8.2f}"
+            print(f"  {label:>14}  {who:24s}{cells}   {e['nees'][0]:7.2f} / {e['nees'][1]:<8.2f}"
                   f"   {e['pairs']}{extra}", file=out)
     base = sum(operations[REFERENCE].values())
     ops = ", ".join(f"{k} {sum(v.values()):,}" + ("" if k == REFERENCE else f" ({sum(v.values()) / base:.1f}x)")

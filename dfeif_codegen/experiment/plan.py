@@ -17,7 +17,7 @@ from dfeif_codegen.experiment import scenario as scenario_mod
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.symbolic.flatness import FlatSystem
 
-FILTERS = ("df", "ekf", "ukf", "brunovsky", "offsets")
+FILTERS = ("df", "ekf", "ukf", "brunovsky", "offsets", "scheduled")
 
 
 def _pick(values, i):
@@ -44,7 +44,7 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
         predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")),
-        q_ekf=tuple(sc.q_ekf or ()), disturbance=sc.disturbance, offsets=sc.offsets,
+        q_ekf=tuple(sc.q_ekf or ()), q_scheduled=tuple(sc.q_scheduled or ()), disturbance=sc.disturbance, offsets=sc.offsets,
         trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
 
 
@@ -118,16 +118,13 @@ def check_outputs(json_path, plot_dir, csv=None, results=None, inputs=None, resu
 
 def check_figures(plot_dir: str, p: Plan) -> None:
     """The figures `--plot` will write, once the plan names them and before any run: each new,
-    or a figure saved earlier (a matplotlib PNG), never a user's file of the same name."""
+    or a figure saved earlier, never a user's file of the same name."""
     from dfeif_codegen.experiment.figures import comparison_name, figure_names
-    from dfeif_codegen.paths import is_matplotlib_png, replaceable_file
+    from dfeif_codegen.paths import check_figure_paths
 
-    if not Path(plot_dir).is_dir():
-        return                    # made by the figures, empty
     for ref in p.refs:
         names = figure_names(ref, p.nodes) + ([comparison_name(ref)] if p.filters else [])
-        for name in names:
-            replaceable_file(Path(plot_dir) / name, "--plot", "simulate", is_matplotlib_png)
+        check_figure_paths(Path(plot_dir), names, "--plot", "simulate")
 
 
 def _filters_of(filters) -> list[str]:

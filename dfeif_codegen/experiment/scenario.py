@@ -29,7 +29,7 @@ BUILTIN = ("paper", "unicycle", "pvtol")
 _ALLOWED = {
     "scenario": {"name", "description", "duration", "ts", "runs", "substeps", "metrics_from", "references",
                  "oosm", "fusion", "baselines"},
-    "filter": {"q", "q_brunovsky", "q_ekf", "p0_std", "initial_error"},
+    "filter": {"q", "q_brunovsky", "q_ekf", "q_scheduled", "p0_std", "initial_error"},
     "control": {"poles"},
     "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound", "file",
                   "smoothing"},
@@ -75,6 +75,7 @@ class Scenario:
     q: list[float] = field(default_factory=lambda: [20.0])
     q_brunovsky: list[float] | None = None   # the chapter's filter's q, when it differs from q
     q_ekf: list[float] | None = None   # the EKF's and UKF's q (--filters), when it differs from q
+    q_scheduled: list[float] | None = None   # the scheduled filter's q (--filters), when it differs
     p0_std: list[float] = field(default_factory=lambda: [0.05, 0.1, 1.0])
     initial_error: bool = True
     poles: list[float] = field(default_factory=lambda: [10.0])
@@ -150,6 +151,7 @@ class Scenario:
                                       f"at most {MAX_STEPS:g} per run")
         for key, values in (("filter.q", self.q), ("filter.q_brunovsky", self.q_brunovsky or self.q),
                             ("filter.q_ekf", self.q_ekf or self.q),
+                            ("filter.q_scheduled", self.q_scheduled or self.q),
                             ("control.poles", self.poles),
                             ("reference.amplitude", self.amplitude), ("reference.offset", self.offset),
                             ("reference.phase", self.phase), ("reference.cycles", self.cycles),
@@ -305,6 +307,8 @@ def _read_settings(r: _Reader, data: dict) -> None:
         sc.q_brunovsky = r.numbers(filt, "filter", "q_brunovsky", [])
     if "q_ekf" in filt:
         sc.q_ekf = r.numbers(filt, "filter", "q_ekf", [])
+    if "q_scheduled" in filt:
+        sc.q_scheduled = r.numbers(filt, "filter", "q_scheduled", [])
     sc.p0_std = r.numbers(filt, "filter", "p0_std", sc.p0_std)
     sc.initial_error = filt.get("initial_error", sc.initial_error)
     if not isinstance(sc.initial_error, bool):

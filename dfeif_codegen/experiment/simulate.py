@@ -49,6 +49,8 @@ def _settings(p: Plan, o: Outcome) -> dict:
         out["filters"] = ["df", *p.filters]
         if sc.q_ekf:
             out["q_ekf"] = sc.q_ekf
+        if sc.q_scheduled and "scheduled" in p.filters:
+            out["q_scheduled"] = sc.q_scheduled
         if sc.offsets is not None and "offsets" in p.filters:
             out["offsets"] = dataclasses.asdict(sc.offsets)
         out["operations"] = compare.operations(p.model, out["ts"], ex._per_chain(sc.q, p.flat.m), sc.substeps,

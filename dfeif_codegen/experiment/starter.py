@@ -2,22 +2,20 @@
 
 What a user would otherwise guess, derived from the model:
 
-- poles: every pole of each chain at -0.1/Ts (the paper's lambda Ts = 0.1), whatever the degree;
-  with --param-error slowed until the loop holds the error's corners under the hardest delays
-  (experiment/pole_margin.py);
+- poles: every pole of each chain at -0.1/Ts (the paper's lambda Ts = 0.1); with --param-error
+  slowed until the loop holds the error's corners under the hardest delays (pole_margin.py);
 - P0 per derivative order k: std 0.05 A (2 omega)^k for the reference's amplitude A and angular
   frequency omega (the paper's 3 degrees on the angle, looser on each derivative);
-- camera noise: the model's [measurement]; a model without one gets 0.4% of the amplitude per flat
-  output (the paper's 4 mrad on 1 rad), node 2 at 1.25 times node 1;
+- camera noise: the model's [measurement], else 0.4% of the amplitude per flat output (the
+  paper's 4 mrad on 1 rad), node 2 at 1.25 times node 1;
 - q per chain: the derivative-free filter's only model error is the canonical model's one-step
   residual r(k) = zeta(k+1) - A zeta(k) - B v(k) (the plant holds u over Ts, the model holds v).
   It is measured first along the reference (the plant driven by the flat feedforward from the
   reference's own states), then along the true trajectory of a 5 s closed loop run with that q
   (ten times larger if that run diverges): q_j = max over the chain's states i of
-  mean(r_i^2) / Q_d(Ts, 1)_ii, the smallest white-noise density that covers every component's
-  residual variance. One closed-loop round, not a fixed point: the residual grows with q (a
-  noisier estimate makes a noisier u, which the plant holds and the model does not), so
-  iterating drifts upwards without settling (motor: 1.4, 17.5, 120, 580, ...); one round gives
+  mean(r_i^2) / Q_d(Ts, 1)_ii, the smallest white density covering each component's residual.
+  One closed-loop round, not a fixed point: the residual grows with q (a noisier u, held by the
+  plant), so iterating drifts upwards (motor: 1.4, 17.5, 120, 580, ...); one round gives
   the motor 17.5, where the paper's hand calibration chose 20. That fixes the chains'
   proportions; their common scale is then set so that the master's NEES, averaged over eight 20 s
   closed loops without delays, is n (within 10%), the middle of its 95% band (`match_nees`),
@@ -31,7 +29,8 @@ The residual grows with the relative degree and with how fast the dynamics are a
 flexible joint (degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e7 with Brunovsky's model, 1.5e3 held.
 
 With `--disturbance` the scenario also gets disturbance states for the held filter, their
-densities calibrated to the same NEES target (experiment/disturbance_calibration.py).
+densities calibrated to the same NEES target (experiment/disturbance_calibration.py); with
+`--scheduled` the scheduled filter's q (experiment/scheduled_calibration.py).
 """
 
 from __future__ import annotations
@@ -48,7 +47,8 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation
 from dfeif_codegen.experiment import scenario as scenario_mod
-from dfeif_codegen.experiment import baseline_check, disturbance_calibration, disturbance_choice, offsets_calibration, pole_margin, shapes
+from dfeif_codegen.experiment import (baseline_check, disturbance_calibration, disturbance_choice, offsets_calibration,
+                                     pole_margin, scheduled_calibration, shapes)
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.shapes import toml_list
@@ -105,12 +105,12 @@ def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
 
 class Calibrated(NamedTuple):
     """What `calibrate` settles on, and its log."""
-
     q: np.ndarray
     log: list[str]
     poles: list[float]
     disturbance: Disturbance | None = None
     offsets: object = None          # reference/offsets.Offsets
+    q_scheduled: np.ndarray | None = None   # the scheduled filter's (reference/scheduled.py)
 
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
@@ -122,7 +122,8 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     (network.Link per node) of the scenario's hardest delay row, which q must also close, and
     with a `plant_error` the poles too (pole_margin). With `disturbance` among the options (a
     Disturbance, its densities ignored): its calibrated densities, and the `offsets` option
-    (reference/offsets.Offsets) with its chains' q calibrated. `progress(line)` hears each stage
+    (reference/offsets.Offsets) with its chains' q calibrated; with `scheduled=True` the scheduled
+    filter's q (scheduled_calibration). `progress(line)` hears each stage
     as it starts and each NEES evaluation (a stiff model's loops take minutes)."""
     say = progress or (lambda line: None)
     shape = shape or shapes.from_domains(flat)
@@ -143,6 +144,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
 
     dist = options.pop("disturbance", None)
     offsets = options.pop("offsets", None)
+    scheduled = options.pop("scheduled", False)
     if dist is not None:      # the loops are closed by the chapter's filter (module docstring)
         options["predictor"] = "brunovsky"
     for k in range(rounds):
@@ -167,12 +169,14 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     seeds = [seed + i for i in range(NEES_RUNS)]
     say(f"scaling q until the master's NEES over {NEES_RUNS} runs of {NEES_SECONDS:g} s without delays is n")
     q, log = match_nees(flat, q, config, seeds, log, progress=say)
-    if delays is None or NO_LOOP in log[-1]:
+    if delays is not None and NO_LOOP not in log[-1]:
+        q, log = close_with_delays(q, config, seeds, delays, log, progress=say)
+        poles, log = pole_margin.hold(lambda j: config(q, seed + j, NEES_SECONDS), poles,
+                                      options.get("plant_error"), flat.model, delays, log, progress=say)
+    if not scheduled or NO_LOOP in log[-1]:
         return Calibrated(q, log, list(poles))
-    q, log = close_with_delays(q, config, seeds, delays, log, progress=say)
-    poles, log = pole_margin.hold(lambda j: config(q, seed + j, NEES_SECONDS), poles, options.get("plant_error"),
-                                  flat.model, delays, log, progress=say)
-    return Calibrated(q, log, poles)
+    q_scheduled, log = scheduled_calibration.q_scheduled(flat, q, config, seeds, log, say)
+    return Calibrated(q, log, list(poles), q_scheduled=q_scheduled)
 
 
 def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, log, say) -> Calibrated:
@@ -241,13 +245,14 @@ def _held_residual_q(flat, ts, cfg, res, k0) -> np.ndarray:
 
 def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | None = None,
                       disturbance: Disturbance | None = None, plant_error=None,
-                      offsets=None, progress=None) -> tuple[str, list[str]]:
+                      offsets=None, progress=None, scheduled: bool = False) -> tuple[str, list[str]]:
     """The TOML text of a starting scenario for model `spec`, and the calibration log; `file`:
     how the scenario names a trajectory shape's CSV; `disturbance` (its densities ignored):
     calibrated for the held filter with those states; `plant_error` (model_error.ParamError):
     the calibration's plants have it, and so has the scenario (its [model_error] table);
     `offsets` (reference/offsets.Offsets, with a disturbance): the [offsets] table, its chains'
-    q calibrated on the same loops; `progress` as calibrate's."""
+    q calibrated on the same loops; `scheduled`: the scheduled filter's q too (q_scheduled);
+    `progress` as calibrate's."""
     flat = ex._flat(spec)
     shape = shape or shapes.from_domains(flat)
     model = flat.model
@@ -262,10 +267,10 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     paper = scenario_mod.load("paper")   # its delay grid is the starting scenario's
     options = ({} if plant_error is None else {"plant_error": plant_error}) | \
         ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance}) | \
-        ({} if offsets is None else {"offsets": offsets})
-    q, log, poles, disturbance, offsets = calibrate(flat, spec, ts, poles, p0_std, noise_std, shape=shape,
-                                                    delays=paper.grid[-1].links(len(noise_std)), progress=progress,
-                                                    **options)
+        ({} if offsets is None else {"offsets": offsets}) | ({"scheduled": True} if scheduled else {})
+    q, log, poles, disturbance, offsets, q_scheduled = calibrate(
+        flat, spec, ts, poles, p0_std, noise_std, shape=shape, delays=paper.grid[-1].links(len(noise_std)),
+        progress=progress, **options)
     omega = shapes.fastest_oscillation(flat, spec, ts, shape=shape)
     fast = shapes.fast_mode(omega, ts)
     if NO_LOOP in log[-1]:     # no closed loop of the NEES stage survived: nothing was calibrated
@@ -297,6 +302,8 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
         "",
         "[filter]",
         f"q = {toml_list(q)}               # per chain: the one-step residual, scaled to NEES = n",
+        *([] if q_scheduled is None else [f"q_scheduled = {toml_list(q_scheduled)}   # simulate --filters scheduled: "
+                                          "its own q, scaled to NEES = n"]),
         f"p0_std = {toml_list(p0_std)}   # per derivative order",
         "initial_error = true",
         "",
@@ -339,7 +346,8 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
              max_memory: float | None = None, shape: str = "sinusoid", amplitude=None, offset=None,
              phase=None, period: float | None = None, trajectory: str | None = None,
              smoothing: float = 0.0, disturbance: str | None = None, tau: float | None = None,
-             param_error: str | None = None, offsets: str | None = None, progress=None) -> str:
+             param_error: str | None = None, offsets: str | None = None, progress=None,
+             scheduled: bool = False) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
     derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `trajectory`: a CSV of
@@ -348,7 +356,8 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     (one of disturbance.KINDS; `tau` the Gauss-Markov time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
     --param-error`): the calibration's plants and the scenario get that model error; `offsets`
-    ("NAME,..."; with both): an [offsets] table for those parameters (offsets_calibration).
+    ("NAME,..."; with both): an [offsets] table for those parameters (offsets_calibration);
+    `scheduled`: q_scheduled for simulate --filters scheduled (scheduled_calibration).
     `progress(line)` hears each stage of the calibration as it starts and each NEES evaluation:
     after every check of the input, so that bad input stays one line."""
     dist = disturbance_calibration.from_options(disturbance, tau)
@@ -360,6 +369,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if offsets is not None and (dist is None or plant_error is None):
         raise ScenarioError(f"--offsets {offsets}: needs --disturbance and a non-zero --param-error (its chains' q is "
                             "calibrated on the loops the disturbance calibration runs under that error)")
+    scheduled_calibration.check_option(scheduled, dist)
     path = Path(out) if out else None
     if path is not None:
         from dfeif_codegen.paths import first_line, replaceable_file
@@ -378,7 +388,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
         ref, file = shapes.of_trajectory(flat, traj, trajectory, path)
     say = progress and (lambda line: progress(f"codegen scenario: {line}"))    # after every check of the input
     try:
-        text, _ = starting_scenario(model, ref, file, dist, plant_error, wanted, say)
+        text, _ = starting_scenario(model, ref, file, dist, plant_error, wanted, say, scheduled)
         text, _ = baseline_check.kept(text, model, str(path or "<generated>"), say)
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.paths import OutputPathError, is_matplotlib_png, json_keys, replaceable_file
+from dfeif_codegen.paths import OutputPathError, check_figure_paths, file_head, json_keys, replaceable_file
 from dfeif_codegen.reproduction import document
 from dfeif_codegen.reproduction.tasks import FULL, QUICK, check_out, run_task
 
@@ -77,7 +77,7 @@ def publish(text: str, data: dict, out: Path, doc: Path) -> list[str]:
     were checked before the runs (check_doc), a new figure's name is known only now."""
     figures = figure_links(text)
     try:
-        check_figures(doc.parent, figures)
+        check_figure_paths(doc.parent, figures, "--doc (its figure)", "reproduce")
     except OutputPathError as exc:
         raise OutputPathError(f"{exc} (the runs are kept in {out / 'tasks'}: a rerun only renders)") from None
     doc.parent.mkdir(parents=True, exist_ok=True)
@@ -103,14 +103,6 @@ def figure_links(text: str) -> list[str]:
     return FIGURE_LINK.findall(text)
 
 
-def check_figures(folder: Path, figures: list[str]) -> None:
-    """Each of `figures` (relative to `folder`) new, or a figure of an earlier rendering."""
-    for rel in figures:
-        target = folder / rel
-        if target.parent.is_dir():     # else publish makes the folder, empty
-            replaceable_file(target, "--doc (its figure)", "reproduce", is_matplotlib_png)
-
-
 def check_doc(doc: Path) -> None:
     """`--doc FILE`, the data file beside it and the figures its earlier rendering shows, before
     any run: new, or written by an earlier `codegen reproduce` (the document's generated line;
@@ -120,7 +112,8 @@ def check_doc(doc: Path) -> None:
     if data != doc:
         replaceable_file(data, "--doc (its data file)", "reproduce", _is_data)
     if doc.is_file():
-        check_figures(doc.parent, figure_links(doc.read_text(encoding="utf-8", errors="replace")))
+        check_figure_paths(doc.parent, figure_links(doc.read_text(encoding="utf-8", errors="replace")),
+                           "--doc (its figure)", "reproduce")
 
 
 def check_results(out: Path) -> None:
@@ -134,17 +127,8 @@ def _is_data(path: Path) -> bool:
     return {"runs", "quick", "tasks", "chapter", "facts"} <= json_keys(path)
 
 
-def _head(path: Path) -> bytes:
-    """The first 4 KiB of a file (b"" when it cannot be read)."""
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(4096)
-    except OSError:
-        return b""
-
-
 def _text(path: Path) -> str:
-    return _head(path).decode("utf-8", "replace")
+    return file_head(path).decode("utf-8", "replace")
 
 
 def reproduce(runs: int = 100, out: str = "reproduce", *, workers: int | None = None, scheduler: str | None = None,

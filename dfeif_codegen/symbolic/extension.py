@@ -68,7 +68,7 @@ def delay(model: Model, channels: list[int]) -> Model:
     """The model with one integrator on each listed input: the input becomes a state (its domain
     the actuator's limits, its nominal the input's), driven by a new input, its derivative."""
     states, f, g = list(model.states), list(model.f), model.g
-    inputs = list(model.inputs)
+    inputs, made_of = list(model.inputs), dict(model.made_of_input)
     g_cols = [g.col(j) for j in range(model.m)]
     for j in channels:
         u = model.inputs[j]
@@ -76,13 +76,15 @@ def delay(model: Model, channels: list[int]) -> Model:
     g_rows = [[g_cols[j][i] if j not in channels else sp.Integer(0) for j in range(model.m)] for i in range(model.n)]
     for j in channels:
         u = model.inputs[j]
+        made_of[len(states)] = j
         states.append(Variable(u.name, u.unit, u.description or f"input {u.name} (controller state)",
                                u.min, u.max, u.nominal))
         f.append(sp.Integer(0))
         g_rows.append([sp.Integer(1) if k == j else sp.Integer(0) for k in range(model.m)])
         inputs[j] = Variable(_delayed_name(u.name), f"({u.unit})/s" if u.unit else "",
                              f"derivative of {u.name}")
-    return replace(model, states=states, inputs=inputs, f=sp.Matrix(f), g=sp.Matrix(g_rows))
+    return replace(model, states=states, inputs=inputs, f=sp.Matrix(f), g=sp.Matrix(g_rows),
+                   made_of_input=made_of)
 
 
 def _singular_reason(model: Model, io: lie.IOStructure, entering: list[int], rows: list[int]) -> str:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import itertools
 
-import re
 
 import numpy as np
 import sympy as sp
@@ -189,16 +188,8 @@ def _test_points(model: Model) -> np.ndarray:
 
 
 def _declared_at(model: Model, i: int) -> tuple[str, str]:
-    """Where the user declared state i (`file:line: key`) and how to name it: its [[states]]
-    entry, or for a state a dynamic extension made of an input (T, or its derivative T_d1), that
-    input's [[inputs]] entry."""
-    name = model.states[i].name
-    if f"states#{i}" in model._lines or not any(k.startswith("states#") for k in model._lines):
-        return model.where(f"states#{i}"), name
-    for j, u in enumerate(model.inputs):        # the extended model's inputs: T_d2 for T, in T's place
-        if re.sub(r"_d\d+$", "", u.name) == re.sub(r"_d\d+$", "", name):
-            return f"{model.where(f'inputs#{j}')}, an input the extension made a state", name
-    return model.where("states"), name
+    """Where the user declared state i (`file:line: key`) and its name."""
+    return model.state_declared_at(i), model.states[i].name
 
 
 def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Matrix:

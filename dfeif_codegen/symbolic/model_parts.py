@@ -145,6 +145,8 @@ class Model:
     # [inverse]: entries of Phi^-1 the user gives (state name -> text over the canonical names and
     # parameters), kept as text: the canonical names exist only once the derivation has run
     inverse: Mapping[str, str] = field(default_factory=dict)
+    # state index -> index of the input a dynamic extension made it of (symbolic/extension.py)
+    made_of_input: Mapping[int, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.f = sp.Matrix(self.f)
@@ -185,6 +187,13 @@ class Model:
     def where(self, key: str) -> str:
         """`file:line: key` for messages, with the line when the TOML loader recorded it."""
         return _where(self.source, self._lines, key)
+
+    def state_declared_at(self, i: int) -> str:
+        """Where the user declared state i: its [[states]] entry or, for a state a dynamic
+        extension made of an input, that input's [[inputs]] entry."""
+        if i in self.made_of_input:
+            return f"{self.where(f'inputs#{self.made_of_input[i]}')}, an input the extension made a state"
+        return self.where(f"states#{i}")
 
     # --- validation ------------------------------------------------------------------------
     def _check(self) -> None:
