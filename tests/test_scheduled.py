@@ -158,3 +158,19 @@ def test_calibration_matches_the_scheduled_filters_nees_to_n():
     runs = [dataclasses.replace(r, config=dataclasses.replace(r.config, q_scheduled=tuple(q))) for r in loops]
     nees = np.mean([np.mean(compare.evaluate(r, compare.SCHEDULED)["nees_master"]) for r in runs])
     assert abs(math.log(nees / flat.n)) <= math.log(NEES_TOL)
+
+
+def test_scheduled_with_disturbance_states_is_refused_before_any_run(tmp_path, capsys, monkeypatch):
+    """The scheduled filter has no disturbance states: `simulate --filters scheduled` on a
+    scenario with a [disturbance] table, and `scenario --scheduled --disturbance`, are one line
+    each, exit 2, before any derivation or run (both monkeypatched to fail if reached)."""
+    from dfeif_codegen.experiment import derivation
+    path = tmp_path / "d.toml"
+    path.write_text('[scenario]\nduration = 2.0\nruns = 1\n[disturbance]\nkind = "random_walk"\nq = 1.0\n')
+    code = cli.main(["simulate", "dc_motor_link", "--scenario", str(path), "--quiet", "--filters", "df,scheduled"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--filters scheduled" in err[0] and "[disturbance]" in err[0], err
+    monkeypatch.setattr(derivation, "derive", lambda *a, **k: (_ for _ in ()).throw(AssertionError("derived")))
+    code = cli.main(["scenario", "dc_motor_link", "--scheduled", "--disturbance", "random_walk"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("codegen scenario: error: --scheduled"), err
