@@ -34,7 +34,8 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
     """`codegen simulate` as a function: the chapter's experiment, returned as a SimulationResult
     (`.tables`, `.report()`, `.to_json()`, `.failures`). Keywords are the command's options:
     `runs` seeds from `seed`, `oosm`/`fusion`/`reference` one name or a list, `filters` any of
-    "df", "ekf", "ukf" (a list or one comma-separated string), `engine` "c" or "reference";
+    "df", "ekf", "ukf", "brunovsky", "offsets", "scheduled" (a list or one comma-separated
+    string), `engine` "c" or "reference";
     `plot` (a folder), `json_path`, `results`, `csv` are files written on the way ("-" as
     `json_path` writes nothing: the CLI prints `.to_json()`). `max_seconds` (CPU) and `max_memory`
     (GB) bound the derivation. `param_error`: the plant's parameters against the model's,
