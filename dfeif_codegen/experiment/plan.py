@@ -44,7 +44,8 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         sensor=row.links(nodes), uplink=tuple(sc.uplink for _ in range(nodes)), max_lag=max_lag,
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
         predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")),
-        q_ekf=tuple(sc.q_ekf or ()), q_scheduled=tuple(sc.q_scheduled or ()), disturbance=sc.disturbance, offsets=sc.offsets,
+        q_ekf=tuple(sc.q_ekf or ()), q_scheduled=tuple(sc.q_scheduled or ()), disturbance=sc.disturbance,
+        offsets=sc.offsets,
         trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
 
 
