@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from dfeif_codegen.experiment.compare import FILTERS
 from dfeif_codegen.experiment.stats import mean_ci
 
 REFERENCE = "df"
-BASELINES = ("ekf", "ukf")   # what the candidates are measured against
 
 
 def _by_seed(per_run, ref: str, label: str, ri: int) -> dict:
@@ -38,11 +38,11 @@ def ratios(per_run, ref: str, ri: int, kind: str, key: str = "rmse_master", nume
 
 def entries(per_run, refs, rows, kinds) -> list[dict]:
     """Every other filter against REFERENCE, per reference and delay row (the JSON's "paired"),
-    then each other candidate (not df, not a baseline of BASELINES) against the EKF when both ran:
+    then each other candidate (not df, not one of compare.FILTERS) against the EKF when both ran:
     the comparison a user choosing between a candidate and the EKF reads."""
     pairs = [(REFERENCE, kind) for kind in kinds if kind != REFERENCE]
     if "ekf" in kinds:
-        pairs += [(kind, "ekf") for kind in kinds if kind not in (REFERENCE, *BASELINES)]
+        pairs += [(kind, "ekf") for kind in kinds if kind not in (REFERENCE, *FILTERS)]
     return [{"reference": ref, "row": ri, "filter": kind, **ratios(per_run, ref, ri, kind, numerator=top)}
             for top, kind in pairs for ref in refs for ri in range(len(rows))]
 

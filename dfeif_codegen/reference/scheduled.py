@@ -44,8 +44,8 @@ class ScheduledModel(CanonicalMaps):
         self.inputs = 2 * m
         self.outputs_at = np.array([c.offset for c in flat.chains])     # σ's entries in ζ
         self.angle_out = np.array([c.angle for c in flat.chains])
-        H = predictors.held_constants(flat, ts)
-        zeta0, u0 = sampling.nominal_point(flat)
+        H = predictors.held_constants(flat, ts)        # with the point L₀ was taken at
+        zeta0, u0 = H.zeta0, H.u0
         x, w = ca.SX.sym("x", n), ca.SX.sym("w", self.inputs)
         p = ca.DM(flat.param_vector)
         self.step_sx = ca.Function("step", [x, w], [predictors.held_mean_sx(flat, H, x, w[:m], p)])
