@@ -40,7 +40,7 @@ def simulate(model: str = "dc_motor_link", *, scenario: str = "paper", runs: int
     `json_path` writes nothing: the CLI prints `.to_json()`). `max_seconds` (CPU) and `max_memory`
     (GB) bound the derivation. `param_error`: the plant's parameters against the model's,
     replacing the scenario's [model_error] (0.2: each drawn per run within +-20%; "R=0.2": R 20%
-    above; 0: the exact model). `predictor` "held" or "brunovsky" (None: held, the default;
+    above; 0: the exact model). `predictor` "held", "scheduled" or "brunovsky" (None: held, the default;
     brunovsky with retrodict). Bad input raises a CodegenError before any run."""
     def listed(value):
         return [value] if isinstance(value, str) else value

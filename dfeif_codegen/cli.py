@@ -55,9 +55,10 @@ def _filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
                    help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
     p.add_argument("--fusion", choices=["paper", "difference", "ci"], **kind,
                    help="master fusion rule" + (" (repeatable)" if many else " (default difference)"))
-    p.add_argument("--predictor", choices=["held", "brunovsky"], default=None,
+    p.add_argument("--predictor", choices=["held", "scheduled", "brunovsky"], default=None,
                    help="the filters' prediction and the control law: held (the canonical dynamics with the "
-                        "applied u held; the default) or brunovsky (the chapter's chain driven by v = F + G u; "
+                        "applied u held; the default), scheduled (held, the covariance's transition taken at the "
+                        "master's broadcast flat outputs) or brunovsky (the chapter's chain driven by v = F + G u; "
                         "the default with --oosm retrodict)")
 
 

@@ -44,6 +44,9 @@ VARIANTS = {
     # the chapter's Brunovsky predictor with replay (the default is the held-input predictor)
     "dc-brunovsky": ("dc_motor_link", {"predictor": "brunovsky"}),
     "arm-float-held": ("two_link_arm", {"precision": "float"}),
+    # the scheduled transition: Φ(σ) from the broadcast flat outputs, every step's P prior kept
+    "arm-double-scheduled": ("two_link_arm", {"predictor": "scheduled"}),
+    "dc-float-scheduled-ci": ("dc_motor_link", {"precision": "float", "predictor": "scheduled", "fusion": "ci"}),
     # disturbance states (codegen build --disturbance): the state extended, q by their densities
     "dc-float-disturbance": ("dc_motor_link", {"precision": "float", "disturbance": "random_walk"}),
     "arm-double-gauss-markov": ("two_link_arm", {"disturbance": "gauss_markov", "tau": 0.5}),
@@ -551,6 +554,40 @@ def test_late_measurement_replay_and_retrodict_agree(built, tmp_path):
         # replay re-runs exactly the on-time operations in the same order: equal up to a few ulps
         np.testing.assert_allclose(xr, first[0], rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(Pr, first[1], rtol=1e-12, atol=1e-18)
+
+
+def _run_scheduled(lib: Lib, late_lag: int, deliver: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The arm's scheduled node over 40 steps, σ swinging over ±0.8 rad (Φ(σ) far from Φ₀), the
+    frame of step 39 - late_lag dropped and, `deliver`, given at step 39 with that lag."""
+    node, late = lib.new("node"), 39 - late_lag
+    assert lib("node_init", node, np.zeros(6), np.diag([1e-2, 1e-1, 1.0] * 2), np.diag([1e-4, 2e-4]).ravel(),
+               np.array([10.0, 20.0])) == 0
+    for k in range(40):
+        z = np.array([0.3 * np.sin(0.05 * k), 0.2 * np.cos(0.07 * k)])
+        measured = k not in (30, 35) and not (late_lag and k == late)
+        assert lib("node_update", node, z, int(measured)) == 0
+        if k == 39 and late_lag and deliver:
+            z_late = np.array([0.3 * np.sin(0.05 * late), 0.2 * np.cos(0.07 * late)])
+            assert lib("node_update_delayed", node, z_late, ctypes.c_int32(late_lag)) == 0
+        if k < 39:
+            w = np.array([np.sin(0.3 * k), np.cos(0.2 * k), 0.8 * np.sin(0.4 * k), -0.8 * np.cos(0.25 * k)])
+            assert lib("node_predict", node, w) == 0
+    x, P = np.zeros(6), np.zeros(36)
+    lib("node_estimate", node, x, P)
+    return x, P.reshape(6, 6)
+
+
+def test_scheduled_replay_equals_on_time(built, tmp_path):
+    """The scheduled node keeps each step's σ and P prior: a frame 6 steps late, replayed through
+    six different Φ(σ), gives what it gave on time (the same operations in the same order: a few
+    ulps), while without it the estimate differs (so the check can fail)."""
+    lib = Lib(shared_library(built("arm-double-scheduled"), tmp_path), "two_link_arm")
+    on_time = _run_scheduled(lib, 0)
+    xr, Pr = _run_scheduled(lib, 6)
+    np.testing.assert_allclose(xr, on_time[0], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(Pr, on_time[1], rtol=1e-12, atol=1e-18)
+    xm, Pm = _run_scheduled(lib, 6, deliver=False)
+    assert np.max(np.abs(Pm - on_time[1])) > 1e-3 * np.max(np.abs(on_time[1]))
 
 
 def test_master_difference_and_control_match_numpy(built, tmp_path):

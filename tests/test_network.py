@@ -127,7 +127,7 @@ def restart_reference(out: run.Outcome, who: int, back: int):
         bank.master.fuse([bank.sent[i].get(src) if src >= 0 else None for i, src in enumerate(sources[k])])
         X[k], P[k] = bank.master.x, bank.master.P
         u, v = bank.control(bank.master.x, rec.ref[k])
-        w = v if bank.takes_v else u
+        w = bank.master.predictor.input(u, v, bank.master.x)
         for i in alive:
             bank.nodes[i].predict(w)
         bank.master.predict(w)

@@ -171,6 +171,10 @@ def test_builtin_scenario_that_does_not_fit_says_what_to_do(tmp_path, capsys):
         strict=True, reason="held predictor in float on a stiff degree-4 chain: F(z) cancels digits")),
     ("mixed", ["--precision", "float", "--fusion", "ci"]),
     ("mixed", ["--oosm", "retrodict", "--fusion", "paper"]),
+    # the scheduled transition: Φ(σ) of a user's model, both precisions
+    ("flex", ["--predictor", "scheduled"]),
+    ("mixed", ["--predictor", "scheduled", "--fusion", "ci"]),
+    ("mixed", ["--predictor", "scheduled", "--precision", "float"]),
 ])
 def test_user_model_verifies_on_its_own_scenario(which, options, tmp_path, capsys):
     """The generated C of a user's model, run on the user's scenario (delays (4, 6, 0.8)),

@@ -25,7 +25,7 @@ INPUTS = ("recorded", "own")
 
 def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
     """The driver's inputs, C-contiguous, reals in the build's precision, integers int32;
-    `v_in` is the reference's broadcast input (u for the held predictor, v for the Brunovsky one),
+    `v_in` is the reference's broadcast input (Recording.broadcast: u, (u, σ) or v),
     for runs that predict with the recorded inputs. With disturbance states the initial states and
     q are the filters' (`filter_start`)."""
     K = rec.ref.shape[0]
@@ -41,7 +41,7 @@ def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
         "z": real(rec.z), "gamma": int32(rec.gamma), "ref": real(rec.ref),
         "late_step": int32(rec.late_step), "late_node": int32(rec.late_node),
         "late_lag": int32(rec.late_lag), "late_z": real(np.reshape(rec.late_z, (-1, rec.m))),
-        "source": source, "v_in": real(rec.u if getattr(rec, "predictor", "brunovsky") == "held" else rec.v),
+        "source": source, "v_in": real(rec.broadcast()),
     }
 
 

@@ -90,8 +90,9 @@ def context(flat, opts: Options) -> dict:
         "params": [{"name": q.name, "value": q.value, "unit": _comment(q.unit),
                     "description": _comment(q.description)} for q in m.parameters],
         "opts": opts, "options": asdict(opts), "det_nominal": flat.nominal_det(), "model_ts": m.ts,
-        # the held predictor's linearization input (benchmarks drive the filters with it)
-        "input_nominal": [float(u) for u in nominal_point(flat)[1]] if opts.predictor == "held" else [],
+        # the held predictor's linearization input (benchmarks drive the filters with it), and
+        # the scheduled one's nominal flat outputs after it (where Φ(σ) = Φ₀)
+        "input_nominal": nominal_input(flat, opts),
         "example_start": example_start(flat),
         "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
         # the CI Hessian's data: H (M x M), or its factor G (M x n^2) when that step is cheaper
@@ -108,6 +109,16 @@ def context(flat, opts: Options) -> dict:
         "library_sources": [f for f in names if f.endswith(".c") and f != "example_main.c"],
         "extension": extension_context(flat, opts.ts),
     }
+
+
+def nominal_input(flat, opts) -> list[float]:
+    """The input a benchmark predicts with (node_predict's, NW reals): u₀ for the held
+    predictor, u₀ and the nominal flat outputs for the scheduled one, none for Brunovsky."""
+    if not opts.holds_u:
+        return []
+    zeta0, u0 = nominal_point(flat)
+    sigma0 = [float(zeta0[h]) for h in flat.heads] if opts.scheduled else []
+    return [float(u) for u in u0] + sigma0
 
 
 def extension_context(flat, ts: float) -> dict | None:
@@ -210,8 +221,8 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     under a time and memory budget (`max_seconds` in seconds, `max_memory` in GB, as the
     command's --max-seconds and --max-memory); what was written is compiled (host compiler, when
     there is one) before it replaces the folder, atomically. `force` allows replacing files the
-    toolkit did not write there. `predictor`: "held" (u held) or "brunovsky"; None: brunovsky, and
-    brunovsky with retrodict (the only one it can use). `disturbance` ("random_walk",
+    toolkit did not write there. `predictor`: "held" (u held), "scheduled" (held, Φ(σ) at the
+    master's broadcast flat outputs) or "brunovsky"; None: held, and brunovsky with retrodict (the only one it can use). `disturbance` ("random_walk",
     "gauss_markov" with its time constant `tau`, or "integrated_random_walk"): disturbance
     states per chain (symbolic/disturbance.py)."""
     out_folder(out)

@@ -88,6 +88,16 @@ class Options:
         elif tau is not None:
             raise BuildError("--tau applies to --disturbance gauss_markov only")
 
+    @property
+    def holds_u(self) -> bool:
+        """The filters predict with the applied u held (held and scheduled predictors)."""
+        return self.predictor != "brunovsky"
+
+    @property
+    def scheduled(self) -> bool:
+        """The filters also take the master's broadcast flat outputs σ (after u)."""
+        return self.predictor == "scheduled"
+
     def flags(self, model_ts: float) -> str:
         """The `codegen build` options that differ from the defaults (the model's Ts among
         them): what a file's banner tells a user to regenerate it with."""
@@ -104,8 +114,10 @@ class Options:
     @property
     def check_every(self) -> int:
         """Steps between the node's stored P priors: a retrodiction restarts the P recursion at
-        the late step, so it keeps every one."""
-        return CHECK_EVERY if self.oosm == "replay" else 1
+        the late step, so it keeps every one, and so does the scheduled predictor, whose P
+        recursion reads each step's σ (a checkpoint before the window would need σ the ring no
+        longer holds)."""
+        return CHECK_EVERY if self.oosm == "replay" and not self.scheduled else 1
 
     @property
     def checkpoints(self) -> int:

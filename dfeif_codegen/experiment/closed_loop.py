@@ -333,7 +333,7 @@ def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, 
         late_z=frames[late_node, late_step - late_lag].reshape(-1, m),
         pkt_step=pk, pkt_node=pn, pkt_src=s.net.source.T[pk, pn],
         late_applied=applied, node_x=node_x, node_P=node_P, x=x, P=P, u=u, v=v,
-        disturbance="" if cfg.disturbance is None else cfg.disturbance.to_json())
+        disturbance="" if cfg.disturbance is None else cfg.disturbance.to_json(), heads=tuple(flat.heads))
     result = Result(cfg, s.t, zeta, x_true, s.net.lag.copy(), rec, counters)
     result.metrics = metrics(result)
     return result

@@ -106,7 +106,7 @@ def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled
     if kind == OFFSETS:
         q = offsets.chains_q or q
         return OffsetFilter(OffsetModel(flat, ts, ex._per_chain(q, flat.m), offsets), compiled)
-    if kind == SCHEDULED:
+    if kind == SCHEDULED or (kind == "df" and predictor == SCHEDULED):
         return ScheduledFilter(ScheduledModel(flat, ts, np.array(q)), compiled)
     if kind in CANONICAL:   # "brunovsky" is the chapter's filter whatever the recording's predictor
         return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky",
@@ -122,6 +122,8 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     "df" runs the derivative-free filter itself through the same driver (CanonicalModel). `q`:
     the filter's process-noise densities when not the recording's (the chapter's filter's own)."""
     q = tuple(np.asarray(rec.q if q is None or len(q) == 0 else ex._per_chain(q, rec.m), float))
+    if kind == "df" and rec.predictor == SCHEDULED:   # the loops' own filter is the scheduled one
+        kind = SCHEDULED
     filt = filter_of(rec.model, float(rec.ts), q, substeps, kind, compiled,
                      rec.predictor, disturbance, offsets)
     pm = filt.model

@@ -37,7 +37,7 @@ class Recording:
     method: str           # replay | retrodict | discard | as-current
     oosm: str             # what the node filters were built with
     fusion: str
-    predictor: str        # held | brunovsky: the filters predict with u or with v
+    predictor: str        # held | scheduled | brunovsky: the filters predict with u, (u, σ) or v
     ts: float
     q: np.ndarray
     R: np.ndarray
@@ -66,6 +66,14 @@ class Recording:
     u: np.ndarray
     v: np.ndarray
     disturbance: str = ""
+    heads: tuple = ()     # the flat outputs' entries of x (the scheduled predictor's σ = x[heads])
+
+    def broadcast(self) -> np.ndarray:
+        """(K, NW): the input the filters predicted with at each step, as the master broadcast it:
+        u (held), u then the fused flat outputs σ (scheduled), v (brunovsky)."""
+        if self.predictor == "scheduled":
+            return np.concatenate([self.u, self.x[:, list(self.heads)]], axis=1)
+        return self.u if self.predictor == "held" else self.v
 
     def save(self, path) -> None:
         np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
@@ -76,6 +84,7 @@ class Recording:
             values = {f.name: data[f.name] for f in fields(cls) if f.name in data}
         values.setdefault("predictor", np.asarray("brunovsky"))   # recorded before the held predictor
         values["disturbance"] = str(values.get("disturbance", ""))
+        values["heads"] = tuple(int(h) for h in values.get("heads", ()))
         for name in ("model", "method", "oosm", "fusion", "predictor"):
             values[name] = str(values[name])
         for name in ("n", "m", "nodes", "max_lag", "seed"):
@@ -100,8 +109,7 @@ class FilterBank:
                       for i in range(len(R))]
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
                              predictor=predictor, disturbance=disturbance, dtype=dtype)
-        self.takes_v = predictor == "brunovsky"
-        held = predictors.held_constants(flat, ts) if predictor == "held" else None
+        held = predictors.held_constants(flat, ts) if predictor != "brunovsky" else None
         self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds
         # the law cancels the filters' estimate of what the model misses (docs/algorithms.md)
         self.compensate = disturbance is not None
@@ -123,7 +131,7 @@ class FilterBank:
         u, v = self.control(self.master.x[:n], ref, disturbance=d)
         out = (applied, [nd.x[:n].copy() for nd in self.nodes], [nd.P[:n, :n].copy() for nd in self.nodes],
                self.master.x[:n].copy(), self.master.P[:n, :n].copy(), u, v)
-        w = v if self.takes_v else u      # what the master broadcasts for the nodes' prediction
+        w = self.master.predictor.input(u, v, self.master.x)   # what the master broadcasts for the prediction
         for node in self.nodes:
             node.predict(w)
         self.master.predict(w)

@@ -97,10 +97,11 @@ class Scenario:
     _lines: dict = field(default_factory=dict, repr=False)
 
     def q_for(self, predictor: str) -> list[float]:
-        """The process-noise densities of the filters `predictor` names: the two predictors'
-        q mean different things (model error of the held mean, or the whole of F + G u's
-        variation over a period for the chapter's chain), so a scenario may give both."""
-        return self.q_brunovsky if predictor == "brunovsky" and self.q_brunovsky else self.q
+        """The process-noise densities of the filters `predictor` names: each predictor's q means
+        something else (the held mean's model error, less with the scheduled transition, or all
+        of F + G u's variation over a period for the chapter's chain), so a scenario may give each."""
+        own = {"brunovsky": self.q_brunovsky, "scheduled": self.q_scheduled}.get(predictor)
+        return own or self.q
 
     def where(self, key: str) -> str:
         """`file:line: key`; entry i of an array of tables is looked up as `grid#i` and shown as `grid[i+1]`."""

@@ -92,7 +92,8 @@ def simulate(model: str = "dc_motor_link", *, engine: sweep.Engine, scenario: st
     Bad input raises a CodegenError before any run; failed or diverged runs are in `.failures`.
     The derivation runs under `max_seconds` CPU seconds and `max_memory` GB (None: build's).
     `param_error` replaces the scenario's [model_error] (experiment/model_error.from_option).
-    `predictor`: the filters' prediction, "held" (u held) or "brunovsky" (the chapter's); None:
+    `predictor`: the filters' prediction, "held" (u held), "scheduled" (held, the covariance's
+    transition at the master's broadcast flat outputs) or "brunovsky" (the chapter's); None:
     the default, and brunovsky for retrodiction (the only one it can use)."""
     check_outputs(json_path, plot, csv, results, {"model file": model, "scenario file": scenario}, resume)
     scenario_mod.load(scenario)     # the file's own checks (fields, reference file) before the derivation

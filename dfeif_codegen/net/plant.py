@@ -81,7 +81,7 @@ def main(argv: list[str]) -> int:
                 continue
             if h.step == k:
                 t_recv[k] = time.perf_counter()
-                v_log[k], u = vals[:m], np.array(vals[m:], dtype=float)
+                v_log[k], u = vals[:m], np.array(vals[m:2 * m], dtype=float)   # (σ after it: scheduled)
                 got[k] = True
         u_log[k] = u
         x = plant.step(x, u)

@@ -139,7 +139,7 @@ def recording(s: Setup, relay_log: list[dict], frames: np.ndarray, K: int) -> ex
         late_lag=np.array([r[2] for r in late_rows], dtype=int),
         late_z=np.array([r[3] for r in late_rows]).reshape(-1, m),
         pkt_step=pk, pkt_node=pn, pkt_src=sources[pk, pn],
-        late_applied=empty, node_x=empty, node_P=empty, x=empty, P=empty, u=empty, v=empty)
+        late_applied=empty, node_x=empty, node_P=empty, x=empty, P=empty, u=empty, v=empty, heads=tuple(flat.heads))
 
 
 def write_json(path: Path, data) -> None:

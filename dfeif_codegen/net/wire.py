@@ -19,7 +19,7 @@ import numpy as np
 from dfeif_codegen.net.siphash import siphash24
 
 MAGIC = b"DFEW"
-VERSION = 2
+VERSION = 3
 HEADER = struct.Struct("<4sBBBB8sHHIII")   # magic version kind flags real_size model node count step seq epoch
 KIND_PACKET, KIND_COMMAND, KIND_CAMERA, KIND_TICK, KIND_ANNOUNCE = 1, 2, 3, 4, 5
 MASTER_ID = 0xFFFF
@@ -51,6 +51,7 @@ class Layout:
     m: int
     precision: str
     model_hash: str
+    scheduled: bool = False     # commands carry σ after u (`--predictor scheduled`)
 
     @classmethod
     def of_folder(cls, folder) -> "Layout":
@@ -60,7 +61,9 @@ class Layout:
         name = manifest["model"]
         header = (folder / f"{name}.h").read_text()
         dims = {k: int(v) for k, v in re.findall(rf"#define {name.upper()}_(NX|NY) (\d+)", header)}
-        return cls(dims["NX"], dims["NY"], manifest["options"]["precision"], manifest["model_hash"])
+        options = manifest["options"]
+        return cls(dims["NX"], dims["NY"], options["precision"], manifest["model_hash"],
+                   options.get("predictor") == "scheduled")
 
     @property
     def dtype(self):
@@ -72,7 +75,7 @@ class Layout:
 
     @property
     def command_reals(self) -> int:
-        return 2 * self.m
+        return (3 if self.scheduled else 2) * self.m       # v, u, and σ
 
     @property
     def tick_reals(self) -> int:

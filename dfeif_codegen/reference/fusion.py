@@ -142,7 +142,7 @@ class Master:
         self._v[self.k] = v
         self._v.pop(self.k - self.max_lag, None)
         self.x_prior = self.predictor.mean(self.x, v)
-        self.P_prior = self.A @ self.P @ self.A.T + self.Q
+        self.P_prior = self.predictor.covariance(self.P, v)
         self.k += 1
 
     def _on_branch(self, item, c: np.ndarray):
@@ -161,12 +161,14 @@ class Master:
 
     def _bring(self, p: Packet):
         """A packet's (x, P, x_pred, P_pred) brought from its step to the current one with the
-        stored inputs: the covariances in one step of length N (Φ over N periods and the noise of
-        N periods in closed form, equal to N one-step predictions), the means by the predictor
+        stored inputs, by the predictor: the covariances in one step of length N where the
+        transition is constant (Φ over N periods and the noise of N periods in closed form, equal
+        to N one-step predictions), else step by step; the means step by step unless linear
         (docs/algorithms.md, master 1)."""
         N = self.k - p.step
         if N == 0:
             return p.x, p.P, p.x_pred, p.P_pred
-        x, x_pred = self.predictor.bring([p.x, p.x_pred], [self._v[i] for i in range(p.step, self.k)])
-        A, Q = (a.astype(self.x.dtype, copy=False) for a in self.predictor.ahead(N))
-        return x, A @ p.P @ A.T + Q, x_pred, A @ p.P_pred @ A.T + Q
+        inputs = [self._v[i] for i in range(p.step, self.k)]
+        x, x_pred = self.predictor.bring([p.x, p.x_pred], inputs)
+        P, P_pred = self.predictor.carry([p.P, p.P_pred], inputs)
+        return x, P, x_pred, P_pred

@@ -71,7 +71,7 @@ def posterior(P: np.ndarray, K: np.ndarray, R: np.ndarray, heads) -> np.ndarray:
 class NodeFilter:
     """Local filter of one node. Per step: `update` once, `update_delayed` any number of times,
     then `predict` with the input the master broadcast: the applied u (the default `held`
-    predictor) or v = F + G u (`brunovsky`)."""
+    predictor), u and the master's flat outputs (`scheduled`) or v = F + G u (`brunovsky`)."""
 
     def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay",
                  dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None,
@@ -176,7 +176,7 @@ class NodeFilter:
         return np.atleast_1d(np.asarray(z, dtype=self.dtype)).reshape(self.flat.m)
 
     def _propagate(self, x, P, v):
-        return self.predictor.mean(x, v), self.A @ P @ self.A.T + self.Q
+        return self.predictor.mean(x, v), self.predictor.covariance(P, v)
 
     def _correct(self, slot: _Slot):
         """The update of one step from its slot's prior; fills e, S, K, P_post."""

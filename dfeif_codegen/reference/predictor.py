@@ -3,10 +3,12 @@
 - `held` (the default): the mean integrated over the period with the applied input u held, as
   the plant holds it (ETD2RK on the canonical dynamics, symbolic/sampling.py), the covariance by
   the constant Φ₀, Q₀ of the dynamics linearized once at build time. Takes u.
+- `scheduled`: the held mean; the covariance by Φ(σ) = Φ₀ + Γ₁ (L(σ) - L₀), L linearized at the
+  master's broadcast flat outputs σ (symbolic/sampling.py). Takes (u, σ).
 - `brunovsky` (the chapter's): the exact model of the canonical chain with v = F + G u held.
   Linear, so a packet N steps old is brought forward in one step of length N. Takes v.
 
-Both keep the covariance recursion independent of the state, so a node's replay and the master's
+All keep the covariance recursion independent of the filters' own states, so a node's replay and the master's
 information-difference fusion stay exact (the nodes' information gains do not depend on the mean).
 """
 
@@ -56,6 +58,21 @@ class Brunovsky:
             self._ahead[N] = (self.flat.discrete(N * self.ts)[0], self.flat.process_noise(N * self.ts, self.q))
         return self._ahead[N]
 
+    @staticmethod
+    def input(u, v, x_master) -> np.ndarray:
+        """What the master broadcasts for this predictor at a step: v."""
+        return np.atleast_1d(v)
+
+    def covariance(self, P, w) -> np.ndarray:
+        """P one step on (the transition does not depend on the input)."""
+        return self.Phi @ P @ self.Phi.T + self.Q
+
+    def carry(self, Ps: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
+        """Covariances brought over len(inputs) steps in one step of that length (closed forms,
+        equal to len(inputs) one-step predictions)."""
+        A, Q = (a.astype(self.dtype, copy=False) for a in self.ahead(len(inputs)))
+        return [A @ P @ A.T + Q for P in Ps]
+
     def bring(self, xs: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
         """Means predicted over len(inputs) steps: A(N Ts) x plus the inputs' effect (linear)."""
         effect = np.zeros_like(xs[0])
@@ -98,6 +115,14 @@ class Held:
             self._ahead[N] = (H.E, H.Q(self.q, self.qd))
         return self._ahead[N]
 
+    covariance = Brunovsky.covariance
+    carry = Brunovsky.carry
+
+    @staticmethod
+    def input(u, v, x_master) -> np.ndarray:
+        """What the master broadcasts for this predictor at a step: u."""
+        return np.atleast_1d(u)
+
     def bring(self, xs: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
         """Means predicted step by step with the stored inputs (the map is nonlinear)."""
         out = []
@@ -108,7 +133,54 @@ class Held:
         return out
 
 
+class Scheduled(Held):
+    """The held mean with u = w[:m]; P⁺ = Φ(σ) P Φ(σ)ᵀ + Q₀ with σ = w[m:], the master's flat
+    outputs it broadcast with u (symbolic/sampling.py, `scheduled_transition_sx`)."""
+
+    name = "scheduled"
+
+    def __init__(self, flat, ts: float, q, dtype=np.float64):
+        super().__init__(flat, ts, q, dtype)
+        self.m = flat.m
+        self._transition = _cached(("transition", id(flat), self.ts), flat, lambda: _transition_function(flat, self.H))
+
+    def mean(self, x, w) -> np.ndarray:
+        return super().mean(x, w[:self.m])
+
+    def input(self, u, v, x_master) -> np.ndarray:
+        """What the master broadcasts at a step: u, then its fused flat outputs."""
+        return np.concatenate([np.atleast_1d(u), np.asarray(x_master)[self.flat.heads]])
+
+    def transition(self, w) -> np.ndarray:
+        """Φ(σ) of the step whose input is w = (u, σ), computed in double and then rounded (as
+        the C's float build, whose Φ(σ) entries are each a few operations on σ)."""
+        return np.asarray(self._transition(np.asarray(w[self.m:], dtype=float)), dtype=float).astype(self.dtype)
+
+    def covariance(self, P, w) -> np.ndarray:
+        Phi = self.transition(w)
+        return Phi @ P @ Phi.T + self.Q
+
+    def carry(self, Ps: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
+        """Covariances predicted step by step (each step's Φ(σ) its own)."""
+        out = []
+        for P in Ps:
+            for w in inputs:
+                P = self.covariance(P, w)
+            out.append(P)
+        return out
+
+    def ahead(self, N: int):
+        raise NotImplementedError("the scheduled transition has no N-step closed form: carry step by step")
+
+
 _CACHE: dict[tuple, tuple] = {}
+
+
+def _transition_function(flat, H) -> ca.Function:
+    """σ -> Φ(σ) with the model's parameters at their values."""
+    sigma = ca.SX.sym("sigma", flat.m)
+    return ca.Function("transition", [sigma],
+                       [ca.densify(sampling.scheduled_transition_sx(flat, H, sigma, ca.DM(flat.param_vector)))])
 
 
 def held_constants(flat, ts: float) -> sampling.HeldSampling:
@@ -136,4 +208,6 @@ def make(name: str, flat, ts: float, q, dtype=np.float64, disturbance=None):
     check(name, disturbance=disturbance)
     if name == "held":
         return Held(flat, ts, q, dtype, disturbance)
+    if name == "scheduled":
+        return Scheduled(flat, ts, q, dtype)
     return Brunovsky(flat, ts, q, dtype)

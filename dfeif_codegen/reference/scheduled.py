@@ -1,6 +1,7 @@
-"""A covariance transition scheduled on the master's flat outputs: a candidate for the held
-filter, measured in the comparison (`codegen simulate --filters df,scheduled,ekf`), not yet
-generated as C.
+"""A covariance transition scheduled on the master's flat outputs, as a candidate in the
+comparison (`codegen simulate --filters df,scheduled,ekf`, on the comparison's driver); the same
+filter is the build option `--predictor scheduled` (reference/predictor.py `Scheduled`, and the
+generated C).
 
 Why: the held filter propagates its covariance by one constant Φ₀, the canonical dynamics
 linearized at the nominal state. On a model whose inertia and gravity move with the configuration
@@ -45,15 +46,10 @@ class ScheduledModel(CanonicalMaps):
         self.outputs_at = np.array([c.offset for c in flat.chains])     # σ's entries in ζ
         self.angle_out = np.array([c.angle for c in flat.chains])
         H = predictors.held_constants(flat, ts)        # with the point L₀ was taken at
-        zeta0, u0 = H.zeta0, H.u0
         x, w = ca.SX.sym("x", n), ca.SX.sym("w", self.inputs)
         p = ca.DM(flat.param_vector)
         self.step_sx = ca.Function("step", [x, w], [predictors.held_mean_sx(flat, H, x, w[:m], p)])
-        point = ca.SX(ca.DM(zeta0))
-        for j, i in enumerate(self.outputs_at):
-            point[int(i)] = w[m + j]
-        _, L = sampling.remainder_function(flat)(point, ca.DM(u0), p)
-        self.transition_sx = ca.Function("transition", [w], [ca.DM(H.E) + ca.DM(H.G1) @ (L - ca.DM(H.L0))])
+        self.transition_sx = ca.Function("transition", [w], [sampling.scheduled_transition_sx(flat, H, w[m:], p)])
         self.Qd = H.Q(np.asarray(q, dtype=float))
         C = flat.discrete(ts)[2]
         self.h_sx = ca.Function("h", [x], [ca.DM(C) @ x])

@@ -31,9 +31,10 @@ from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic import numeric
 from dfeif_codegen.symbolic.flatness import nominal_state
 
-PREDICTORS = ("held", "brunovsky")
+PREDICTORS = ("held", "scheduled", "brunovsky")
 """`held` (the default): the mean integrated with u held as the plant holds it, and the control
-law that knows it (`held_input_sx`); `brunovsky`: the chapter's exact model of the canonical chain
+law that knows it (`held_input_sx`); `scheduled`: the held mean, its covariance moved by Φ(σ) at
+the master's broadcast flat outputs σ (`scheduled_transition_sx`) instead of Φ₀; `brunovsky`: the chapter's exact model of the canonical chain
 with v = F + G u held instead, and its law u = G⁻¹(v - F). Held, the plant's tracking error on
 dc_motor_link drops 2.4x on θ, 5x on θ', 9x on θ'' without delays and up to 150x with them
 (docs/experiment.md)."""
@@ -273,6 +274,18 @@ def held_input_sx(flat, H: HeldSampling, z: ca.SX, v: ca.SX, p) -> tuple[ca.SX, 
     step = held_increment_sx(flat, H, z, z, u_first, p)
     u = u_first + solve(goal - ca.vertcat(*[step[i] for i in tops]))
     return u, G
+
+
+def scheduled_transition_sx(flat, H: HeldSampling, sigma: ca.SX, p) -> ca.SX:
+    """Φ(σ) = Φ₀ + Γ₁ (L(σ) - L₀): the exponential-Euler step's Jacobian at the nominal point
+    with its flat-output entries set to σ (the `scheduled` predictor; docs/mathematics.md
+    section 3). L(σ) is a closed form of the m numbers σ: whoever evaluates it differentiates
+    nothing. Φ(σ₀) = Φ₀ at the nominal outputs σ₀."""
+    point = ca.SX(ca.DM(H.zeta0))
+    for j, c in enumerate(flat.chains):
+        point[c.offset] = sigma[j]
+    L = remainder_function(flat)(point, ca.DM(H.u0), p)[1]
+    return constant(H.E) + ca.mtimes(constant(H.G1), L - constant(H.L0))
 
 
 def within_limits(flat, u: ca.SX) -> ca.SX:

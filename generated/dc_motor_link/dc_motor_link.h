@@ -63,13 +63,19 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define DC_MOTOR_LINK_PREDICTS_WITH_U 1
+/** 1: they take u, then the master's fused flat outputs sigma (predictor "scheduled"; NW = 2 NY) */
+#define DC_MOTOR_LINK_SCHEDULED 0
 /** late-measurement window: lags 1..NMAX steps */
 #define DC_MOTOR_LINK_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
 #define DC_MOTOR_LINK_NRING (DC_MOTOR_LINK_NMAX + 1)
-/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+/** reals of the input node_predict and master_predict take: u */
+#define DC_MOTOR_LINK_NW 1
+/** NRING x NW and NMAX x NW (sizes of the rings of inputs) */
+#define DC_MOTOR_LINK_NRING_NW DC_MOTOR_LINK_NRING
+#define DC_MOTOR_LINK_NMAX_NW DC_MOTOR_LINK_NMAX
+/** NRING x NY (the size of the ring of measurements) */
 #define DC_MOTOR_LINK_NRING_NY DC_MOTOR_LINK_NRING
-#define DC_MOTOR_LINK_NMAX_NY DC_MOTOR_LINK_NMAX
 /** camera nodes fused by the master */
 #define DC_MOTOR_LINK_NNODES 2
 /** sampling period [s] */
@@ -180,7 +186,7 @@ typedef struct {
     dc_motor_link_real q[DC_MOTOR_LINK_NQ];
     dc_motor_link_real ring_x[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NX];
     dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING_NY];
-    dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING_NY];
+    dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING_NW];
     /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), the latest at or
      * before k at entry `check`, each earlier one at the entry before (cyclically) */
     dc_motor_link_real ring_P[DC_MOTOR_LINK_NODE_NCHECK_REALS];
@@ -239,7 +245,7 @@ typedef struct {
     dc_motor_link_real P_prior[DC_MOTOR_LINK_NXX];
     dc_motor_link_real q[DC_MOTOR_LINK_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
-    dc_motor_link_real v[DC_MOTOR_LINK_NMAX_NY];
+    dc_motor_link_real v[DC_MOTOR_LINK_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot
      * its input will take */
     uint32_t k;
@@ -277,7 +283,7 @@ int dc_motor_link_node_update_delayed(dc_motor_link_node* node,
                                       const dc_motor_link_real z[DC_MOTOR_LINK_NY], int32_t lag);
 /** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int dc_motor_link_node_predict(dc_motor_link_node* node,
-                               const dc_motor_link_real input[DC_MOTOR_LINK_NY]);
+                               const dc_motor_link_real input[DC_MOTOR_LINK_NW]);
 /** Current estimate; either output may be NULL. */
 int dc_motor_link_node_estimate(const dc_motor_link_node* node,
                                 dc_motor_link_real x[DC_MOTOR_LINK_NX],
@@ -309,7 +315,7 @@ int dc_motor_link_master_fuse(dc_motor_link_master* master,
                               const uint8_t present[DC_MOTOR_LINK_NNODES]);
 /** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int dc_motor_link_master_predict(dc_motor_link_master* master,
-                                 const dc_motor_link_real input[DC_MOTOR_LINK_NY]);
+                                 const dc_motor_link_real input[DC_MOTOR_LINK_NW]);
 /** Fused estimate; either output may be NULL. */
 int dc_motor_link_master_estimate(const dc_motor_link_master* master,
                                   dc_motor_link_real x[DC_MOTOR_LINK_NX],
@@ -321,7 +327,7 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
  * payload, a SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes
  * before it). The epoch is the master's boot: its commands and announcements carry it, the
  * nodes' packets echo the last one they heard, and a keyed master takes only its own. */
-#define DC_MOTOR_LINK_WIRE_VERSION 2u
+#define DC_MOTOR_LINK_WIRE_VERSION 3u
 #define DC_MOTOR_LINK_WIRE_HEADER 32u
 /** bytes of a frame of n reals: header, n reals of 8 bytes, tag (8) and CRC (4) */
 #define DC_MOTOR_LINK_FRAME_SIZE(n) (44u + (8u * (size_t)(n)))
@@ -335,8 +341,10 @@ int dc_motor_link_master_estimate(const dc_motor_link_master* master,
 #define DC_MOTOR_LINK_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
 #define DC_MOTOR_LINK_PACKET_REALS 25
+/** reals after v in a command: u */
+#define DC_MOTOR_LINK_NU_WIRE DC_MOTOR_LINK_NU
 /** reals in a command: v, u */
-#define DC_MOTOR_LINK_COMMAND_REALS (DC_MOTOR_LINK_NY + DC_MOTOR_LINK_NU)
+#define DC_MOTOR_LINK_COMMAND_REALS (DC_MOTOR_LINK_NY + DC_MOTOR_LINK_NU_WIRE)
 /** FRAME_SIZE(PACKET_REALS) */
 #define DC_MOTOR_LINK_PACKET_WIRE_SIZE 244u
 /** FRAME_SIZE(COMMAND_REALS) */
@@ -455,7 +463,7 @@ int dc_motor_link_packet_decode(const uint8_t* buf, size_t len, const uint8_t* k
                                 dc_motor_link_packet* packet, dc_motor_link_frame_header* header);
 /** epoch: the master's (as given to inbox_init). */
 int dc_motor_link_command_encode(uint32_t step, const dc_motor_link_real v[DC_MOTOR_LINK_NY],
-                                 const dc_motor_link_real u[DC_MOTOR_LINK_NU], uint32_t seq,
+                                 const dc_motor_link_real u[DC_MOTOR_LINK_NU_WIRE], uint32_t seq,
                                  uint32_t epoch, const uint8_t* key,
                                  uint8_t buf[DC_MOTOR_LINK_COMMAND_WIRE_SIZE]);
 /** The master's epoch without a command (a restarted master, before it can command). */
@@ -463,7 +471,7 @@ int dc_motor_link_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, c
                                   uint8_t buf[DC_MOTOR_LINK_ANNOUNCE_WIRE_SIZE]);
 int dc_motor_link_command_decode(const uint8_t* buf, size_t len, const uint8_t* key,
                                  dc_motor_link_real v[DC_MOTOR_LINK_NY],
-                                 dc_motor_link_real u[DC_MOTOR_LINK_NU],
+                                 dc_motor_link_real u[DC_MOTOR_LINK_NU_WIRE],
                                  dc_motor_link_frame_header* header);
 /** key NULL: CRC only; base: global step of the master's step 0; epoch: this boot's, chosen by the
  * caller and never used before under this key (a boot counter kept in non-volatile memory,
@@ -500,7 +508,7 @@ int dc_motor_link_command_rx_init(dc_motor_link_command_rx* rx, const uint8_t ke
  * one heard, a newer one taken, and within it a fresh sequence number). */
 int dc_motor_link_command_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len,
                                   uint32_t* step, dc_motor_link_real v[DC_MOTOR_LINK_NY],
-                                  dc_motor_link_real u[DC_MOTOR_LINK_NU]);
+                                  dc_motor_link_real u[DC_MOTOR_LINK_NU_WIRE]);
 /** Check an announcement (as command_receive) and take its epoch. */
 int dc_motor_link_announce_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len);
 
@@ -522,6 +530,13 @@ int dc_motor_link_control(const dc_motor_link_real x[DC_MOTOR_LINK_NX],
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int dc_motor_link_gains(const dc_motor_link_real lambda[DC_MOTOR_LINK_NY],
                         dc_motor_link_real gains[DC_MOTOR_LINK_NZ]);
+/** The input every node_predict and master_predict of the step takes, which the master
+ * broadcasts: u, from control's u and v and the
+ * master's fused estimate x (master_estimate's, absolute). */
+int dc_motor_link_broadcast(const dc_motor_link_real u[DC_MOTOR_LINK_NU],
+                            const dc_motor_link_real v[DC_MOTOR_LINK_NY],
+                            const dc_motor_link_real x[DC_MOTOR_LINK_NX],
+                            dc_motor_link_real w[DC_MOTOR_LINK_NW]);
 
 #ifdef __cplusplus
 }

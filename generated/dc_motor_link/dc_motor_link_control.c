@@ -108,3 +108,15 @@ int dc_motor_link_gains(const real lambda[NY], real gains[DC_MOTOR_LINK_NZ])
     }
     return rc;
 }
+
+int dc_motor_link_broadcast(const real u[DC_MOTOR_LINK_NU], const real v[NY], const real x[NX],
+                            real w[DC_MOTOR_LINK_NW])
+{
+    int rc = DC_MOTOR_LINK_OK;
+    if ((u == NULL) || (v == NULL) || (x == NULL) || (w == NULL)) {
+        rc = DC_MOTOR_LINK_ERR_ARG;
+    } else {
+        (void)memcpy(w, u, sizeof(real) * (size_t)DC_MOTOR_LINK_NU);
+    }
+    return rc;
+}

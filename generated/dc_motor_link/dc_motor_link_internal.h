@@ -40,6 +40,9 @@ typedef dc_motor_link_real real;
 #if DC_MOTOR_LINK_PREDICTS_WITH_U != 1
 #error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_PREDICTS_WITH_U)"
 #endif
+#if DC_MOTOR_LINK_SCHEDULED != 0
+#error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_SCHEDULED)"
+#endif
 #if DC_MOTOR_LINK_CI_ITERATIONS != 8
 #error "dc_motor_link.h comes from another build (DC_MOTOR_LINK_CI_ITERATIONS)"
 #endif

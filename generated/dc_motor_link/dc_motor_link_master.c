@@ -10,6 +10,7 @@
 
 #define NX DC_MOTOR_LINK_NX
 #define NY DC_MOTOR_LINK_NY
+#define NW DC_MOTOR_LINK_NW /* the input a prediction takes */
 #define NXX (DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
 /* a symmetric matrix's upper triangle, packed row by row */
 #define NXP ((DC_MOTOR_LINK_NX * (DC_MOTOR_LINK_NX + 1)) / 2)
@@ -318,7 +319,7 @@ int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
     return rc;
 }
 
-int dc_motor_link_master_predict(dc_motor_link_master* master, const real input[NY])
+int dc_motor_link_master_predict(dc_motor_link_master* master, const real input[NW])
 {
     const real* v = input;
     real x1[NX];
@@ -326,13 +327,13 @@ int dc_motor_link_master_predict(dc_motor_link_master* master, const real input[
     int rc = DC_MOTOR_LINK_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = DC_MOTOR_LINK_ERR_ARG;
-    } else if (dc_motor_link_finite(v, NY) == 0) {
+    } else if (dc_motor_link_finite(v, NW) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     } else {
         rc = master_step(master->x, master->P, v, master->q, master->centre, x1, P1);
     }
     if (rc == DC_MOTOR_LINK_OK) {
-        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NY]));
+        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NW]));
         master->k++;
         master->vslot = ((master->vslot + 1u) == (uint32_t)NMAX) ? 0u : (master->vslot + 1u);
         if (master->age < (uint32_t)NMAX) {

@@ -9,6 +9,7 @@
 
 #define NX DC_MOTOR_LINK_NX
 #define NY DC_MOTOR_LINK_NY
+#define NW DC_MOTOR_LINK_NW /* the input a prediction takes */
 #define NXX (DC_MOTOR_LINK_NX * DC_MOTOR_LINK_NX)
 #define NPP 6 /* DC_MOTOR_LINK_NPP */
 #define NXP 9 /* a state: x, then P packed */
@@ -476,7 +477,7 @@ int dc_motor_link_node_update_delayed(dc_motor_link_node* node, const real z_abs
     return rc;
 }
 
-int dc_motor_link_node_predict(dc_motor_link_node* node, const real input[NY])
+int dc_motor_link_node_predict(dc_motor_link_node* node, const real input[NW])
 {
     const real* v = input;
     real next[NXP];
@@ -495,7 +496,7 @@ int dc_motor_link_node_predict(dc_motor_link_node* node, const real input[NY])
     }
     if (rc == DC_MOTOR_LINK_OK) {
         slot = (int)node->slot;
-        (void)memcpy(&node->ring_v[slot], v, sizeof(real) * (size_t)NY);
+        (void)memcpy(&node->ring_v[slot], v, sizeof(real) * (size_t)NW);
         node->k++;
         slot = (slot == DC_MOTOR_LINK_NMAX) ? 0 : (slot + 1);
         node->slot = (uint16_t)slot;

@@ -333,16 +333,16 @@ int dc_motor_link_packet_decode(const uint8_t* buf, size_t len, const uint8_t* k
     return packet_decode(buf, len, key, packet, header);
 }
 
-int dc_motor_link_command_encode(uint32_t step, const real v[NY], const real u[DC_MOTOR_LINK_NU],
-                                 uint32_t seq, uint32_t epoch, const uint8_t* key,
-                                 uint8_t buf[DC_MOTOR_LINK_COMMAND_WIRE_SIZE])
+int dc_motor_link_command_encode(uint32_t step, const real v[NY],
+                                 const real u[DC_MOTOR_LINK_NU_WIRE], uint32_t seq, uint32_t epoch,
+                                 const uint8_t* key, uint8_t buf[DC_MOTOR_LINK_COMMAND_WIRE_SIZE])
 {
     real values[DC_MOTOR_LINK_COMMAND_REALS];
     dc_motor_link_frame_header h;
     int rc = DC_MOTOR_LINK_ERR_ARG;
     if ((v != NULL) && (u != NULL)) {
         (void)memcpy(values, v, sizeof(real) * (size_t)NY);
-        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)DC_MOTOR_LINK_NU);
+        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)DC_MOTOR_LINK_NU_WIRE);
         h.kind = DC_MOTOR_LINK_KIND_COMMAND;
         h.node = DC_MOTOR_LINK_MASTER_ID;
         h.step = step;
@@ -366,7 +366,7 @@ int dc_motor_link_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, c
 }
 
 static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                          real u[DC_MOTOR_LINK_NU], dc_motor_link_frame_header* header)
+                          real u[DC_MOTOR_LINK_NU_WIRE], dc_motor_link_frame_header* header)
 {
     real values[DC_MOTOR_LINK_COMMAND_REALS];
     int rc = DC_MOTOR_LINK_ERR_ARG;
@@ -376,13 +376,13 @@ static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, re
     }
     if (rc == DC_MOTOR_LINK_OK) {
         (void)memcpy(v, values, sizeof(real) * (size_t)NY);
-        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)DC_MOTOR_LINK_NU);
+        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)DC_MOTOR_LINK_NU_WIRE);
     }
     return rc;
 }
 
 int dc_motor_link_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                                 real u[DC_MOTOR_LINK_NU], dc_motor_link_frame_header* header)
+                                 real u[DC_MOTOR_LINK_NU_WIRE], dc_motor_link_frame_header* header)
 {
     return command_decode(buf, len, key, v, u, header);
 }
@@ -677,11 +677,11 @@ static int master_frame_taken(dc_motor_link_command_rx* rx, int decoded,
 }
 
 int dc_motor_link_command_receive(dc_motor_link_command_rx* rx, const uint8_t* buf, size_t len,
-                                  uint32_t* step, real v[NY], real u[DC_MOTOR_LINK_NU])
+                                  uint32_t* step, real v[NY], real u[DC_MOTOR_LINK_NU_WIRE])
 {
     dc_motor_link_frame_header h;
     real v1[NY];
-    real u1[DC_MOTOR_LINK_NU];
+    real u1[DC_MOTOR_LINK_NU_WIRE];
     int rc = DC_MOTOR_LINK_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
         /* v1, u1 are set by a decode that succeeds; compilers cannot tell */

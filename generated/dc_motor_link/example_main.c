@@ -42,7 +42,7 @@ static real normal(void)
 /* One step of the canonical plant with u held over Ts: the filters' own mean map (the held
  * predictor's kernel; its covariance output is not used), so the demo shows the filter and not
  * a model error. */
-static void plant(real zeta[NX], const real u[NY])
+static void plant(real zeta[NX], const real u[DC_MOTOR_LINK_NW])
 {
     real P[NX * NX], P1[NX * NX], x1[NX], q[DC_MOTOR_LINK_NQ], c[NY];
     memset(P, 0, sizeof(P));
@@ -89,6 +89,7 @@ int main(void)
     real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[DC_MOTOR_LINK_NQ], lambda[NY];
     real gains[DC_MOTOR_LINK_NZ];
     real flags[DC_MOTOR_LINK_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
+    real w[DC_MOTOR_LINK_NW]; /* the broadcast input */
     real late[LATE + 1][NY];
     const real* params = dc_motor_link_params_default;
     real sq_err = 0, trace;
@@ -156,12 +157,13 @@ int main(void)
                    (double)trace, (double)u[0]);
         }
         sq_err += (x[0] - zeta[0]) * (x[0] - zeta[0]);
-        plant(zeta, DC_MOTOR_LINK_PREDICTS_WITH_U ? u : v);
-        /* the broadcast input of the build's predictor */
+        /* the broadcast input of the build's predictor (what the plant integrates first) */
+        rc |= dc_motor_link_broadcast(u, v, x, w);
+        plant(zeta, w);
         for (i = 0; i < DC_MOTOR_LINK_NNODES; i++) {
-            rc |= dc_motor_link_node_predict(&nodes[i], DC_MOTOR_LINK_PREDICTS_WITH_U ? u : v);
+            rc |= dc_motor_link_node_predict(&nodes[i], w);
         }
-        rc |= dc_motor_link_master_predict(&master, DC_MOTOR_LINK_PREDICTS_WITH_U ? u : v);
+        rc |= dc_motor_link_master_predict(&master, w);
     }
     for (i = 0; i < DC_MOTOR_LINK_NNODES; i++) {
         dc_motor_link_health h;

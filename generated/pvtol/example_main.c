@@ -42,7 +42,7 @@ static real normal(void)
 /* One step of the canonical plant with u held over Ts: the filters' own mean map (the held
  * predictor's kernel; its covariance output is not used), so the demo shows the filter and not
  * a model error. */
-static void plant(real zeta[NX], const real u[NY])
+static void plant(real zeta[NX], const real u[PVTOL_NW])
 {
     real P[NX * NX], P1[NX * NX], x1[NX], q[PVTOL_NQ], c[NY];
     memset(P, 0, sizeof(P));
@@ -94,6 +94,7 @@ int main(void)
     real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[PVTOL_NQ], lambda[NY];
     real gains[PVTOL_NZ];
     real flags[PVTOL_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
+    real w[PVTOL_NW]; /* the broadcast input */
     real late[LATE + 1][NY];
     const real* params = pvtol_params_default;
     real sq_err = 0, trace;
@@ -160,12 +161,13 @@ int main(void)
                    (double)trace, (double)u[0]);
         }
         sq_err += (x[0] - zeta[0]) * (x[0] - zeta[0]);
-        plant(zeta, PVTOL_PREDICTS_WITH_U ? u : v);
-        /* the broadcast input of the build's predictor */
+        /* the broadcast input of the build's predictor (what the plant integrates first) */
+        rc |= pvtol_broadcast(u, v, x, w);
+        plant(zeta, w);
         for (i = 0; i < PVTOL_NNODES; i++) {
-            rc |= pvtol_node_predict(&nodes[i], PVTOL_PREDICTS_WITH_U ? u : v);
+            rc |= pvtol_node_predict(&nodes[i], w);
         }
-        rc |= pvtol_master_predict(&master, PVTOL_PREDICTS_WITH_U ? u : v);
+        rc |= pvtol_master_predict(&master, w);
     }
     for (i = 0; i < PVTOL_NNODES; i++) {
         pvtol_health h;

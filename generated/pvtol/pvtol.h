@@ -64,13 +64,19 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define PVTOL_PREDICTS_WITH_U 1
+/** 1: they take u, then the master's fused flat outputs sigma (predictor "scheduled"; NW = 2 NY) */
+#define PVTOL_SCHEDULED 0
 /** late-measurement window: lags 1..NMAX steps */
 #define PVTOL_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
 #define PVTOL_NRING (PVTOL_NMAX + 1)
-/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+/** reals of the input node_predict and master_predict take: u */
+#define PVTOL_NW 2
+/** NRING x NW and NMAX x NW (sizes of the rings of inputs) */
+#define PVTOL_NRING_NW (PVTOL_NRING * PVTOL_NW)
+#define PVTOL_NMAX_NW (PVTOL_NMAX * PVTOL_NW)
+/** NRING x NY (the size of the ring of measurements) */
 #define PVTOL_NRING_NY (PVTOL_NRING * PVTOL_NY)
-#define PVTOL_NMAX_NY (PVTOL_NMAX * PVTOL_NY)
 /** camera nodes fused by the master */
 #define PVTOL_NNODES 2
 /** sampling period [s] */
@@ -171,7 +177,7 @@ typedef struct {
     pvtol_real q[PVTOL_NQ];
     pvtol_real ring_x[PVTOL_NRING * PVTOL_NX];
     pvtol_real ring_z[PVTOL_NRING_NY];
-    pvtol_real ring_v[PVTOL_NRING_NY];
+    pvtol_real ring_v[PVTOL_NRING_NW];
     /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), the latest at or
      * before k at entry `check`, each earlier one at the entry before (cyclically) */
     pvtol_real ring_P[PVTOL_NODE_NCHECK_REALS];
@@ -230,7 +236,7 @@ typedef struct {
     pvtol_real P_prior[PVTOL_NXX];
     pvtol_real q[PVTOL_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
-    pvtol_real v[PVTOL_NMAX_NY];
+    pvtol_real v[PVTOL_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot
      * its input will take */
     uint32_t k;
@@ -263,7 +269,7 @@ int pvtol_node_update(pvtol_node* node, const pvtol_real z[PVTOL_NY], int gamma)
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int pvtol_node_update_delayed(pvtol_node* node, const pvtol_real z[PVTOL_NY], int32_t lag);
 /** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
-int pvtol_node_predict(pvtol_node* node, const pvtol_real input[PVTOL_NY]);
+int pvtol_node_predict(pvtol_node* node, const pvtol_real input[PVTOL_NW]);
 /** Current estimate; either output may be NULL. */
 int pvtol_node_estimate(const pvtol_node* node, pvtol_real x[PVTOL_NX], pvtol_real P[PVTOL_NXX]);
 /** Information form Y = P^-1, y = Y x (Cholesky); either output may be NULL. */
@@ -287,7 +293,7 @@ int pvtol_master_init(pvtol_master* master, const pvtol_real x0[PVTOL_NX],
 int pvtol_master_fuse(pvtol_master* master, const pvtol_packet packets[PVTOL_NNODES],
                       const uint8_t present[PVTOL_NNODES]);
 /** Predict to step k + 1 with the broadcast input (u), as the nodes. */
-int pvtol_master_predict(pvtol_master* master, const pvtol_real input[PVTOL_NY]);
+int pvtol_master_predict(pvtol_master* master, const pvtol_real input[PVTOL_NW]);
 /** Fused estimate; either output may be NULL. */
 int pvtol_master_estimate(const pvtol_master* master, pvtol_real x[PVTOL_NX],
                           pvtol_real P[PVTOL_NXX]);
@@ -298,7 +304,7 @@ int pvtol_master_estimate(const pvtol_master* master, pvtol_real x[PVTOL_NX],
  * payload, a SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes
  * before it). The epoch is the master's boot: its commands and announcements carry it, the
  * nodes' packets echo the last one they heard, and a keyed master takes only its own. */
-#define PVTOL_WIRE_VERSION 2u
+#define PVTOL_WIRE_VERSION 3u
 #define PVTOL_WIRE_HEADER 32u
 /** bytes of a frame of n reals: header, n reals of 8 bytes, tag (8) and CRC (4) */
 #define PVTOL_FRAME_SIZE(n) (44u + (8u * (size_t)(n)))
@@ -312,8 +318,10 @@ int pvtol_master_estimate(const pvtol_master* master, pvtol_real x[PVTOL_NX],
 #define PVTOL_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
 #define PVTOL_PACKET_REALS 146
+/** reals after v in a command: u */
+#define PVTOL_NU_WIRE PVTOL_NU
 /** reals in a command: v, u */
-#define PVTOL_COMMAND_REALS (PVTOL_NY + PVTOL_NU)
+#define PVTOL_COMMAND_REALS (PVTOL_NY + PVTOL_NU_WIRE)
 /** FRAME_SIZE(PACKET_REALS) */
 #define PVTOL_PACKET_WIRE_SIZE 1212u
 /** FRAME_SIZE(COMMAND_REALS) */
@@ -428,14 +436,14 @@ int pvtol_packet_encode(const pvtol_packet* packet, uint16_t node, uint32_t seq,
 int pvtol_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key, pvtol_packet* packet,
                         pvtol_frame_header* header);
 /** epoch: the master's (as given to inbox_init). */
-int pvtol_command_encode(uint32_t step, const pvtol_real v[PVTOL_NY], const pvtol_real u[PVTOL_NU],
-                         uint32_t seq, uint32_t epoch, const uint8_t* key,
-                         uint8_t buf[PVTOL_COMMAND_WIRE_SIZE]);
+int pvtol_command_encode(uint32_t step, const pvtol_real v[PVTOL_NY],
+                         const pvtol_real u[PVTOL_NU_WIRE], uint32_t seq, uint32_t epoch,
+                         const uint8_t* key, uint8_t buf[PVTOL_COMMAND_WIRE_SIZE]);
 /** The master's epoch without a command (a restarted master, before it can command). */
 int pvtol_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const uint8_t* key,
                           uint8_t buf[PVTOL_ANNOUNCE_WIRE_SIZE]);
 int pvtol_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, pvtol_real v[PVTOL_NY],
-                         pvtol_real u[PVTOL_NU], pvtol_frame_header* header);
+                         pvtol_real u[PVTOL_NU_WIRE], pvtol_frame_header* header);
 /** key NULL: CRC only; base: global step of the master's step 0; epoch: this boot's, chosen by the
  * caller and never used before under this key (a boot counter kept in non-volatile memory,
  * incremented at every boot: the nodes take a newer epoch, RFC 1982 order, and refuse older
@@ -467,7 +475,7 @@ int pvtol_command_rx_init(pvtol_command_rx* rx, const uint8_t key[16], uint32_t 
 /** Check a command frame (integrity, from the master; keyed: an epoch not older than the last
  * one heard, a newer one taken, and within it a fresh sequence number). */
 int pvtol_command_receive(pvtol_command_rx* rx, const uint8_t* buf, size_t len, uint32_t* step,
-                          pvtol_real v[PVTOL_NY], pvtol_real u[PVTOL_NU]);
+                          pvtol_real v[PVTOL_NY], pvtol_real u[PVTOL_NU_WIRE]);
 /** Check an announcement (as command_receive) and take its epoch. */
 int pvtol_announce_receive(pvtol_command_rx* rx, const uint8_t* buf, size_t len);
 
@@ -485,6 +493,11 @@ int pvtol_control(const pvtol_real x[PVTOL_NX], const pvtol_real flags[PVTOL_NFL
 /** Gains placing all poles of chain j at -lambda[j]:
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int pvtol_gains(const pvtol_real lambda[PVTOL_NY], pvtol_real gains[PVTOL_NZ]);
+/** The input every node_predict and master_predict of the step takes, which the master
+ * broadcasts: u, from control's u and v and the
+ * master's fused estimate x (master_estimate's, absolute). */
+int pvtol_broadcast(const pvtol_real u[PVTOL_NU], const pvtol_real v[PVTOL_NY],
+                    const pvtol_real x[PVTOL_NX], pvtol_real w[PVTOL_NW]);
 
 /* ---- dynamic extension ------------------------------------------------------------------ */
 /** The controller's integrator states (T, T_d1): the model as written

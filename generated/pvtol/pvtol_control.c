@@ -102,6 +102,17 @@ int pvtol_gains(const real lambda[NY], real gains[PVTOL_NZ])
     return rc;
 }
 
+int pvtol_broadcast(const real u[PVTOL_NU], const real v[NY], const real x[NX], real w[PVTOL_NW])
+{
+    int rc = PVTOL_OK;
+    if ((u == NULL) || (v == NULL) || (x == NULL) || (w == NULL)) {
+        rc = PVTOL_ERR_ARG;
+    } else {
+        (void)memcpy(w, u, sizeof(real) * (size_t)PVTOL_NU);
+    }
+    return rc;
+}
+
 int pvtol_extension_step(real xi[PVTOL_NXI], const real u[PVTOL_NU], real u_plant[PVTOL_NU])
 {
     real next[PVTOL_NXI];

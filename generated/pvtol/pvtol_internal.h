@@ -39,6 +39,9 @@ typedef pvtol_real real;
 #if PVTOL_PREDICTS_WITH_U != 1
 #error "pvtol.h comes from another build (PVTOL_PREDICTS_WITH_U)"
 #endif
+#if PVTOL_SCHEDULED != 0
+#error "pvtol.h comes from another build (PVTOL_SCHEDULED)"
+#endif
 #if PVTOL_CI_ITERATIONS != 8
 #error "pvtol.h comes from another build (PVTOL_CI_ITERATIONS)"
 #endif

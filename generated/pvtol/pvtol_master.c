@@ -10,6 +10,7 @@
 
 #define NX PVTOL_NX
 #define NY PVTOL_NY
+#define NW PVTOL_NW /* the input a prediction takes */
 #define NXX (PVTOL_NX * PVTOL_NX)
 /* a symmetric matrix's upper triangle, packed row by row */
 #define NXP ((PVTOL_NX * (PVTOL_NX + 1)) / 2)
@@ -28,7 +29,7 @@ size_t pvtol_master_size(void)
 static size_t input_at(const pvtol_master* master, uint32_t step)
 {
     uint32_t slot = (master->vslot + (uint32_t)NMAX - (master->k - step)) % (uint32_t)NMAX;
-    return (size_t)slot * (size_t)NY;
+    return (size_t)slot * (size_t)NW;
 }
 
 /* One prediction of (x, P) with the input of one step (the heads relative to `centre`). */
@@ -291,7 +292,7 @@ int pvtol_master_fuse_try(pvtol_master* master, const pvtol_packet packets[NNODE
     return rc;
 }
 
-int pvtol_master_predict(pvtol_master* master, const real input[NY])
+int pvtol_master_predict(pvtol_master* master, const real input[NW])
 {
     const real* v = input;
     real x1[NX];
@@ -299,13 +300,13 @@ int pvtol_master_predict(pvtol_master* master, const real input[NY])
     int rc = PVTOL_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = PVTOL_ERR_ARG;
-    } else if (pvtol_finite(v, NY) == 0) {
+    } else if (pvtol_finite(v, NW) == 0) {
         rc = PVTOL_ERR_NONFINITE;
     } else {
         rc = master_step(master->x, master->P, v, master->q, master->centre, x1, P1);
     }
     if (rc == PVTOL_OK) {
-        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NY]));
+        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NW]));
         master->k++;
         master->vslot = ((master->vslot + 1u) == (uint32_t)NMAX) ? 0u : (master->vslot + 1u);
         if (master->age < (uint32_t)NMAX) {

@@ -9,6 +9,7 @@
 
 #define NX PVTOL_NX
 #define NY PVTOL_NY
+#define NW PVTOL_NW /* the input a prediction takes */
 #define NXX (PVTOL_NX * PVTOL_NX)
 #define NPP 36 /* PVTOL_NPP */
 #define NXP 44 /* a state: x, then P packed */
@@ -403,7 +404,7 @@ static int replay(pvtol_node* node, uint32_t j0, const real* zlate, real* post)
         if ((rc == PVTOL_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot * NY], node->q, node->centre, prior);
+            rc = predict_step(post, &node->ring_v[slot * NW], node->q, node->centre, prior);
             if (rc == PVTOL_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -481,7 +482,7 @@ int pvtol_node_update_delayed(pvtol_node* node, const real z_abs[NY], int32_t la
     return rc;
 }
 
-int pvtol_node_predict(pvtol_node* node, const real input[NY])
+int pvtol_node_predict(pvtol_node* node, const real input[NW])
 {
     const real* v = input;
     real next[NXP];
@@ -500,7 +501,7 @@ int pvtol_node_predict(pvtol_node* node, const real input[NY])
     }
     if (rc == PVTOL_OK) {
         slot = (int)node->slot;
-        (void)memcpy(&node->ring_v[slot * NY], v, sizeof(real) * (size_t)NY);
+        (void)memcpy(&node->ring_v[slot * NW], v, sizeof(real) * (size_t)NW);
         node->k++;
         slot = (slot == PVTOL_NMAX) ? 0 : (slot + 1);
         node->slot = (uint16_t)slot;

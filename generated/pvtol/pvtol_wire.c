@@ -332,7 +332,7 @@ int pvtol_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key, pvto
     return packet_decode(buf, len, key, packet, header);
 }
 
-int pvtol_command_encode(uint32_t step, const real v[NY], const real u[PVTOL_NU], uint32_t seq,
+int pvtol_command_encode(uint32_t step, const real v[NY], const real u[PVTOL_NU_WIRE], uint32_t seq,
                          uint32_t epoch, const uint8_t* key, uint8_t buf[PVTOL_COMMAND_WIRE_SIZE])
 {
     real values[PVTOL_COMMAND_REALS];
@@ -340,7 +340,7 @@ int pvtol_command_encode(uint32_t step, const real v[NY], const real u[PVTOL_NU]
     int rc = PVTOL_ERR_ARG;
     if ((v != NULL) && (u != NULL)) {
         (void)memcpy(values, v, sizeof(real) * (size_t)NY);
-        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)PVTOL_NU);
+        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)PVTOL_NU_WIRE);
         h.kind = PVTOL_KIND_COMMAND;
         h.node = PVTOL_MASTER_ID;
         h.step = step;
@@ -364,7 +364,7 @@ int pvtol_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const uin
 }
 
 static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                          real u[PVTOL_NU], pvtol_frame_header* header)
+                          real u[PVTOL_NU_WIRE], pvtol_frame_header* header)
 {
     real values[PVTOL_COMMAND_REALS];
     int rc = PVTOL_ERR_ARG;
@@ -374,13 +374,13 @@ static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, re
     }
     if (rc == PVTOL_OK) {
         (void)memcpy(v, values, sizeof(real) * (size_t)NY);
-        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)PVTOL_NU);
+        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)PVTOL_NU_WIRE);
     }
     return rc;
 }
 
 int pvtol_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                         real u[PVTOL_NU], pvtol_frame_header* header)
+                         real u[PVTOL_NU_WIRE], pvtol_frame_header* header)
 {
     return command_decode(buf, len, key, v, u, header);
 }
@@ -670,11 +670,11 @@ static int master_frame_taken(pvtol_command_rx* rx, int decoded, const pvtol_fra
 }
 
 int pvtol_command_receive(pvtol_command_rx* rx, const uint8_t* buf, size_t len, uint32_t* step,
-                          real v[NY], real u[PVTOL_NU])
+                          real v[NY], real u[PVTOL_NU_WIRE])
 {
     pvtol_frame_header h;
     real v1[NY];
-    real u1[PVTOL_NU];
+    real u1[PVTOL_NU_WIRE];
     int rc = PVTOL_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
         /* v1, u1 are set by a decode that succeeds; compilers cannot tell */

@@ -42,7 +42,7 @@ static real normal(void)
 /* One step of the canonical plant with u held over Ts: the filters' own mean map (the held
  * predictor's kernel; its covariance output is not used), so the demo shows the filter and not
  * a model error. */
-static void plant(real zeta[NX], const real u[NY])
+static void plant(real zeta[NX], const real u[TWO_LINK_ARM_NW])
 {
     real P[NX * NX], P1[NX * NX], x1[NX], q[TWO_LINK_ARM_NQ], c[NY];
     memset(P, 0, sizeof(P));
@@ -92,6 +92,7 @@ int main(void)
     real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[TWO_LINK_ARM_NQ], lambda[NY];
     real gains[TWO_LINK_ARM_NZ];
     real flags[TWO_LINK_ARM_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
+    real w[TWO_LINK_ARM_NW]; /* the broadcast input */
     real late[LATE + 1][NY];
     const real* params = two_link_arm_params_default;
     real sq_err = 0, trace;
@@ -159,12 +160,13 @@ int main(void)
                    (double)trace, (double)u[0]);
         }
         sq_err += (x[0] - zeta[0]) * (x[0] - zeta[0]);
-        plant(zeta, TWO_LINK_ARM_PREDICTS_WITH_U ? u : v);
-        /* the broadcast input of the build's predictor */
+        /* the broadcast input of the build's predictor (what the plant integrates first) */
+        rc |= two_link_arm_broadcast(u, v, x, w);
+        plant(zeta, w);
         for (i = 0; i < TWO_LINK_ARM_NNODES; i++) {
-            rc |= two_link_arm_node_predict(&nodes[i], TWO_LINK_ARM_PREDICTS_WITH_U ? u : v);
+            rc |= two_link_arm_node_predict(&nodes[i], w);
         }
-        rc |= two_link_arm_master_predict(&master, TWO_LINK_ARM_PREDICTS_WITH_U ? u : v);
+        rc |= two_link_arm_master_predict(&master, w);
     }
     for (i = 0; i < TWO_LINK_ARM_NNODES; i++) {
         two_link_arm_health h;

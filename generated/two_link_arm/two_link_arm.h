@@ -63,13 +63,19 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define TWO_LINK_ARM_PREDICTS_WITH_U 1
+/** 1: they take u, then the master's fused flat outputs sigma (predictor "scheduled"; NW = 2 NY) */
+#define TWO_LINK_ARM_SCHEDULED 0
 /** late-measurement window: lags 1..NMAX steps */
 #define TWO_LINK_ARM_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
 #define TWO_LINK_ARM_NRING (TWO_LINK_ARM_NMAX + 1)
-/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+/** reals of the input node_predict and master_predict take: u */
+#define TWO_LINK_ARM_NW 2
+/** NRING x NW and NMAX x NW (sizes of the rings of inputs) */
+#define TWO_LINK_ARM_NRING_NW (TWO_LINK_ARM_NRING * TWO_LINK_ARM_NW)
+#define TWO_LINK_ARM_NMAX_NW (TWO_LINK_ARM_NMAX * TWO_LINK_ARM_NW)
+/** NRING x NY (the size of the ring of measurements) */
 #define TWO_LINK_ARM_NRING_NY (TWO_LINK_ARM_NRING * TWO_LINK_ARM_NY)
-#define TWO_LINK_ARM_NMAX_NY (TWO_LINK_ARM_NMAX * TWO_LINK_ARM_NY)
 /** camera nodes fused by the master */
 #define TWO_LINK_ARM_NNODES 2
 /** sampling period [s] */
@@ -186,7 +192,7 @@ typedef struct {
     two_link_arm_real q[TWO_LINK_ARM_NQ];
     two_link_arm_real ring_x[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NX];
     two_link_arm_real ring_z[TWO_LINK_ARM_NRING_NY];
-    two_link_arm_real ring_v[TWO_LINK_ARM_NRING_NY];
+    two_link_arm_real ring_v[TWO_LINK_ARM_NRING_NW];
     /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), the latest at or
      * before k at entry `check`, each earlier one at the entry before (cyclically) */
     two_link_arm_real ring_P[TWO_LINK_ARM_NODE_NCHECK_REALS];
@@ -245,7 +251,7 @@ typedef struct {
     two_link_arm_real P_prior[TWO_LINK_ARM_NXX];
     two_link_arm_real q[TWO_LINK_ARM_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
-    two_link_arm_real v[TWO_LINK_ARM_NMAX_NY];
+    two_link_arm_real v[TWO_LINK_ARM_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot
      * its input will take */
     uint32_t k;
@@ -283,7 +289,7 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node,
                                      const two_link_arm_real z[TWO_LINK_ARM_NY], int32_t lag);
 /** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
 int two_link_arm_node_predict(two_link_arm_node* node,
-                              const two_link_arm_real input[TWO_LINK_ARM_NY]);
+                              const two_link_arm_real input[TWO_LINK_ARM_NW]);
 /** Current estimate; either output may be NULL. */
 int two_link_arm_node_estimate(const two_link_arm_node* node, two_link_arm_real x[TWO_LINK_ARM_NX],
                                two_link_arm_real P[TWO_LINK_ARM_NXX]);
@@ -314,7 +320,7 @@ int two_link_arm_master_fuse(two_link_arm_master* master,
                              const uint8_t present[TWO_LINK_ARM_NNODES]);
 /** Predict to step k + 1 with the broadcast input (u), as the nodes. */
 int two_link_arm_master_predict(two_link_arm_master* master,
-                                const two_link_arm_real input[TWO_LINK_ARM_NY]);
+                                const two_link_arm_real input[TWO_LINK_ARM_NW]);
 /** Fused estimate; either output may be NULL. */
 int two_link_arm_master_estimate(const two_link_arm_master* master,
                                  two_link_arm_real x[TWO_LINK_ARM_NX],
@@ -326,7 +332,7 @@ int two_link_arm_master_estimate(const two_link_arm_master* master,
  * payload, a SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes
  * before it). The epoch is the master's boot: its commands and announcements carry it, the
  * nodes' packets echo the last one they heard, and a keyed master takes only its own. */
-#define TWO_LINK_ARM_WIRE_VERSION 2u
+#define TWO_LINK_ARM_WIRE_VERSION 3u
 #define TWO_LINK_ARM_WIRE_HEADER 32u
 /** bytes of a frame of n reals: header, n reals of 8 bytes, tag (8) and CRC (4) */
 #define TWO_LINK_ARM_FRAME_SIZE(n) (44u + (8u * (size_t)(n)))
@@ -340,8 +346,10 @@ int two_link_arm_master_estimate(const two_link_arm_master* master,
 #define TWO_LINK_ARM_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
 #define TWO_LINK_ARM_PACKET_REALS 86
+/** reals after v in a command: u */
+#define TWO_LINK_ARM_NU_WIRE TWO_LINK_ARM_NU
 /** reals in a command: v, u */
-#define TWO_LINK_ARM_COMMAND_REALS (TWO_LINK_ARM_NY + TWO_LINK_ARM_NU)
+#define TWO_LINK_ARM_COMMAND_REALS (TWO_LINK_ARM_NY + TWO_LINK_ARM_NU_WIRE)
 /** FRAME_SIZE(PACKET_REALS) */
 #define TWO_LINK_ARM_PACKET_WIRE_SIZE 732u
 /** FRAME_SIZE(COMMAND_REALS) */
@@ -460,7 +468,7 @@ int two_link_arm_packet_decode(const uint8_t* buf, size_t len, const uint8_t* ke
                                two_link_arm_packet* packet, two_link_arm_frame_header* header);
 /** epoch: the master's (as given to inbox_init). */
 int two_link_arm_command_encode(uint32_t step, const two_link_arm_real v[TWO_LINK_ARM_NY],
-                                const two_link_arm_real u[TWO_LINK_ARM_NU], uint32_t seq,
+                                const two_link_arm_real u[TWO_LINK_ARM_NU_WIRE], uint32_t seq,
                                 uint32_t epoch, const uint8_t* key,
                                 uint8_t buf[TWO_LINK_ARM_COMMAND_WIRE_SIZE]);
 /** The master's epoch without a command (a restarted master, before it can command). */
@@ -468,7 +476,7 @@ int two_link_arm_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, co
                                  uint8_t buf[TWO_LINK_ARM_ANNOUNCE_WIRE_SIZE]);
 int two_link_arm_command_decode(const uint8_t* buf, size_t len, const uint8_t* key,
                                 two_link_arm_real v[TWO_LINK_ARM_NY],
-                                two_link_arm_real u[TWO_LINK_ARM_NU],
+                                two_link_arm_real u[TWO_LINK_ARM_NU_WIRE],
                                 two_link_arm_frame_header* header);
 /** key NULL: CRC only; base: global step of the master's step 0; epoch: this boot's, chosen by the
  * caller and never used before under this key (a boot counter kept in non-volatile memory,
@@ -504,7 +512,7 @@ int two_link_arm_command_rx_init(two_link_arm_command_rx* rx, const uint8_t key[
  * one heard, a newer one taken, and within it a fresh sequence number). */
 int two_link_arm_command_receive(two_link_arm_command_rx* rx, const uint8_t* buf, size_t len,
                                  uint32_t* step, two_link_arm_real v[TWO_LINK_ARM_NY],
-                                 two_link_arm_real u[TWO_LINK_ARM_NU]);
+                                 two_link_arm_real u[TWO_LINK_ARM_NU_WIRE]);
 /** Check an announcement (as command_receive) and take its epoch. */
 int two_link_arm_announce_receive(two_link_arm_command_rx* rx, const uint8_t* buf, size_t len);
 
@@ -526,6 +534,13 @@ int two_link_arm_control(const two_link_arm_real x[TWO_LINK_ARM_NX],
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int two_link_arm_gains(const two_link_arm_real lambda[TWO_LINK_ARM_NY],
                        two_link_arm_real gains[TWO_LINK_ARM_NZ]);
+/** The input every node_predict and master_predict of the step takes, which the master
+ * broadcasts: u, from control's u and v and the
+ * master's fused estimate x (master_estimate's, absolute). */
+int two_link_arm_broadcast(const two_link_arm_real u[TWO_LINK_ARM_NU],
+                           const two_link_arm_real v[TWO_LINK_ARM_NY],
+                           const two_link_arm_real x[TWO_LINK_ARM_NX],
+                           two_link_arm_real w[TWO_LINK_ARM_NW]);
 
 #ifdef __cplusplus
 }

@@ -111,3 +111,15 @@ int two_link_arm_gains(const real lambda[NY], real gains[TWO_LINK_ARM_NZ])
     }
     return rc;
 }
+
+int two_link_arm_broadcast(const real u[TWO_LINK_ARM_NU], const real v[NY], const real x[NX],
+                           real w[TWO_LINK_ARM_NW])
+{
+    int rc = TWO_LINK_ARM_OK;
+    if ((u == NULL) || (v == NULL) || (x == NULL) || (w == NULL)) {
+        rc = TWO_LINK_ARM_ERR_ARG;
+    } else {
+        (void)memcpy(w, u, sizeof(real) * (size_t)TWO_LINK_ARM_NU);
+    }
+    return rc;
+}

@@ -40,6 +40,9 @@ typedef two_link_arm_real real;
 #if TWO_LINK_ARM_PREDICTS_WITH_U != 1
 #error "two_link_arm.h comes from another build (TWO_LINK_ARM_PREDICTS_WITH_U)"
 #endif
+#if TWO_LINK_ARM_SCHEDULED != 0
+#error "two_link_arm.h comes from another build (TWO_LINK_ARM_SCHEDULED)"
+#endif
 #if TWO_LINK_ARM_CI_ITERATIONS != 8
 #error "two_link_arm.h comes from another build (TWO_LINK_ARM_CI_ITERATIONS)"
 #endif

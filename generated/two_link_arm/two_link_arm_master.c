@@ -10,6 +10,7 @@
 
 #define NX TWO_LINK_ARM_NX
 #define NY TWO_LINK_ARM_NY
+#define NW TWO_LINK_ARM_NW /* the input a prediction takes */
 #define NXX (TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
 /* a symmetric matrix's upper triangle, packed row by row */
 #define NXP ((TWO_LINK_ARM_NX * (TWO_LINK_ARM_NX + 1)) / 2)
@@ -28,7 +29,7 @@ size_t two_link_arm_master_size(void)
 static size_t input_at(const two_link_arm_master* master, uint32_t step)
 {
     uint32_t slot = (master->vslot + (uint32_t)NMAX - (master->k - step)) % (uint32_t)NMAX;
-    return (size_t)slot * (size_t)NY;
+    return (size_t)slot * (size_t)NW;
 }
 
 /* One prediction of (x, P) with the input of one step (the heads relative to `centre`). */
@@ -319,7 +320,7 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
     return rc;
 }
 
-int two_link_arm_master_predict(two_link_arm_master* master, const real input[NY])
+int two_link_arm_master_predict(two_link_arm_master* master, const real input[NW])
 {
     const real* v = input;
     real x1[NX];
@@ -327,13 +328,13 @@ int two_link_arm_master_predict(two_link_arm_master* master, const real input[NY
     int rc = TWO_LINK_ARM_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = TWO_LINK_ARM_ERR_ARG;
-    } else if (two_link_arm_finite(v, NY) == 0) {
+    } else if (two_link_arm_finite(v, NW) == 0) {
         rc = TWO_LINK_ARM_ERR_NONFINITE;
     } else {
         rc = master_step(master->x, master->P, v, master->q, master->centre, x1, P1);
     }
     if (rc == TWO_LINK_ARM_OK) {
-        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NY]));
+        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NW]));
         master->k++;
         master->vslot = ((master->vslot + 1u) == (uint32_t)NMAX) ? 0u : (master->vslot + 1u);
         if (master->age < (uint32_t)NMAX) {

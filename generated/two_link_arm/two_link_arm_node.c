@@ -9,6 +9,7 @@
 
 #define NX TWO_LINK_ARM_NX
 #define NY TWO_LINK_ARM_NY
+#define NW TWO_LINK_ARM_NW /* the input a prediction takes */
 #define NXX (TWO_LINK_ARM_NX * TWO_LINK_ARM_NX)
 #define NPP 21 /* TWO_LINK_ARM_NPP */
 #define NXP 27 /* a state: x, then P packed */
@@ -426,7 +427,7 @@ static int replay(two_link_arm_node* node, uint32_t j0, const real* zlate, real*
         if ((rc == TWO_LINK_ARM_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot * NY], node->q, node->centre, prior);
+            rc = predict_step(post, &node->ring_v[slot * NW], node->q, node->centre, prior);
             if (rc == TWO_LINK_ARM_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -504,7 +505,7 @@ int two_link_arm_node_update_delayed(two_link_arm_node* node, const real z_abs[N
     return rc;
 }
 
-int two_link_arm_node_predict(two_link_arm_node* node, const real input[NY])
+int two_link_arm_node_predict(two_link_arm_node* node, const real input[NW])
 {
     const real* v = input;
     real next[NXP];
@@ -523,7 +524,7 @@ int two_link_arm_node_predict(two_link_arm_node* node, const real input[NY])
     }
     if (rc == TWO_LINK_ARM_OK) {
         slot = (int)node->slot;
-        (void)memcpy(&node->ring_v[slot * NY], v, sizeof(real) * (size_t)NY);
+        (void)memcpy(&node->ring_v[slot * NW], v, sizeof(real) * (size_t)NW);
         node->k++;
         slot = (slot == TWO_LINK_ARM_NMAX) ? 0 : (slot + 1);
         node->slot = (uint16_t)slot;

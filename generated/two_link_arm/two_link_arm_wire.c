@@ -333,7 +333,7 @@ int two_link_arm_packet_decode(const uint8_t* buf, size_t len, const uint8_t* ke
     return packet_decode(buf, len, key, packet, header);
 }
 
-int two_link_arm_command_encode(uint32_t step, const real v[NY], const real u[TWO_LINK_ARM_NU],
+int two_link_arm_command_encode(uint32_t step, const real v[NY], const real u[TWO_LINK_ARM_NU_WIRE],
                                 uint32_t seq, uint32_t epoch, const uint8_t* key,
                                 uint8_t buf[TWO_LINK_ARM_COMMAND_WIRE_SIZE])
 {
@@ -342,7 +342,7 @@ int two_link_arm_command_encode(uint32_t step, const real v[NY], const real u[TW
     int rc = TWO_LINK_ARM_ERR_ARG;
     if ((v != NULL) && (u != NULL)) {
         (void)memcpy(values, v, sizeof(real) * (size_t)NY);
-        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)TWO_LINK_ARM_NU);
+        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)TWO_LINK_ARM_NU_WIRE);
         h.kind = TWO_LINK_ARM_KIND_COMMAND;
         h.node = TWO_LINK_ARM_MASTER_ID;
         h.step = step;
@@ -366,7 +366,7 @@ int two_link_arm_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, co
 }
 
 static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                          real u[TWO_LINK_ARM_NU], two_link_arm_frame_header* header)
+                          real u[TWO_LINK_ARM_NU_WIRE], two_link_arm_frame_header* header)
 {
     real values[TWO_LINK_ARM_COMMAND_REALS];
     int rc = TWO_LINK_ARM_ERR_ARG;
@@ -376,13 +376,13 @@ static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, re
     }
     if (rc == TWO_LINK_ARM_OK) {
         (void)memcpy(v, values, sizeof(real) * (size_t)NY);
-        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)TWO_LINK_ARM_NU);
+        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)TWO_LINK_ARM_NU_WIRE);
     }
     return rc;
 }
 
 int two_link_arm_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                                real u[TWO_LINK_ARM_NU], two_link_arm_frame_header* header)
+                                real u[TWO_LINK_ARM_NU_WIRE], two_link_arm_frame_header* header)
 {
     return command_decode(buf, len, key, v, u, header);
 }
@@ -675,11 +675,11 @@ static int master_frame_taken(two_link_arm_command_rx* rx, int decoded,
 }
 
 int two_link_arm_command_receive(two_link_arm_command_rx* rx, const uint8_t* buf, size_t len,
-                                 uint32_t* step, real v[NY], real u[TWO_LINK_ARM_NU])
+                                 uint32_t* step, real v[NY], real u[TWO_LINK_ARM_NU_WIRE])
 {
     two_link_arm_frame_header h;
     real v1[NY];
-    real u1[TWO_LINK_ARM_NU];
+    real u1[TWO_LINK_ARM_NU_WIRE];
     int rc = TWO_LINK_ARM_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
         /* v1, u1 are set by a decode that succeeds; compilers cannot tell */

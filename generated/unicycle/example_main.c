@@ -42,7 +42,7 @@ static real normal(void)
 /* One step of the canonical plant with u held over Ts: the filters' own mean map (the held
  * predictor's kernel; its covariance output is not used), so the demo shows the filter and not
  * a model error. */
-static void plant(real zeta[NX], const real u[NY])
+static void plant(real zeta[NX], const real u[UNICYCLE_NW])
 {
     real P[NX * NX], P1[NX * NX], x1[NX], q[UNICYCLE_NQ], c[NY];
     memset(P, 0, sizeof(P));
@@ -90,6 +90,7 @@ int main(void)
     real zeta[NX], x0[NX], P0[NX * NX], R[NY * NY], q[UNICYCLE_NQ], lambda[NY];
     real gains[UNICYCLE_NZ];
     real flags[UNICYCLE_NFLAGS], x[NX], P[NX * NX], u[NY], v[NY], z[NY];
+    real w[UNICYCLE_NW]; /* the broadcast input */
     real late[LATE + 1][NY];
     const real* params = unicycle_params_default;
     real sq_err = 0, trace;
@@ -156,12 +157,13 @@ int main(void)
                    (double)trace, (double)u[0]);
         }
         sq_err += (x[0] - zeta[0]) * (x[0] - zeta[0]);
-        plant(zeta, UNICYCLE_PREDICTS_WITH_U ? u : v);
-        /* the broadcast input of the build's predictor */
+        /* the broadcast input of the build's predictor (what the plant integrates first) */
+        rc |= unicycle_broadcast(u, v, x, w);
+        plant(zeta, w);
         for (i = 0; i < UNICYCLE_NNODES; i++) {
-            rc |= unicycle_node_predict(&nodes[i], UNICYCLE_PREDICTS_WITH_U ? u : v);
+            rc |= unicycle_node_predict(&nodes[i], w);
         }
-        rc |= unicycle_master_predict(&master, UNICYCLE_PREDICTS_WITH_U ? u : v);
+        rc |= unicycle_master_predict(&master, w);
     }
     for (i = 0; i < UNICYCLE_NNODES; i++) {
         unicycle_health h;

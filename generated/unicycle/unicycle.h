@@ -63,13 +63,19 @@ extern "C" {
 #endif
 /** 1: node_predict and master_predict take the applied u (predictor "held"); 0: they take v */
 #define UNICYCLE_PREDICTS_WITH_U 1
+/** 1: they take u, then the master's fused flat outputs sigma (predictor "scheduled"; NW = 2 NY) */
+#define UNICYCLE_SCHEDULED 0
 /** late-measurement window: lags 1..NMAX steps */
 #define UNICYCLE_NMAX 32
 /** slots of a node's ring: steps k-NMAX..k */
 #define UNICYCLE_NRING (UNICYCLE_NMAX + 1)
-/** NRING x NY and NMAX x NY (sizes of the rings of flat-output vectors) */
+/** reals of the input node_predict and master_predict take: u */
+#define UNICYCLE_NW 2
+/** NRING x NW and NMAX x NW (sizes of the rings of inputs) */
+#define UNICYCLE_NRING_NW (UNICYCLE_NRING * UNICYCLE_NW)
+#define UNICYCLE_NMAX_NW (UNICYCLE_NMAX * UNICYCLE_NW)
+/** NRING x NY (the size of the ring of measurements) */
 #define UNICYCLE_NRING_NY (UNICYCLE_NRING * UNICYCLE_NY)
-#define UNICYCLE_NMAX_NY (UNICYCLE_NMAX * UNICYCLE_NY)
 /** camera nodes fused by the master */
 #define UNICYCLE_NNODES 2
 /** sampling period [s] */
@@ -164,7 +170,7 @@ typedef struct {
     unicycle_real q[UNICYCLE_NQ];
     unicycle_real ring_x[UNICYCLE_NRING * UNICYCLE_NX];
     unicycle_real ring_z[UNICYCLE_NRING_NY];
-    unicycle_real ring_v[UNICYCLE_NRING_NY];
+    unicycle_real ring_v[UNICYCLE_NRING_NW];
     /** packed P priors of the checkpoint steps (multiples of CHECK_EVERY), the latest at or
      * before k at entry `check`, each earlier one at the entry before (cyclically) */
     unicycle_real ring_P[UNICYCLE_NODE_NCHECK_REALS];
@@ -223,7 +229,7 @@ typedef struct {
     unicycle_real P_prior[UNICYCLE_NXX];
     unicycle_real q[UNICYCLE_NQ];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
-    unicycle_real v[UNICYCLE_NMAX_NY];
+    unicycle_real v[UNICYCLE_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot
      * its input will take */
     uint32_t k;
@@ -258,7 +264,7 @@ int unicycle_node_update(unicycle_node* node, const unicycle_real z[UNICYCLE_NY]
 int unicycle_node_update_delayed(unicycle_node* node, const unicycle_real z[UNICYCLE_NY],
                                  int32_t lag);
 /** Predict to step k + 1 (after update() of step k) with the broadcast input: u. */
-int unicycle_node_predict(unicycle_node* node, const unicycle_real input[UNICYCLE_NY]);
+int unicycle_node_predict(unicycle_node* node, const unicycle_real input[UNICYCLE_NW]);
 /** Current estimate; either output may be NULL. */
 int unicycle_node_estimate(const unicycle_node* node, unicycle_real x[UNICYCLE_NX],
                            unicycle_real P[UNICYCLE_NXX]);
@@ -284,7 +290,7 @@ int unicycle_master_init(unicycle_master* master, const unicycle_real x0[UNICYCL
 int unicycle_master_fuse(unicycle_master* master, const unicycle_packet packets[UNICYCLE_NNODES],
                          const uint8_t present[UNICYCLE_NNODES]);
 /** Predict to step k + 1 with the broadcast input (u), as the nodes. */
-int unicycle_master_predict(unicycle_master* master, const unicycle_real input[UNICYCLE_NY]);
+int unicycle_master_predict(unicycle_master* master, const unicycle_real input[UNICYCLE_NW]);
 /** Fused estimate; either output may be NULL. */
 int unicycle_master_estimate(const unicycle_master* master, unicycle_real x[UNICYCLE_NX],
                              unicycle_real P[UNICYCLE_NXX]);
@@ -295,7 +301,7 @@ int unicycle_master_estimate(const unicycle_master* master, unicycle_real x[UNIC
  * payload, a SipHash-2-4 tag (zero without a key) and a CRC-32 (IEEE, = zlib.crc32 of the bytes
  * before it). The epoch is the master's boot: its commands and announcements carry it, the
  * nodes' packets echo the last one they heard, and a keyed master takes only its own. */
-#define UNICYCLE_WIRE_VERSION 2u
+#define UNICYCLE_WIRE_VERSION 3u
 #define UNICYCLE_WIRE_HEADER 32u
 /** bytes of a frame of n reals: header, n reals of 8 bytes, tag (8) and CRC (4) */
 #define UNICYCLE_FRAME_SIZE(n) (44u + (8u * (size_t)(n)))
@@ -309,8 +315,10 @@ int unicycle_master_estimate(const unicycle_master* master, unicycle_real x[UNIC
 #define UNICYCLE_MASTER_ID 0xFFFFu
 /** reals in a packet (NY + 2 NX + 2 NX^2) */
 #define UNICYCLE_PACKET_REALS 42
+/** reals after v in a command: u */
+#define UNICYCLE_NU_WIRE UNICYCLE_NU
 /** reals in a command: v, u */
-#define UNICYCLE_COMMAND_REALS (UNICYCLE_NY + UNICYCLE_NU)
+#define UNICYCLE_COMMAND_REALS (UNICYCLE_NY + UNICYCLE_NU_WIRE)
 /** FRAME_SIZE(PACKET_REALS) */
 #define UNICYCLE_PACKET_WIRE_SIZE 380u
 /** FRAME_SIZE(COMMAND_REALS) */
@@ -427,13 +435,13 @@ int unicycle_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key,
                            unicycle_packet* packet, unicycle_frame_header* header);
 /** epoch: the master's (as given to inbox_init). */
 int unicycle_command_encode(uint32_t step, const unicycle_real v[UNICYCLE_NY],
-                            const unicycle_real u[UNICYCLE_NU], uint32_t seq, uint32_t epoch,
+                            const unicycle_real u[UNICYCLE_NU_WIRE], uint32_t seq, uint32_t epoch,
                             const uint8_t* key, uint8_t buf[UNICYCLE_COMMAND_WIRE_SIZE]);
 /** The master's epoch without a command (a restarted master, before it can command). */
 int unicycle_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const uint8_t* key,
                              uint8_t buf[UNICYCLE_ANNOUNCE_WIRE_SIZE]);
 int unicycle_command_decode(const uint8_t* buf, size_t len, const uint8_t* key,
-                            unicycle_real v[UNICYCLE_NY], unicycle_real u[UNICYCLE_NU],
+                            unicycle_real v[UNICYCLE_NY], unicycle_real u[UNICYCLE_NU_WIRE],
                             unicycle_frame_header* header);
 /** key NULL: CRC only; base: global step of the master's step 0; epoch: this boot's, chosen by the
  * caller and never used before under this key (a boot counter kept in non-volatile memory,
@@ -468,7 +476,7 @@ int unicycle_command_rx_init(unicycle_command_rx* rx, const uint8_t key[16], uin
  * one heard, a newer one taken, and within it a fresh sequence number). */
 int unicycle_command_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t len,
                              uint32_t* step, unicycle_real v[UNICYCLE_NY],
-                             unicycle_real u[UNICYCLE_NU]);
+                             unicycle_real u[UNICYCLE_NU_WIRE]);
 /** Check an announcement (as command_receive) and take its epoch. */
 int unicycle_announce_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t len);
 
@@ -487,6 +495,11 @@ int unicycle_control(const unicycle_real x[UNICYCLE_NX], const unicycle_real fla
 /** Gains placing all poles of chain j at -lambda[j]:
  * s^r + k_1 s^(r-1) + ... + k_r = (s + lambda)^r. A lambda[j] <= 0 (not stable) is ERR_ARG. */
 int unicycle_gains(const unicycle_real lambda[UNICYCLE_NY], unicycle_real gains[UNICYCLE_NZ]);
+/** The input every node_predict and master_predict of the step takes, which the master
+ * broadcasts: u, from control's u and v and the
+ * master's fused estimate x (master_estimate's, absolute). */
+int unicycle_broadcast(const unicycle_real u[UNICYCLE_NU], const unicycle_real v[UNICYCLE_NY],
+                       const unicycle_real x[UNICYCLE_NX], unicycle_real w[UNICYCLE_NW]);
 
 /* ---- dynamic extension ------------------------------------------------------------------ */
 /** The controller's integrator states (v): the model as written

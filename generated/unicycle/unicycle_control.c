@@ -98,6 +98,18 @@ int unicycle_gains(const real lambda[NY], real gains[UNICYCLE_NZ])
     return rc;
 }
 
+int unicycle_broadcast(const real u[UNICYCLE_NU], const real v[NY], const real x[NX],
+                       real w[UNICYCLE_NW])
+{
+    int rc = UNICYCLE_OK;
+    if ((u == NULL) || (v == NULL) || (x == NULL) || (w == NULL)) {
+        rc = UNICYCLE_ERR_ARG;
+    } else {
+        (void)memcpy(w, u, sizeof(real) * (size_t)UNICYCLE_NU);
+    }
+    return rc;
+}
+
 int unicycle_extension_step(real xi[UNICYCLE_NXI], const real u[UNICYCLE_NU],
                             real u_plant[UNICYCLE_NU])
 {

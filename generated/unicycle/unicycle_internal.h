@@ -39,6 +39,9 @@ typedef unicycle_real real;
 #if UNICYCLE_PREDICTS_WITH_U != 1
 #error "unicycle.h comes from another build (UNICYCLE_PREDICTS_WITH_U)"
 #endif
+#if UNICYCLE_SCHEDULED != 0
+#error "unicycle.h comes from another build (UNICYCLE_SCHEDULED)"
+#endif
 #if UNICYCLE_CI_ITERATIONS != 8
 #error "unicycle.h comes from another build (UNICYCLE_CI_ITERATIONS)"
 #endif

@@ -10,6 +10,7 @@
 
 #define NX UNICYCLE_NX
 #define NY UNICYCLE_NY
+#define NW UNICYCLE_NW /* the input a prediction takes */
 #define NXX (UNICYCLE_NX * UNICYCLE_NX)
 /* a symmetric matrix's upper triangle, packed row by row */
 #define NXP ((UNICYCLE_NX * (UNICYCLE_NX + 1)) / 2)
@@ -28,7 +29,7 @@ size_t unicycle_master_size(void)
 static size_t input_at(const unicycle_master* master, uint32_t step)
 {
     uint32_t slot = (master->vslot + (uint32_t)NMAX - (master->k - step)) % (uint32_t)NMAX;
-    return (size_t)slot * (size_t)NY;
+    return (size_t)slot * (size_t)NW;
 }
 
 /* One prediction of (x, P) with the input of one step (the heads relative to `centre`). */
@@ -292,7 +293,7 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
     return rc;
 }
 
-int unicycle_master_predict(unicycle_master* master, const real input[NY])
+int unicycle_master_predict(unicycle_master* master, const real input[NW])
 {
     const real* v = input;
     real x1[NX];
@@ -300,13 +301,13 @@ int unicycle_master_predict(unicycle_master* master, const real input[NY])
     int rc = UNICYCLE_OK;
     if ((master == NULL) || (v == NULL)) {
         rc = UNICYCLE_ERR_ARG;
-    } else if (unicycle_finite(v, NY) == 0) {
+    } else if (unicycle_finite(v, NW) == 0) {
         rc = UNICYCLE_ERR_NONFINITE;
     } else {
         rc = master_step(master->x, master->P, v, master->q, master->centre, x1, P1);
     }
     if (rc == UNICYCLE_OK) {
-        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NY]));
+        (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NW]));
         master->k++;
         master->vslot = ((master->vslot + 1u) == (uint32_t)NMAX) ? 0u : (master->vslot + 1u);
         if (master->age < (uint32_t)NMAX) {

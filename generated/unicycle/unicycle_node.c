@@ -9,6 +9,7 @@
 
 #define NX UNICYCLE_NX
 #define NY UNICYCLE_NY
+#define NW UNICYCLE_NW /* the input a prediction takes */
 #define NXX (UNICYCLE_NX * UNICYCLE_NX)
 #define NPP 10 /* UNICYCLE_NPP */
 #define NXP 14 /* a state: x, then P packed */
@@ -413,7 +414,7 @@ static int replay(unicycle_node* node, uint32_t j0, const real* zlate, real* pos
         if ((rc == UNICYCLE_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot * NY], node->q, node->centre, prior);
+            rc = predict_step(post, &node->ring_v[slot * NW], node->q, node->centre, prior);
             if (rc == UNICYCLE_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -491,7 +492,7 @@ int unicycle_node_update_delayed(unicycle_node* node, const real z_abs[NY], int3
     return rc;
 }
 
-int unicycle_node_predict(unicycle_node* node, const real input[NY])
+int unicycle_node_predict(unicycle_node* node, const real input[NW])
 {
     const real* v = input;
     real next[NXP];
@@ -510,7 +511,7 @@ int unicycle_node_predict(unicycle_node* node, const real input[NY])
     }
     if (rc == UNICYCLE_OK) {
         slot = (int)node->slot;
-        (void)memcpy(&node->ring_v[slot * NY], v, sizeof(real) * (size_t)NY);
+        (void)memcpy(&node->ring_v[slot * NW], v, sizeof(real) * (size_t)NW);
         node->k++;
         slot = (slot == UNICYCLE_NMAX) ? 0 : (slot + 1);
         node->slot = (uint16_t)slot;

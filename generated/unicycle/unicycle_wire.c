@@ -333,7 +333,7 @@ int unicycle_packet_decode(const uint8_t* buf, size_t len, const uint8_t* key,
     return packet_decode(buf, len, key, packet, header);
 }
 
-int unicycle_command_encode(uint32_t step, const real v[NY], const real u[UNICYCLE_NU],
+int unicycle_command_encode(uint32_t step, const real v[NY], const real u[UNICYCLE_NU_WIRE],
                             uint32_t seq, uint32_t epoch, const uint8_t* key,
                             uint8_t buf[UNICYCLE_COMMAND_WIRE_SIZE])
 {
@@ -342,7 +342,7 @@ int unicycle_command_encode(uint32_t step, const real v[NY], const real u[UNICYC
     int rc = UNICYCLE_ERR_ARG;
     if ((v != NULL) && (u != NULL)) {
         (void)memcpy(values, v, sizeof(real) * (size_t)NY);
-        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)UNICYCLE_NU);
+        (void)memcpy(&values[NY], u, sizeof(real) * (size_t)UNICYCLE_NU_WIRE);
         h.kind = UNICYCLE_KIND_COMMAND;
         h.node = UNICYCLE_MASTER_ID;
         h.step = step;
@@ -366,7 +366,7 @@ int unicycle_announce_encode(uint32_t step, uint32_t seq, uint32_t epoch, const 
 }
 
 static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                          real u[UNICYCLE_NU], unicycle_frame_header* header)
+                          real u[UNICYCLE_NU_WIRE], unicycle_frame_header* header)
 {
     real values[UNICYCLE_COMMAND_REALS];
     int rc = UNICYCLE_ERR_ARG;
@@ -376,13 +376,13 @@ static int command_decode(const uint8_t* buf, size_t len, const uint8_t* key, re
     }
     if (rc == UNICYCLE_OK) {
         (void)memcpy(v, values, sizeof(real) * (size_t)NY);
-        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)UNICYCLE_NU);
+        (void)memcpy(u, &values[NY], sizeof(real) * (size_t)UNICYCLE_NU_WIRE);
     }
     return rc;
 }
 
 int unicycle_command_decode(const uint8_t* buf, size_t len, const uint8_t* key, real v[NY],
-                            real u[UNICYCLE_NU], unicycle_frame_header* header)
+                            real u[UNICYCLE_NU_WIRE], unicycle_frame_header* header)
 {
     return command_decode(buf, len, key, v, u, header);
 }
@@ -673,11 +673,11 @@ static int master_frame_taken(unicycle_command_rx* rx, int decoded, const unicyc
 }
 
 int unicycle_command_receive(unicycle_command_rx* rx, const uint8_t* buf, size_t len,
-                             uint32_t* step, real v[NY], real u[UNICYCLE_NU])
+                             uint32_t* step, real v[NY], real u[UNICYCLE_NU_WIRE])
 {
     unicycle_frame_header h;
     real v1[NY];
-    real u1[UNICYCLE_NU];
+    real u1[UNICYCLE_NU_WIRE];
     int rc = UNICYCLE_ERR_ARG;
     if ((rx != NULL) && (buf != NULL) && (step != NULL) && (v != NULL) && (u != NULL)) {
         /* v1, u1 are set by a decode that succeeds; compilers cannot tell */

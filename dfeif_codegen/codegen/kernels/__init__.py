@@ -91,11 +91,12 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
     s = Chains(flat, opts)
     name = lambda k: f"{prefix}_kern_{k}"  # noqa: E731
     info = node.info(s, name("info"))
-    h = held.Held(flat, opts.ts, opts.disturbance_states()) if opts.predictor == "held" else None
+    h = None if opts.predictor == "brunovsky" else \
+        held.Held(flat, opts.ts, opts.disturbance_states(), scheduled=opts.predictor == "scheduled")
     if h is not None:
         node_predict = held.node_predict(h, name("node_predict"))
         filt = [held.predict(h, name("predict")), node_predict, node.update(s, name("update")), info]
-        filt += [held.node_predict_P(h, name("node_predict_P"))] if opts.oosm == "replay" else []
+        filt += [held.node_predict_P(h, name("node_predict_P"))] if opts.oosm == "replay" and opts.check_every > 1 else []
         filt += [held.domain(h, name("domain"))]
     else:
         node_predict = node.node_predict(s, name("node_predict"))
@@ -110,18 +111,18 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
         fused = ["master_info", "fuse_finish"]
     if opts.fusion == "ci":
         fus += ci.ci_kernels(s, name)
-    if opts.predictor != "held":   # the held master predicts stale packets step by step
+    if h is None:   # the held and scheduled masters predict stale packets step by step
         fus += [fusion.advance(s, name("advance")), fusion.input_step(s, name("input_step"))]
     # the master's predict is the node's on packed copies: the same expressions (bit for bit),
     # so its Theta(n^3) straight-line code is not printed twice (nor its loops: it calls them)
     loopable = [("info", info, loops.info_loop)]
-    if opts.predictor != "held":
+    if h is None:
         loopable.append(("node_predict", node_predict, loops.node_predict_loop))
     loopable += [(key, f, lambda s, _, key=key, f=f: fusion_loops.loop_of(key, f)) for key, f in zip(fused, fus)]
     loopable += [("advance", f, lambda s, _, f=f: fusion_loops.advance_loop(s, f)) for f in fus[2:]
                  if f.name() == name("advance")]
     looped = {f.name(): loop(s, f.name()) for key, f, loop in loopable if f.n_instructions() > LOOP_OPS[key]}
-    if h is not None and held.covariance_ops(h) > LOOP_OPS["held_covariance"]:
+    if h is not None and not h.scheduled and held.covariance_ops(h) > LOOP_OPS["held_covariance"]:
         looped[name("node_predict")] = held.node_predict_loop(h, name("node_predict"))
         if opts.oosm == "replay":   # the replay's covariance steps: the same loops, node_predict's parts
             looped[name("node_predict_P")] = held.node_predict_P_loop(h, name("node_predict"))

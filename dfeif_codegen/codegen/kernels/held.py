@@ -18,6 +18,12 @@ With disturbance states (`codegen build --disturbance`, symbolic/disturbance.py)
 canonical one followed by the disturbances (one per chain; two, d then its rate, for the
 integrated random walk), q the chains' densities followed by the disturbances' (one per chain):
 the same increment and E, U of the extended A (sampling.augmented).
+
+The scheduled predictor (`--predictor scheduled`) takes w = (u, σ) where the held one takes u:
+the same mean with w[:m], and the covariance by Φ(σ) = Φ₀ + Γ₁ (L(σ) - L₀)
+(sampling.scheduled_transition_sx) at the master's broadcast flat outputs σ = w[m:], absolute
+(the centre does not enter). Φ(σ) is dense where Φ₀ has structural zeros in the heads' columns,
+so its kernels stay straight-line (no `node_predict_loop`).
 """
 
 from __future__ import annotations
@@ -33,8 +39,9 @@ from dfeif_codegen.symbolic import sampling
 class Held:
     """The held predictor's constants for one flat system and period, and its SX pieces."""
 
-    def __init__(self, flat, ts: float, disturbance=None):
-        self.flat, self.m = flat, flat.m
+    def __init__(self, flat, ts: float, disturbance=None, scheduled: bool = False):
+        self.flat, self.m, self.scheduled = flat, flat.m, scheduled
+        self.nw = 2 * flat.m if scheduled else flat.m       # the input the prediction takes
         self.H = sampling.held_sampling(flat, ts, disturbance=disturbance)
         self.n, self.nq = len(self.H.A), len(self.H.U)     # state and densities, disturbances included
         # the control law's constants: the canonical model's (the reference's law)
@@ -43,13 +50,15 @@ class Held:
         self.embed = np.zeros((self.n, self.m))
         self.embed[flat.heads, np.arange(self.m)] = 1.0
 
-    def mean(self, x: ca.SX, u: ca.SX, c: ca.SX) -> ca.SX:
-        """x⁺ relative to the centre c from x relative to it (module docstring)."""
-        return x + sampling.held_increment_sx(self.flat, self.H, x, x + ca.mtimes(dm(self.embed), c), u, self.p)
+    def mean(self, x: ca.SX, w: ca.SX, c: ca.SX) -> ca.SX:
+        """x⁺ relative to the centre c from x relative to it (module docstring), u = w[:m]."""
+        z = x + ca.mtimes(dm(self.embed), c)
+        return x + sampling.held_increment_sx(self.flat, self.H, x, z, w[:self.m], self.p)
 
-    def covariance(self, P: ca.SX, q: ca.SX) -> ca.SX:
-        """Φ₀ P Φ₀ᵀ + Q₀ (Q₀ = Σ_j q_j U_j) from the upper triangle of P."""
-        E = dm(self.H.E)
+    def covariance(self, P: ca.SX, q: ca.SX, sigma: ca.SX | None = None) -> ca.SX:
+        """Φ P Φᵀ + Q₀ (Q₀ = Σ_j q_j U_j) from the upper triangle of P: Φ = Φ₀, or Φ(σ) when
+        scheduled."""
+        E = sampling.scheduled_transition_sx(self.flat, self.H, sigma, self.p) if self.scheduled else dm(self.H.E)
         out = ca.mtimes(ca.mtimes(E, symmetric(P)), E.T)
         for j in range(self.nq):
             out = out + q[j] * dm(self.H.U[j])
@@ -57,10 +66,11 @@ class Held:
 
 
 def node_predict(h: Held, name: str) -> ca.Function:
-    """The node's prediction of its state (x, then P packed: one argument) with the applied u."""
+    """The node's prediction of its state (x, then P packed: one argument) with the applied u
+    (and σ, scheduled: the argument u is then w = (u, σ))."""
     n, m, npp = h.n, h.m, h.n * (h.n + 1) // 2
-    post, u, q, c = sym("post", n + npp), sym("u", m), sym("q", h.nq), sym("centre", m)
-    P1 = h.covariance(unpack(post[n:], n), q)
+    post, u, q, c = sym("post", n + npp), sym("u", h.nw), sym("q", h.nq), sym("centre", m)
+    P1 = h.covariance(unpack(post[n:], n), q, u[m:])
     return ca.Function(name, [post, u, q, c], [h.mean(post[:n], u, c), pack(P1)], ["post", "u", "q", "centre"],
                        ["x1", "P1"])
 
@@ -79,15 +89,17 @@ def domain(h: Held, name: str) -> ca.Function:
 
 
 def node_predict_P(h: Held, name: str) -> ca.Function:
-    """The covariance alone (a replay's checkpoints: P reads neither x nor u)."""
+    """The covariance alone (a replay's checkpoints: P reads neither x nor u). Not for the
+    scheduled predictor, whose P reads σ: its node stores every step's P prior instead
+    (Options.check_every)."""
     P, q = sym("P", h.n * (h.n + 1) // 2), sym("q", h.nq)
     return ca.Function(name, [P, q], [pack(h.covariance(unpack(P, h.n), q))], ["P", "q"], ["P1"])
 
 
 def predict(h: Held, name: str) -> ca.Function:
     """The master's prediction (x, P full): printed as node_predict on packed copies."""
-    x, P, u, q, c = sym("x", h.n), sym("P", h.n, h.n), sym("u", h.m), sym("q", h.nq), sym("centre", h.m)
-    P1 = symmetric(h.covariance(symmetric(P), q))
+    x, P, u, q, c = sym("x", h.n), sym("P", h.n, h.n), sym("u", h.nw), sym("q", h.nq), sym("centre", h.m)
+    P1 = symmetric(h.covariance(symmetric(P), q, u[h.m:]))
     return ca.Function(name, [x, P, u, q, c], [h.mean(x, u, c), P1], ["x", "P", "u", "q", "centre"], ["x1", "P1"])
 
 
