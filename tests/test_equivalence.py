@@ -178,10 +178,12 @@ def test_float32_twin_runs_nodes_and_master_in_single_precision():
     assert 1e-9 < worst < 1e-3
 
 
-@pytest.mark.parametrize("case", [GRID[2], DIAGONAL[8]], ids=str)
+@pytest.mark.parametrize("case", [GRID[2], DIAGONAL[8], SCHEDULED[1]], ids=str)
 def test_own_inputs(store, case):
     """The nodes and the master predict with the v the C controller computes (the loop through
-    the controller closed in C, one run call): still the reference's numbers in double."""
+    the controller closed in C, one run call): still the reference's numbers in double. With
+    the scheduled predictor the input is what `<p>_broadcast` forms: u and the master's flat
+    outputs, the reference's `Scheduled.input`."""
     verify.check(check(store, case, "double", "own"))
 
 
@@ -199,7 +201,8 @@ def test_the_lossy_scenarios_exercise_the_protocol(store):
 
 
 CLOSED_LOOP = [(Case("dc_motor_link", "replay", "difference", "sinusoid", 2), "double"),
-               (Case("two_link_arm", "retrodict", "paper", "seesaw", 1), "double")]
+               (Case("two_link_arm", "retrodict", "paper", "seesaw", 1), "double"),
+               (SCHEDULED[1], "double")]     # the broadcast (u, σ) formed by <p>_broadcast in C
 
 
 @pytest.mark.parametrize("run", CLOSED_LOOP, ids=lambda r: str(r[0]))
@@ -210,7 +213,7 @@ def test_closed_loop_through_c(store, run, monkeypatch):
     model = case.model
     py = store.result(case)
     monkeypatch.setattr(experiment, "FilterBank", harness.filter_bank(store.library(case, "double")))
-    c = verify.closed_loop(case.model, case.oosm, case.fusion, case.reference, case.row)
+    c = verify.closed_loop(case.model, case.oosm, case.fusion, case.reference, case.row, predictor=case.prediction)
     flat = experiment._flat(model)
 
     def tracking(res):

@@ -133,7 +133,7 @@ def test_linearization_point_can_be_moved_and_is_reported_when_undefined():
 def test_retrodiction_needs_the_brunovsky_predictor():
     with pytest.raises(ValueError, match="--oosm retrodict needs --predictor brunovsky"):
         predictors.check("held", "retrodict")
-    with pytest.raises(ValueError, match="predictor must be one of held, brunovsky"):
+    with pytest.raises(ValueError, match="predictor must be one of held, scheduled, brunovsky"):
         predictors.check("rk4")
     predictors.check("brunovsky", "retrodict")
 

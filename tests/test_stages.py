@@ -65,3 +65,8 @@ def test_bench_compiles_runs_and_compares_once_each_in_order(monkeypatch, tmp_pa
     assert set(sec["target"]["stack"]) == {"replay", "retrodict"}
     assert sec["sizeof"]["double"]["node"] > sec["sizeof"]["float"]["node"]
     assert f"## {spec}" in result.report()
+    # the scheduled predictor beside the held one: a chain of integrators has L(σ) = L₀, so its
+    # scheduled node step costs what the held one does (Φ(σ) folds to Φ₀), within 10%
+    held, sched = sec["counts"][("replay", "difference")], sec["counts"][("replay", "difference", "scheduled")]
+    assert abs(sched["node_predict"] / held["node_predict"] - 1) < 0.1
+    assert "| node step (update + predict) |" in result.report()

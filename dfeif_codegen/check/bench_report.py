@@ -86,6 +86,7 @@ def _markdown(r: "BenchResult") -> str:
             rp, rt = c[("replay", "difference")].get(key), c[("retrodict", "difference")].get(key)
             if rp and rt:
                 out.append(f"| update_delayed, lag {lag} | {_fmt(rp)} | {_fmt(rt)} | {rt / rp:.2f} |")
+        out += _scheduled_table(c)
         out += ["", "### Cortex-M4F (float, -Os)", "", "| object | .text | .data | .bss |", "|---|---:|---:|---:|"]
         total = [0, 0, 0]
         for obj, z in s["sizes"].items():
@@ -106,6 +107,21 @@ def _markdown(r: "BenchResult") -> str:
         if "target" in s:
             out += bench_target.markdown(name, s["target"])
     return "\n".join(out)
+
+
+def _scheduled_table(c: dict) -> list[str]:
+    """The held predictor (the default build) beside `--predictor scheduled` (replay, difference)."""
+    held, sched = c[("replay", "difference")], c.get(("replay", "difference", "scheduled"))
+    if not sched:
+        return []
+    out = ["", "| call (replay, difference) | held | scheduled | scheduled / held |", "|---|---:|---:|---:|"]
+    step = lambda k: k["node_update"] + k["node_predict"]  # noqa: E731
+    rows = [("node update (on time)", held["node_update"], sched["node_update"]),
+            ("node predict", held["node_predict"], sched["node_predict"]),
+            ("node step (update + predict)", step(held), step(sched))]
+    rows += [(f"update_delayed, lag {LAGS[-1]}", held.get(key), sched.get(key))
+             for key in [f"node_update_delayed_lag{LAGS[-1]}"] if key in held and key in sched]
+    return out + [f"| {label} | {_fmt(a)} | {_fmt(b)} | {b / a:.2f} |" for label, a, b in rows]
 
 
 WORST_BUILDS = ((("replay", "difference"), "replay, difference"), (("retrodict", "difference"), "retrodict, difference"),

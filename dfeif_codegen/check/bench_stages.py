@@ -43,6 +43,8 @@ def _compile_model(name: str, repeat: int, work: Path) -> dict:
         if fusion == "ci":
             counts[(oosm, "ci-every-step")] = callgrind(md, work / f"cg-{oosm}-ci-all", ci_every_step(md))
             worst[(oosm, "ci-every-step")] = worst_case(md, work / f"worst-{oosm}-ci-all", ci_every_step(md))
+    scheduled = harness.build_model(name, work / "scheduled", "double", predictor="scheduled")
+    counts[("replay", "difference", "scheduled")] = callgrind(scheduled, work / "cg-scheduled")
     sizeof = {p: Measure("sizeof", (target.sizeof_probe(harness.build_model(name, work / f"sizeof-{p}", p),
                                                          work / f"sizeof-{p}-probe"),))
               for p in ("float", "double")}

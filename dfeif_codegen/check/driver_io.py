@@ -25,7 +25,7 @@ INPUTS = ("recorded", "own")
 
 def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
     """The driver's inputs, C-contiguous, reals in the build's precision, integers int32;
-    `v_in` is the reference's broadcast input (Recording.broadcast: u, (u, σ) or v),
+    `v_in` is the reference's broadcast input (`broadcast`: u, (u, σ) or v),
     for runs that predict with the recorded inputs. With disturbance states the initial states and
     q are the filters' (`filter_start`)."""
     K = rec.ref.shape[0]
@@ -41,8 +41,18 @@ def scenario_arrays(rec, dtype) -> dict[str, np.ndarray]:
         "z": real(rec.z), "gamma": int32(rec.gamma), "ref": real(rec.ref),
         "late_step": int32(rec.late_step), "late_node": int32(rec.late_node),
         "late_lag": int32(rec.late_lag), "late_z": real(np.reshape(rec.late_z, (-1, rec.m))),
-        "source": source, "v_in": real(rec.broadcast()),
+        "source": source, "v_in": real(broadcast(rec)),
     }
+
+
+def broadcast(rec) -> np.ndarray:
+    """(K, NW): the input the filters predicted with at each step, as the master broadcast it:
+    u (held), u then the fused flat outputs σ = x[heads] (scheduled), v (Brunovsky; a recording
+    from before the held predictor)."""
+    predictor = getattr(rec, "predictor", "brunovsky")
+    if predictor == "scheduled":
+        return np.concatenate([rec.u, rec.x[:, list(rec.heads)]], axis=1)
+    return rec.u if predictor == "held" else rec.v
 
 
 def output_arrays(rec, dtype) -> dict[str, np.ndarray]:

@@ -146,6 +146,7 @@ VARIANTS = {
     "two_link_arm, default options": ("two_link_arm", {}),
     "two_link_arm, float, retrodict, paper":
         ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "paper"}),
+    "two_link_arm, scheduled predictor": ("two_link_arm", {"predictor": "scheduled"}),
 }
 
 

@@ -68,13 +68,6 @@ class Recording:
     disturbance: str = ""
     heads: tuple = ()     # the flat outputs' entries of x (the scheduled predictor's σ = x[heads])
 
-    def broadcast(self) -> np.ndarray:
-        """(K, NW): the input the filters predicted with at each step, as the master broadcast it:
-        u (held), u then the fused flat outputs σ (scheduled), v (brunovsky)."""
-        if self.predictor == "scheduled":
-            return np.concatenate([self.u, self.x[:, list(self.heads)]], axis=1)
-        return self.u if self.predictor == "held" else self.v
-
     def save(self, path) -> None:
         np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
 

@@ -35,10 +35,10 @@ __all__ = ["simulate", "SimulationResult", "Table", "Plan", "plan", "execute", "
 
 
 def _settings(p: Plan, o: Outcome) -> dict:
-    sc = p.sc
+    sc, own = p.sc, predictors.for_method(p.predictor, "replay")
     out: dict[str, Any] = {"scenario": sc.name, "source": sc.source, "model": p.flat.model.name, "nodes": p.nodes,
            "max_lag": p.max_lag, "ts": sc.ts or p.flat.model.ts, "duration": sc.duration, "runs": p.runs,
-           "seeds": [p.seed, p.seed + p.runs - 1], "q": sc.q, "poles": sc.poles, "p0_std": sc.p0_std,
+           "seeds": [p.seed, p.seed + p.runs - 1], "q": sc.q_for(own), "poles": sc.poles, "p0_std": sc.p0_std,
            "noise_scale": [_pick(sc.noise_scale, i) for i in range(p.nodes)], "metrics_from": sc.metrics_from,
            "elapsed_s": round(o.elapsed, 3), "workers": o.workers, "engine": o.engine, "ran_on": o.where,
            "runs_resumed": o.reused, "distinct_runs": o.distinct, "longest_bound_cpu_s": round(o.longest_side, 3),

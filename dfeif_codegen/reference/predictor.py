@@ -125,12 +125,7 @@ class Held:
 
     def bring(self, xs: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
         """Means predicted step by step with the stored inputs (the map is nonlinear)."""
-        out = []
-        for x in xs:
-            for u in inputs:
-                x = self.mean(x, u)
-            out.append(x)
-        return out
+        return _stepped(xs, inputs, self.mean)
 
 
 class Scheduled(Held):
@@ -162,15 +157,21 @@ class Scheduled(Held):
 
     def carry(self, Ps: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
         """Covariances predicted step by step (each step's Φ(σ) its own)."""
-        out = []
-        for P in Ps:
-            for w in inputs:
-                P = self.covariance(P, w)
-            out.append(P)
-        return out
+        return _stepped(Ps, inputs, self.covariance)
 
     def ahead(self, N: int):
+        """Refused: Φ₀^N would silently be the held filter's; each step has its own Φ(σ)."""
         raise NotImplementedError("the scheduled transition has no N-step closed form: carry step by step")
+
+
+def _stepped(values: list, inputs: list, step) -> list:
+    """Each value taken through `step(value, input)` for the inputs in turn."""
+    out = []
+    for value in values:
+        for w in inputs:
+            value = step(value, w)
+        out.append(value)
+    return out
 
 
 _CACHE: dict[tuple, tuple] = {}

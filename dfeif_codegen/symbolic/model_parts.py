@@ -31,7 +31,7 @@ dirent transport transport_udp common relay node_main master_main""".split())
 # where both w_t and t follow the prefix in generated names (ab_node_packet: ab's node_packet
 # and ab_node's packet). tests/test_model_errors.py derives them from fresh builds.
 CLASHING_WORDS = frozenset("""cov err has include internal kern kernels kind lib master nmax node
-nring""".split())
+nring nu""".split())
 NAME_LIMIT = 31  # C99 guarantees 31 significant characters in external identifiers
 # The model name prefixes every identifier: up to this length the generated C keeps within 100
 # columns laid out as clang-format would (tests/test_format.py builds models of this length).
