@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dfeif_codegen.errors import SetupError
+from dfeif_codegen.reference.predictor import with_flat_outputs
 from dfeif_codegen.symbolic.disturbance import Disturbance, augment
 
 if TYPE_CHECKING:
@@ -51,7 +52,7 @@ def broadcast(rec) -> np.ndarray:
     from before the held predictor)."""
     predictor = getattr(rec, "predictor", "brunovsky")
     if predictor == "scheduled":
-        return np.concatenate([rec.u, rec.x[:, list(rec.heads)]], axis=1)
+        return with_flat_outputs(rec.u, rec.x, rec.heads)
     return rec.u if predictor == "held" else rec.v
 
 

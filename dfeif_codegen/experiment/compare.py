@@ -106,12 +106,18 @@ def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled
     if kind == OFFSETS:
         q = offsets.chains_q or q
         return OffsetFilter(OffsetModel(flat, ts, ex._per_chain(q, flat.m), offsets), compiled)
-    if kind == SCHEDULED or (kind == "df" and predictor == SCHEDULED):
+    if kind == SCHEDULED:
         return ScheduledFilter(ScheduledModel(flat, ts, np.array(q)), compiled)
     if kind in CANONICAL:   # "brunovsky" is the chapter's filter whatever the recording's predictor
         return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky",
                                              disturbance if kind == "df" else None), compiled)
     return FILTERS[kind](PhysicalModel(flat, ts, np.array(q), substeps), compiled)
+
+
+def own_kind(kind: str, predictor: str) -> str:
+    """The filter `kind` names for loops closed by `predictor`: "df" is the loops' own filter,
+    the scheduled one when they ran it (a filter of its own here, reference/scheduled.py)."""
+    return SCHEDULED if kind == "df" and predictor == SCHEDULED else kind
 
 
 def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled: bool = False,
@@ -122,8 +128,7 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     "df" runs the derivative-free filter itself through the same driver (CanonicalModel). `q`:
     the filter's process-noise densities when not the recording's (the chapter's filter's own)."""
     q = tuple(np.asarray(rec.q if q is None or len(q) == 0 else ex._per_chain(q, rec.m), float))
-    if kind == "df" and rec.predictor == SCHEDULED:   # the loops' own filter is the scheduled one
-        kind = SCHEDULED
+    kind = own_kind(kind, rec.predictor)
     filt = filter_of(rec.model, float(rec.ts), q, substeps, kind, compiled,
                      rec.predictor, disturbance, offsets)
     pm = filt.model
@@ -205,7 +210,7 @@ def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTER
     count of the SX functions after common-subexpression elimination): a machine-independent
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
-    return {kind: filter_of(spec, float(ts), q, substeps, kind, predictor=predictor,
+    return {kind: filter_of(spec, float(ts), q, substeps, own_kind(kind, predictor), predictor=predictor,
                             disturbance=disturbance if kind == "df" else None,
                             offsets=offsets if kind == OFFSETS else None).operations()
             for kind in kinds}

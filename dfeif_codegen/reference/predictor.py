@@ -144,12 +144,12 @@ class Scheduled(Held):
 
     def input(self, u, v, x_master) -> np.ndarray:
         """What the master broadcasts at a step: u, then its fused flat outputs."""
-        return np.concatenate([np.atleast_1d(u), np.asarray(x_master)[self.flat.heads]])
+        return with_flat_outputs(u, x_master, self.flat.heads)
 
     def transition(self, w) -> np.ndarray:
         """Φ(σ) of the step whose input is w = (u, σ), computed in double and then rounded (as
         the C's float build, whose Φ(σ) entries are each a few operations on σ)."""
-        return np.asarray(self._transition(np.asarray(w[self.m:], dtype=float)), dtype=float).astype(self.dtype)
+        return self._transition(w[self.m:]).astype(self.dtype)
 
     def covariance(self, P, w) -> np.ndarray:
         Phi = self.transition(w)
@@ -177,11 +177,17 @@ def _stepped(values: list, inputs: list, step) -> list:
 _CACHE: dict[tuple, tuple] = {}
 
 
-def _transition_function(flat, H) -> ca.Function:
+def with_flat_outputs(u, x, heads) -> np.ndarray:
+    """The scheduled predictor's input (u, σ): u, then the flat outputs x[heads] of the master's
+    estimate; of one step (vectors) or of a whole recording ((K, m) and (K, n) arrays)."""
+    return np.concatenate([np.atleast_1d(np.asarray(u, float)), np.asarray(x, float)[..., list(heads)]], axis=-1)
+
+
+def _transition_function(flat, H) -> numeric.Numeric:
     """σ -> Φ(σ) with the model's parameters at their values."""
     sigma = ca.SX.sym("sigma", flat.m)
-    return ca.Function("transition", [sigma],
-                       [ca.densify(sampling.scheduled_transition_sx(flat, H, sigma, ca.DM(flat.param_vector)))])
+    return numeric.Numeric(ca.Function("transition", [sigma], [ca.densify(
+        sampling.scheduled_transition_sx(flat, H, sigma, ca.DM(flat.param_vector)))], {"cse": True}))
 
 
 def held_constants(flat, ts: float) -> sampling.HeldSampling:

@@ -57,8 +57,7 @@ class ScheduledModel(CanonicalMaps):
 
     def input(self, u, master_x) -> np.ndarray:
         """What `predict` takes at a step: the applied input and the master's fused flat outputs."""
-        sigma = np.asarray(master_x, float)[self.outputs_at]
-        return np.concatenate([np.atleast_1d(np.asarray(u, float)), sigma])
+        return predictors.with_flat_outputs(u, master_x, self.outputs_at)
 
 
 class ScheduledFilter(EKF):
