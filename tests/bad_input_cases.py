@@ -218,9 +218,6 @@ def generated() -> dict:
     c["build disturbance with the Brunovsky predictor"] = (
         "option: not a choice", ["build", "--disturbance", "random_walk", "--predictor", "brunovsky"], {},
         ["--disturbance", "--predictor held"])
-    c["build disturbance with the scheduled predictor"] = (
-        "option: not a choice", ["build", "--disturbance", "random_walk", "--predictor", "scheduled"], {},
-        ["--disturbance", "--predictor held", "scheduled"])
     c["build retrodiction with the scheduled predictor"] = (
         "option: not a choice", ["build", "--oosm", "retrodict", "--predictor", "scheduled"], {},
         ["--oosm retrodict", "--predictor brunovsky", "scheduled"])

@@ -40,15 +40,27 @@ CASES = [("dc_motor_link", "random_walk", 1, "double"), ("dc_motor_link", "rando
 NODES = {3: "[[nodes]]\nnoise_std = [0.002, 0.002, 0.002]\n\n[[nodes]]\nnoise_std = [0.0025, 0.0025, 0.0025]\n"}
 
 
-@pytest.mark.parametrize("model,kind,chains,precision", CASES, ids=lambda v: Path(str(v)).stem)
-def test_the_c_carries_the_disturbance_states_as_the_reference_does(model, kind, chains, precision, tmp_path):
-    result = verify.verify(model, precision=precision, scenario=scenario(tmp_path, kind, chains))
-    assert "disturbance " + kind in result.settings
+# the scheduled predictor (Φ(σ) at the broadcast flat outputs) with disturbance states: both
+# built-in models, a user model, each kind, both precisions
+SCHEDULED = [("two_link_arm", "random_walk", 2, "double"), ("two_link_arm", "random_walk", 2, "float"),
+             ("dc_motor_link", "integrated_random_walk", 1, "float"),
+             (str(DATA / "planar_arm3.toml"), "gauss_markov", 3, "double")]
+
+
+@pytest.mark.parametrize("model,kind,chains,precision,predictor",
+                         [(*c, "held") for c in CASES] + [(*c, "scheduled") for c in SCHEDULED],
+                         ids=lambda v: Path(str(v)).stem)
+def test_the_c_carries_the_disturbance_states_as_the_reference_does(model, kind, chains, precision, predictor,
+                                                                    tmp_path):
+    result = verify.verify(model, precision=precision, scenario=scenario(tmp_path, kind, chains),
+                           predictor=predictor)
+    assert "disturbance " + kind in result.settings and "predictor " + predictor in result.settings
     print(result.report())
     verify.check(result.errors)
 
 
-def test_disturbances_that_cannot_move_leave_the_plain_filter(tmp_path):
+@pytest.mark.parametrize("predictor", ["held", "scheduled"])
+def test_disturbances_that_cannot_move_leave_the_plain_filter(predictor, tmp_path):
     """Disturbances with a spread of 1e-12 and density 0 stay within ~1e-12 of 0; entering the
     top derivative they move the canonical estimate by about that times Ts per step, so the C with
     them must reproduce the reference *without* them to verify's double tolerance, 1e-10 relative
@@ -56,10 +68,10 @@ def test_disturbances_that_cannot_move_leave_the_plain_filter(tmp_path):
     path = scenario(tmp_path, "random_walk", 1, q=0.0, extra="p0_std = [1e-12]\n")
     sc = scenarios.load(path)
     with_d = verify.record("dc_motor_link", "replay", "difference", sc.references[0], 0, 2, 32,
-                           scenario_spec=path, predictor="held")
+                           scenario_spec=path, predictor=predictor)
     plain_ref = verify.closed_loop("dc_motor_link", "replay", "difference", sc.references[0], 0, 2, 32,
-                                   scenario_spec=_without_disturbance(path, tmp_path)).recording
-    built = harness.build_model("dc_motor_link", tmp_path / "gen", "double", predictor="held",
+                                   scenario_spec=_without_disturbance(path, tmp_path), predictor=predictor).recording
+    built = harness.build_model("dc_motor_link", tmp_path / "gen", "double", predictor=predictor,
                                 disturbance=sc.disturbance)
     got = harness.Library(built, tmp_path).run(with_d)
     assert np.asarray(got["x"]).shape == plain_ref.x.shape          # the canonical part, cut
@@ -90,17 +102,19 @@ def test_bad_disturbance_options_are_refused_before_any_work(options, words):
 
 
 @pytest.mark.target
-def test_integrated_random_walk_float_build_on_cortex_m4f(tmp_path, capsys, cross_tools):
+@pytest.mark.parametrize("predictor", ["held", "scheduled"])
+def test_integrated_random_walk_float_build_on_cortex_m4f(predictor, tmp_path, capsys, cross_tools):
     """The second-order disturbance states in a float build on the emulated Cortex-M4F, at the
-    density the motor's ±20% scenario calibrates (about 1e6: its largest entries in Q and P):
-    `codegen verify --target cortex-m4f` passes the float tolerances (check/verify.py)."""
+    density the motor's ±20% scenario calibrates (about 1e6: its largest entries in Q and P), with
+    the held and the scheduled predictor: `codegen verify --target cortex-m4f` passes the float
+    tolerances (check/verify.py)."""
     from dfeif_codegen import cli
 
     path = tmp_path / "irw.toml"
     path.write_text(GRID + '\n[disturbance]\nkind = "integrated_random_walk"\nq = [1e6]\n')
     rc = cli.main(["verify", "dc_motor_link", "--scenario", str(path), "--precision", "float",
-                   "--target", "cortex-m4f"])
+                   "--target", "cortex-m4f", "--predictor", predictor])
     out = capsys.readouterr().out
     print(out)
-    assert "disturbance integrated_random_walk" in out and "target cortex-m4f" in out
+    assert "disturbance integrated_random_walk" in out and "target cortex-m4f" in out and predictor in out
     assert rc == 0 and "FAIL" not in out

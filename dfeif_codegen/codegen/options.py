@@ -77,10 +77,10 @@ class Options:
             return
         if kind not in DISTURBANCES:
             raise BuildError(f"--disturbance must be one of {', '.join(DISTURBANCES)}, got {kind!r}")
-        if self.predictor != "held":
+        if self.predictor == "brunovsky":
             chosen = f", the default with --oosm {self.oosm}," if implicit else ""
-            raise BuildError(f"--disturbance needs --predictor held (the {self.predictor} predictor{chosen} has no "
-                             "disturbance states)")
+            raise BuildError(f"--disturbance needs --predictor held or scheduled (the brunovsky predictor{chosen} "
+                             "has no disturbance states)")
         if kind == "gauss_markov":
             if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau <= 0:
                 raise BuildError(f"--tau must be the Gauss-Markov time constant in seconds, > 0, got {tau!r}")

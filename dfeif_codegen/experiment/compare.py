@@ -107,7 +107,7 @@ def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled
         q = offsets.chains_q or q
         return OffsetFilter(OffsetModel(flat, ts, ex._per_chain(q, flat.m), offsets), compiled)
     if kind == SCHEDULED:
-        return ScheduledFilter(ScheduledModel(flat, ts, np.array(q)), compiled)
+        return ScheduledFilter(ScheduledModel(flat, ts, np.array(q), disturbance), compiled)
     if kind in CANONICAL:   # "brunovsky" is the chapter's filter whatever the recording's predictor
         return DerivativeFree(CanonicalModel(flat, ts, np.array(q), predictor if kind == "df" else "brunovsky",
                                              disturbance if kind == "df" else None), compiled)
@@ -211,6 +211,6 @@ def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTER
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
     return {kind: filter_of(spec, float(ts), q, substeps, own_kind(kind, predictor), predictor=predictor,
-                            disturbance=disturbance if kind == "df" else None,
+                            disturbance=disturbance if kind in ("df", SCHEDULED) else None,
                             offsets=offsets if kind == OFFSETS else None).operations()
             for kind in kinds}

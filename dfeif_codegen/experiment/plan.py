@@ -187,9 +187,6 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
     if "offsets" in kinds and sc.offsets is None:
         raise ScenarioError(f"--filters offsets: {sc.source} has no [offsets] table (the parameters whose "
                             f"offsets the filter estimates, e.g. params = [\"R\", \"m\"], std = 0.2)")
-    if "scheduled" in kinds and sc.disturbance is not None:
-        raise ScenarioError(f"--filters scheduled: {sc.source} has a [disturbance] table, and the scheduled filter "
-                            "has no disturbance states (it would not be the filter the others are compared with)")
     nodes, runs = _counts(sc, nodes, max_lag, runs)
     refs = list(reference or sc.references)
     if ex.TRAJECTORY in refs and sc.trajectory is None:

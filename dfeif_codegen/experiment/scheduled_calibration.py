@@ -8,7 +8,9 @@ filter closes itself (as `simulate --predictor scheduled` and the generated C ru
 the product runs. On the two-link arm the two agree (the loops barely depend on which filter
 closes them: the same NEES to three digits), so the second stage accepts the first's q at its
 first evaluation. Why its own q: a transition that follows the configuration leaves less for q
-to cover (on the arm about 300 times less: docs/experiment.md).
+to cover (on the arm about 300 times less: docs/experiment.md). With disturbance states
+(`--disturbance`, under model error) one stage, on the loops their densities were matched on
+(`under_model_error`).
 """
 
 from __future__ import annotations
@@ -24,17 +26,31 @@ from dfeif_codegen.experiment.disturbance_calibration import mean_nees
 from dfeif_codegen.experiment.nees_match import NEES_SECONDS, NO_LOOP, match_nees
 
 
-def check_option(scheduled: bool, disturbance) -> None:
-    """--scheduled with the other options: the scheduled filter has no disturbance states."""
-    if scheduled and disturbance is not None:
-        raise ScenarioError("--scheduled: not with --disturbance (the scheduled filter has no disturbance states)")
-
-
-def nees(loops: list, q) -> float:
-    """The scheduled filter's master NEES at `q` over the recordings (inf if it fails on one)."""
+def nees(loops: list, q, disturbance=None) -> float:
+    """The scheduled filter's master NEES at `q` over the recordings (inf if it fails on one);
+    with `disturbance`, its disturbance states at their calibrated densities."""
     qs = tuple(float(v) for v in np.atleast_1d(q))
     return mean_nees(loops, lambda res: compare.evaluate(
-        dataclasses.replace(res, config=dataclasses.replace(res.config, q_scheduled=qs)), compare.SCHEDULED))
+        dataclasses.replace(res, config=dataclasses.replace(res.config, q_scheduled=qs)), compare.SCHEDULED,
+        disturbance=disturbance))
+
+
+def under_model_error(flat, q, loops: list, seeds, disturbance, log: list[str], say) -> tuple[np.ndarray, list[str]]:
+    """(the scheduled filter's white q, log) with disturbance states: scaled from the held
+    filter's calibrated white `q`, the disturbances' densities kept, until the scheduled filter's
+    master NEES re-filtering the calibration's loops under the model error (`loops`, of `seeds`)
+    is n. Those loops are the ones the densities were matched on; a second stage on loops the
+    scheduled filter closes would draw the model error again (the held filter's own densities
+    are matched on re-filtered loops alike). When the densities dominate, q moves the NEES
+    little and match_nees keeps the closest it found, saying so."""
+    say(f"the scheduled filter: white q scaled until its NEES on those {len(loops)} loops is n")
+    found, log = match_nees(flat, np.asarray(q, dtype=float), None, seeds, log,
+                            lambda qq: nees(loops, qq, disturbance), floor=None, progress=say)
+    if NO_LOOP in log[-1]:
+        raise ScenarioError(f"--scheduled: the scheduled filter failed or diverged on the calibration's loops at "
+                            f"every scale of q tried (from {list(np.atleast_1d(q))})")
+    log[-1] = "the scheduled filter, with the disturbance states: " + log[-1]
+    return found, log
 
 
 def q_scheduled(flat, q, config, seeds, log: list[str], say) -> tuple[np.ndarray, list[str]]:

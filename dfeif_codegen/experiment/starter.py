@@ -157,7 +157,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
             log.append(f"closed loop diverged: q x 10 -> {_fmt(q)}")
             continue
         if dist is not None:
-            return _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, log, say)
+            return _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, scheduled, log, say)
         k0 = int(round(cfg.metrics_from / ts))
         rec = res.recording      # the residual of the predictor the loop ran
         q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:],
@@ -179,10 +179,10 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     return Calibrated(q, log, list(poles), q_scheduled=q_scheduled)
 
 
-def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, log, say) -> Calibrated:
-    """`calibrate` with disturbance states, from its first closed loop `cfg` (result `res`, q
-    `q`, closed by the chapter's filter): the held filter's white q, the densities (of `dist`'s
-    kind, or the kind chosen), the poles and, with `offsets`, the offset filter's chains' q."""
+def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, scheduled, log, say):
+    """`calibrate` with disturbance states, from its first closed loop `cfg` (result `res`, q `q`, closed
+    by the chapter's filter): the held filter's white q, the densities (of `dist`'s kind, or the kind
+    chosen), the poles; with `offsets`, its chains' q; `scheduled`, the scheduled filter's white q."""
     ts = cfg.ts
     k0 = int(round(cfg.metrics_from / ts))
     rec = res.recording      # the residual of the predictor the loop ran
@@ -213,7 +213,9 @@ def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offs
         say("the offset filter's chains: q scaled until its NEES on those loops is n")
         free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None, progress=say)  # noqa: E731
         offsets, log = offsets_calibration.chains_q(held, loops, offsets, free, log)
-    return Calibrated(held, log, poles, dist, offsets)
+    q_s, log = (scheduled_calibration.under_model_error(flat, held, loops, seeds, dist, log, say) if scheduled
+                else (None, log))
+    return Calibrated(held, log, poles, dist, offsets, q_s)
 
 
 def _white_q(flat, start, config, seed: int, log: list[str], say) -> tuple[np.ndarray, list[str]]:
@@ -222,10 +224,9 @@ def _white_q(flat, start, config, seed: int, log: list[str], say) -> tuple[np.nd
     then take only what the model error adds. `start`: the held one-step residual's proportions
     at the magnitude of the q the calibration loops' filter needs. The residual itself is what a
     near-exact predictor misses, decades below (motor 5.7e-7): on the exact model the held
-    filter's NEES hardly depends on q down there (motor: 3.08 at 8.5e-6), so a match started
-    from it stays at a q where the master's information cancels so many digits that the C no
-    longer equals the reference to 1e-10 (measured 2.5e-7 at 5.7e-7) and the arm's filters
-    fail outright (every scale of q lost at 7e-6)."""
+    filter's NEES hardly depends on q down there (motor: 3.08 at 8.5e-6), so a match started from it
+    stays at a q where the master's information cancels so many digits that the C no longer equals
+    the reference to 1e-10 (2.5e-7 at 5.7e-7) and the arm's filters fail (all lost at 7e-6)."""
     def exact(q, run_seed, duration=NEES_SECONDS):
         return dataclasses.replace(config(q, run_seed, duration), predictor="held", plant_error=ex.EXACT_MODEL)
     say("the held filter's white part: q scaled until its NEES on the exact model is n")
@@ -369,7 +370,6 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     if offsets is not None and (dist is None or plant_error is None):
         raise ScenarioError(f"--offsets {offsets}: needs --disturbance and a non-zero --param-error (its chains' q is "
                             "calibrated on the loops the disturbance calibration runs under that error)")
-    scheduled_calibration.check_option(scheduled, dist)
     path = Path(out) if out else None
     if path is not None:
         from dfeif_codegen.paths import first_line, replaceable_file

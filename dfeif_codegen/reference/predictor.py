@@ -25,8 +25,9 @@ def check(name: str, oosm: str = "replay", disturbance=None) -> None:
     """ValueError naming the options for an unknown predictor or one retrodiction cannot use."""
     if name not in PREDICTORS:
         raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, not {name!r}")
-    if disturbance is not None and name != "held":
-        raise ValueError(f"[disturbance] needs --predictor held (the {name} predictor has no disturbance states)")
+    if disturbance is not None and name == "brunovsky":
+        raise ValueError("[disturbance] needs --predictor held or scheduled (the brunovsky predictor has no "
+                         "disturbance states)")
     if oosm == "retrodict" and name != "brunovsky":
         raise ValueError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the transition "
                          f"over the lag, ill-conditioned for the {name} predictor's); use --oosm replay")
@@ -134,10 +135,11 @@ class Scheduled(Held):
 
     name = "scheduled"
 
-    def __init__(self, flat, ts: float, q, dtype=np.float64):
-        super().__init__(flat, ts, q, dtype)
+    def __init__(self, flat, ts: float, q, dtype=np.float64, disturbance=None):
+        super().__init__(flat, ts, q, dtype, disturbance)
         self.m = flat.m
-        self._transition = _cached(("transition", id(flat), self.ts), flat, lambda: _transition_function(flat, self.H))
+        self._transition = _cached(("transition", id(flat), self.ts, self.drift), flat,
+                                   lambda: _transition_function(flat, self.H))
 
     def mean(self, x, w) -> np.ndarray:
         return super().mean(x, w[:self.m])
@@ -211,10 +213,11 @@ def _mean_function(flat, H, drift=None) -> numeric.Numeric:
 
 
 def make(name: str, flat, ts: float, q, dtype=np.float64, disturbance=None):
-    """The predictor called `name` (one of PREDICTORS); `disturbance` needs the held one."""
+    """The predictor called `name` (one of PREDICTORS); `disturbance` needs the held or the
+    scheduled one."""
     check(name, disturbance=disturbance)
     if name == "held":
         return Held(flat, ts, q, dtype, disturbance)
     if name == "scheduled":
-        return Scheduled(flat, ts, q, dtype)
+        return Scheduled(flat, ts, q, dtype, disturbance)
     return Brunovsky(flat, ts, q, dtype)

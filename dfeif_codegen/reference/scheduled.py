@@ -32,6 +32,7 @@ from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.physical import CanonicalMaps
 from dfeif_codegen.symbolic import sampling
+from dfeif_codegen.symbolic.disturbance import augment
 
 
 class ScheduledModel(CanonicalMaps):
@@ -39,21 +40,27 @@ class ScheduledModel(CanonicalMaps):
     compare.CanonicalModel so that it runs on the comparison's driver. What `predict` takes is
     (u, σ): the applied input and the master's fused flat outputs after its fusion."""
 
-    def __init__(self, flat, ts: float, q):
-        n, m = flat.n, flat.m
-        self.n, self.m, self.ts, self.canonical_n = n, m, float(ts), n
-        self.inputs = 2 * m
+    def __init__(self, flat, ts: float, q, disturbance=None):
+        """`disturbance` (symbolic/disturbance.py): the state extended by the disturbance
+        states, as the held filter's (compare.CanonicalModel); `phi` reports the canonical part."""
+        pred = predictors.make("scheduled", flat, ts, np.asarray(q, dtype=float), disturbance=disturbance)
+        H, m = pred.H, flat.m                           # with the point L₀ was taken at
+        self.n, self.m, self.ts, self.canonical_n = len(H.A), m, float(ts), flat.n
+        self.disturbance, self.inputs = disturbance, 2 * m
         self.outputs_at = np.array([c.offset for c in flat.chains])     # σ's entries in ζ
         self.angle_out = np.array([c.angle for c in flat.chains])
-        H = predictors.held_constants(flat, ts)        # with the point L₀ was taken at
-        x, w = ca.SX.sym("x", n), ca.SX.sym("w", self.inputs)
+        x, w = ca.SX.sym("x", self.n), ca.SX.sym("w", self.inputs)
         p = ca.DM(flat.param_vector)
         self.step_sx = ca.Function("step", [x, w], [predictors.held_mean_sx(flat, H, x, w[:m], p)])
         self.transition_sx = ca.Function("transition", [w], [sampling.scheduled_transition_sx(flat, H, w[m:], p)])
-        self.Qd = H.Q(np.asarray(q, dtype=float))
-        C = flat.discrete(ts)[2]
+        self.Qd = pred.Q
+        C = np.hstack([flat.discrete(ts)[2], np.zeros((m, self.n - flat.n))])
         self.h_sx = ca.Function("h", [x], [ca.DM(C) @ x])
         self.Qx_sx = ca.Function("Qx", [x], [ca.DM(self.Qd)])
+
+    def start(self, x0, P0):
+        """The filter's initial (x, P) from the canonical ones (disturbances at 0, their spread)."""
+        return augment(x0, P0, self.disturbance, self.m)
 
     def input(self, u, master_x) -> np.ndarray:
         """What `predict` takes at a step: the applied input and the master's fused flat outputs."""

@@ -280,11 +280,14 @@ def scheduled_transition_sx(flat, H: HeldSampling, sigma: ca.SX, p) -> ca.SX:
     """Φ(σ) = Φ₀ + Γ₁ (L(σ) - L₀): the exponential-Euler step's Jacobian at the nominal point
     with its flat-output entries set to σ (the `scheduled` predictor; docs/mathematics.md
     section 3). L(σ) is a closed form of the m numbers σ: whoever evaluates it differentiates
-    nothing. Φ(σ₀) = Φ₀ at the nominal outputs σ₀."""
+    nothing. Φ(σ₀) = Φ₀ at the nominal outputs σ₀. With disturbance states (H of the extended
+    state, `augmented`) L(σ) has zero columns for them, as L₀ has: they enter through B_c, which
+    A carries, and F + G u does not read them."""
     point = ca.SX(ca.DM(H.zeta0))
     for j, c in enumerate(flat.chains):
         point[c.offset] = sigma[j]
     L = remainder_function(flat)(point, ca.DM(H.u0), p)[1]
+    L = ca.horzcat(L, ca.SX(flat.m, len(H.A) - flat.n))
     return constant(H.E) + ca.mtimes(constant(H.G1), L - constant(H.L0))
 
 

@@ -22,8 +22,9 @@ the same increment and E, U of the extended A (sampling.augmented).
 The scheduled predictor (`--predictor scheduled`) takes w = (u, σ) where the held one takes u:
 the same mean with w[:m], and the covariance by Φ(σ) = Φ₀ + Γ₁ (L(σ) - L₀)
 (sampling.scheduled_transition_sx) at the master's broadcast flat outputs σ = w[m:], absolute
-(the centre does not enter). Φ(σ) is dense where Φ₀ has structural zeros in the heads' columns,
-so its kernels stay straight-line (no `node_predict_loop`).
+(the centre does not enter); with disturbance states, Φ(σ) of the extended state. Φ(σ) is dense
+where Φ₀ has structural zeros in the heads' columns, so its kernels stay straight-line (no
+`node_predict_loop`).
 """
 
 from __future__ import annotations
