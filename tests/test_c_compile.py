@@ -51,6 +51,8 @@ VARIANTS = {
     "dc-float-disturbance": ("dc_motor_link", {"precision": "float", "disturbance": "random_walk"}),
     "arm-double-gauss-markov": ("two_link_arm", {"disturbance": "gauss_markov", "tau": 0.5}),
     "arm-float-integrated": ("two_link_arm", {"precision": "float", "disturbance": "integrated_random_walk"}),
+    "arm-float-scheduled-walk": ("two_link_arm", {"precision": "float", "predictor": "scheduled",
+                                                  "disturbance": "random_walk"}),
     "arm-double": ("two_link_arm", {}),
     "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
