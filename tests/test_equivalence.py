@@ -72,10 +72,8 @@ SCHEDULED = [Case("dc_motor_link", "replay", "difference", "sinusoid", 2, predic
              Case("two_link_arm", "replay", "ci", "sinusoid", 3, predictor="scheduled"),
              Case("dc_motor_link", "replay", "paper", "seesaw", 4, max_lag=16, uplink=(0.5, 6, 0.1),
                   sensor_drop=0.1, predictor="scheduled")]
-# DIAGONAL[7] (two_link_arm, replay, CI, held) in double only: in float its CI master is 2.2e-4
-# from the reference at one step (step 4; every other step <= 3e-5), over the 1e-4 budget: an open
-# item of the held predictor; its chapter's twin CHAPTER[5] runs in float
-# SCHEDULED[2] (the arm's CI master) likewise: 1.09e-4 at step 4 in float (measured), that open item.
+# DIAGONAL[7] and SCHEDULED[2] (the arm's CI master) in float: test_float_ci_where_single_precision_loses_digits
+CI_FLOAT = [DIAGONAL[7], SCHEDULED[2]]
 FLOAT = [GRID[2], *DIAGONAL[:7], *DIAGONAL[8:11], LOSSY[1], *CHAPTER, *SCHEDULED[:2], SCHEDULED[3]]
 
 DOUBLE_RUNS = [(c, "double") for c in GRID + DIAGONAL + LOSSY + CHAPTER + SCHEDULED]
@@ -102,6 +100,27 @@ def test_float_equals_reference(store, run):
     single precision costs, accumulated over 2000 steps."""
     errors = check(store, *run)
     verify.check(errors)
+
+
+@pytest.mark.parametrize("case", CI_FLOAT, ids=str)
+def test_float_ci_where_single_precision_loses_digits(store, case):
+    """The arm's covariance-intersection master in float sits at the float budget (master P
+    7.6e-5 held, 1.09e-4 scheduled, at the first steps, where the weights are chosen on the
+    widest P), and a second single-precision implementation lands as far: the reference's own
+    nodes and master in float32 (numpy and LAPACK, verify.float32_reference_errors) measured
+    7.9e-5 and 9.4e-5. So each node and master signal is within the float budget (1e-4) or within
+    3x that implementation's distance from the float64 reference (verify's yardstick: two
+    single-precision roundings of one computation are alike in size, measured 0.96x and 1.16x on
+    the master); u, v and the late frames within their own tolerances, and the twin itself must
+    lose digits (above 3e-5 on the master), else the case belongs in FLOAT."""
+    rec = store.recording(case)
+    errors = verify.compare_run(store.library(case, "float").run(rec), rec, "float")
+    twin = {e.signal: e.worst for e in verify.float32_reference_errors(rec)}
+    print(f"\n{case}: float C / float32 numpy, distance from the float64 reference")
+    for e in errors:
+        print(f"  {e.signal:12s} {e.worst:.1e} / {twin.get(e.signal, 0.0):.1e}")
+        assert e.ok or ("." in e.signal and e.worst <= 3 * twin[e.signal]), e.signal
+    assert max(twin["master.x"], twin["master.P"]) > 3e-5, "the twin keeps its digits: test the case in FLOAT"
 
 
 def test_retrodict_where_it_is_ill_conditioned(store):
