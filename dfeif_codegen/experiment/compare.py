@@ -51,6 +51,8 @@ OFFSETS = "offsets"
 SCHEDULED = "scheduled"
 # the filters whose predict takes what the master broadcasts besides u (`model.input`)
 BROADCAST = (OFFSETS, SCHEDULED)
+# the filters that carry the run's disturbance states (the offset filter has its own extension)
+WITH_DISTURBANCE = ("df", SCHEDULED)
 KINDS = (*CANONICAL, OFFSETS, SCHEDULED, *FILTERS)
 
 
@@ -211,6 +213,6 @@ def operations(spec: str, ts: float, q, substeps: int = 10, kinds=("df", *FILTER
     cost beside the measured CPU time."""
     q = tuple(np.asarray(q, float))
     return {kind: filter_of(spec, float(ts), q, substeps, own_kind(kind, predictor), predictor=predictor,
-                            disturbance=disturbance if kind in ("df", SCHEDULED) else None,
+                            disturbance=disturbance if kind in WITH_DISTURBANCE else None,
                             offsets=offsets if kind == OFFSETS else None).operations()
             for kind in kinds}

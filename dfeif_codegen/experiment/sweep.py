@@ -96,7 +96,7 @@ def one(cfg: ex.Config, engine: Engine, codes: dict, series, kind: str = "df"):
     if kind != "df":
         from dfeif_codegen.experiment import compare
         base = kind.split("-")[0]      # the derivative-free filter with the run's disturbance states
-        m = compare.evaluate(res, base, disturbance=cfg.disturbance if base in ("df", compare.SCHEDULED) else None,
+        m = compare.evaluate(res, base, disturbance=cfg.disturbance if base in compare.WITH_DISTURBANCE else None,
                              offsets=cfg.offsets if base == compare.OFFSETS else None)
         return (m["failed"] if "failed" in m else m), None
     return res.metrics, (series(res) if series else None)

@@ -47,7 +47,7 @@ class ScheduledModel(CanonicalMaps):
         H, m = pred.H, flat.m                           # with the point L₀ was taken at
         self.n, self.m, self.ts, self.canonical_n = len(H.A), m, float(ts), flat.n
         self.disturbance, self.inputs = disturbance, 2 * m
-        self.outputs_at = np.array([c.offset for c in flat.chains])     # σ's entries in ζ
+        self.outputs_at = np.array(flat.heads)                          # σ's entries in ζ
         self.angle_out = np.array([c.angle for c in flat.chains])
         x, w = ca.SX.sym("x", self.n), ca.SX.sym("w", self.inputs)
         p = ca.DM(flat.param_vector)
