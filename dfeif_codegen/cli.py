@@ -69,10 +69,10 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
     _filter_options(p)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
     p.add_argument("--disturbance", metavar="KIND", default=None,
-                   help="random_walk, gauss_markov or integrated_random_walk (d and its rate): disturbance states "
-                        "per chain after the canonical state; their densities follow the chains' in q (held only)")
+                   help="random_walk, gauss_markov, integrated_random_walk or integrated_gauss_markov (d and its rate):"
+                        " disturbance states per chain after the canonical state; densities after the chains' q")
     p.add_argument("--tau", type=float, default=None, metavar="S",
-                   help="the gauss_markov disturbance's time constant [s]")
+                   help="the gauss_markov disturbance's (integrated_gauss_markov: its rate's) time constant [s]")
     p.add_argument("--check", action="store_true",
                    help="write nothing: exit 0 if DIR/<model> equals a fresh build, 1 (listing the files) if "
                         "stale, 2 if missing")
@@ -204,9 +204,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--phase", metavar="RAD[,RAD...]", help="per flat output (default: from --shape)")
     p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
     p.add_argument("--disturbance", metavar="KIND", default=None,
-                   help="random_walk, gauss_markov, integrated_random_walk or auto (the more accurate of the "
-                        "first and the third, measured): add disturbance states and calibrate their densities")
-    p.add_argument("--tau", type=float, default=None, metavar="S", help="the Gauss-Markov time constant [s]")
+                   help="random_walk, gauss_markov, integrated_random_walk, integrated_gauss_markov or auto (the "
+                        "more accurate of the first and the third, measured): add disturbance states, calibrated")
+    p.add_argument("--tau", type=float, default=None, metavar="S", help="the (rate's) Gauss-Markov time constant [s]")
     p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
                    help="calibrate against a plant with that model error (as simulate's), and write it")
     p.add_argument("--offsets", default=None, metavar="NAME[,NAME...]",

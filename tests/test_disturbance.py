@@ -68,6 +68,33 @@ def test_integrated_random_walk_block_is_its_closed_form():
     assert np.allclose(np.diag(P0)[n:], [3.0 / 3, 3.0], rtol=1e-15) and x0.shape == (n + 2,)
 
 
+@pytest.mark.parametrize("tau", [0.05, 0.3])
+def test_integrated_gauss_markov_block_is_its_closed_form(tau):
+    """d̈ = -ḋ/tau + w (a = 1/tau): the disturbance block of Φ₀ is [[1, (1 - e^{-a Ts})/a], [0,
+    e^{-a Ts}]] and its noise the integrals over one period of the impulse responses (1 -
+    e^{-a t})/a of d and e^{-a t} of the rate, times q; the default start has the rate's
+    stationary spread q tau/2. A second method: at tau = 1e6 s the block is the integrated
+    random walk's to the limit's first order (a Ts = 1e-8)."""
+    flat = flat_system("dc_motor_link")
+    q, a, T, n = 3.0, 1.0 / tau, TS, flat.n
+    H = sampling.held_sampling(flat, TS, disturbance=Disturbance("integrated_gauss_markov", (q,), tau))
+    e1, e2 = -np.expm1(-a * T), -np.expm1(-2 * a * T)     # 1 - e^{-aT}, 1 - e^{-2aT} without cancelling
+    # the extended exponential by scaling and squaring of a matrix with a fast mode (|A Ts| ~ 150):
+    # 1e-11 of its norm on any IEEE machine, as in the tests above
+    assert np.abs(H.E[n:, n:] - [[1.0, e1 / a], [0.0, 1.0 - e1]]).max() < 1e-11 * np.abs(H.E).max()
+    want = q * np.array([[(T - 2 * e1 / a + e2 / (2 * a)) / a ** 2, (e1 - e2 / 2) / a ** 2],
+                         [(e1 - e2 / 2) / a ** 2, e2 / (2 * a)]])
+    # Q by Van Loan's exponential against the closed form: its d entry (q T³/3 ~ 1e-6 against the
+    # 1-scale block) cancels ~ 1e4 of the closed form's terms, ~ 1e-12 relative on IEEE doubles
+    assert np.abs(H.Q(0.0, q)[n:, n:] - want).max() < 1e-9 * want.max()
+    assert abs(H.Q(0.0, q)[n, n] - want[0, 0]) < 1e-8 * want[0, 0]
+    _, P0 = augment(np.zeros(n), np.eye(n), Disturbance("integrated_gauss_markov", (q,), tau), 1)
+    assert np.allclose(np.diag(P0)[n:], [q / 3, q * tau / 2], rtol=1e-15)
+    walk = sampling.held_sampling(flat, TS, disturbance=Disturbance("integrated_random_walk", (q,)))
+    slow = sampling.held_sampling(flat, TS, disturbance=Disturbance("integrated_gauss_markov", (q,), 1e6))
+    assert np.abs(slow.E - walk.E).max() < 1e-7 and np.abs(slow.Q(0.0, q) - walk.Q(0.0, q)).max() < 1e-7 * q * TS
+
+
 def _biased_run(flat, bias, dist, steps=1500, seed=4, ramp=0.0):
     """A node filter on a plant whose input is u + bias (the model's u without it); returns the
     filter's estimates and the truth per step."""
@@ -136,6 +163,8 @@ def test_integrated_random_walk_follows_a_ramping_input_offset_that_the_random_w
     ('kind = "gauss_markov"\nq = 1.0\ntau = 0', "disturbance.tau: the Gauss-Markov time constant must be"),
     ('kind = "gauss_markov"\nq = 1.0\ntau = -2.0', "disturbance.tau: the Gauss-Markov time constant must be"),
     ('kind = "gauss_markov"\nq = 1.0', "disturbance.tau"),
+    ('kind = "integrated_gauss_markov"\nq = 1.0', "disturbance.tau: the Gauss-Markov time constant must be"),
+    ('kind = "integrated_random_walk"\nq = 1.0\ntau = 1.0', "disturbance.tau: applies to kind"),
     ('kind = "walk"\nq = 1.0', "disturbance.kind: must be one of random_walk, gauss_markov, integrated_random_walk"),
     ('kind = "integrated_random_walk"\nq = 0.0', "disturbance.p0_std: needed when a density"),
     ('kind = "random_walk"\nq = 1.0\ntau = 1.0', "disturbance.tau: applies to kind"),

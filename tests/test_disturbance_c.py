@@ -23,7 +23,7 @@ GRID = '[[grid]]\nd = [4, 6]\np = 0.8\n'
 def scenario(tmp_path: Path, kind: str, chains: int, q: float = 1.0, extra: str = "") -> str:
     qs = ", ".join([repr(q)] * chains)
     text = GRID + NODES.get(chains, "") + f'\n[disturbance]\nkind = "{kind}"\nq = [{qs}]\n' + extra
-    if kind == "gauss_markov":
+    if kind in ("gauss_markov", "integrated_gauss_markov"):
         text += "tau = 0.5\n"
     path = tmp_path / "dist.toml"
     path.write_text(text)
@@ -35,7 +35,9 @@ CASES = [("dc_motor_link", "random_walk", 1, "double"), ("dc_motor_link", "rando
          (str(DATA / "planar_arm3.toml"), "random_walk", 3, "double"),
          ("dc_motor_link", "integrated_random_walk", 1, "double"),
          ("dc_motor_link", "integrated_random_walk", 1, "float"),
-         ("two_link_arm", "integrated_random_walk", 2, "double")]
+         ("two_link_arm", "integrated_random_walk", 2, "double"),
+         ("two_link_arm", "integrated_gauss_markov", 2, "double"),
+         ("dc_motor_link", "integrated_gauss_markov", 1, "float")]
 # a user model without [measurement]: its cameras' noise per flat output, as a user writes it
 NODES = {3: "[[nodes]]\nnoise_std = [0.002, 0.002, 0.002]\n\n[[nodes]]\nnoise_std = [0.0025, 0.0025, 0.0025]\n"}
 
@@ -93,6 +95,8 @@ def _without_disturbance(path: str, tmp_path: Path) -> str:
     (dict(disturbance="random_walk", tau=0.5), ["--tau", "gauss_markov"]),
     (dict(disturbance="gauss_markov"), ["--tau", "> 0"]),
     (dict(disturbance="gauss_markov", tau=-1.0), ["--tau", "> 0"]),
+    (dict(disturbance="integrated_gauss_markov"), ["--tau", "> 0"]),
+    (dict(disturbance="integrated_random_walk", tau=0.5), ["--tau", "integrated_gauss_markov only"]),
     (dict(tau=0.5), ["--tau", "gauss_markov"]),
 ])
 def test_bad_disturbance_options_are_refused_before_any_work(options, words):

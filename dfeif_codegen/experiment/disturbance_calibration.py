@@ -22,7 +22,7 @@ import numpy as np
 from dfeif_codegen.experiment import compare
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.symbolic.disturbance import KINDS, Disturbance
+from dfeif_codegen.symbolic.disturbance import KINDS, TIMED, Disturbance
 
 FLOOR = 1e-6
 
@@ -99,14 +99,14 @@ def from_options(kind: str | None, tau: float | None) -> Disturbance | None:
     """--disturbance KIND [--tau S], checked before any work."""
     if kind is None:
         if tau is not None:
-            raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+            raise ScenarioError("--tau: applies to --disturbance gauss_markov or integrated_gauss_markov only")
         return None
     if kind not in (*KINDS, AUTO):
         raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(KINDS)}, or auto (the calibration "
                             "measures random_walk against integrated_random_walk)")
-    if kind == "gauss_markov":
+    if kind in TIMED:
         if tau is None or not math.isfinite(tau) or tau <= 0:
-            raise ScenarioError(f"--tau {tau}: --disturbance gauss_markov needs a time constant > 0 [s]")
+            raise ScenarioError(f"--tau {tau}: --disturbance {kind} needs a time constant > 0 [s]")
     elif tau is not None:
-        raise ScenarioError("--tau: applies to --disturbance gauss_markov only")
+        raise ScenarioError("--tau: applies to --disturbance gauss_markov or integrated_gauss_markov only")
     return Disturbance(kind, (1.0,), tau)

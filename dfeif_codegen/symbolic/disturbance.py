@@ -4,9 +4,12 @@ so that what the model gets wrong (a parameter, an unmodelled force) is estimate
 biasing the chain. `random_walk`: ḋ = w; `gauss_markov`: ḋ = -d / tau + w (first order);
 `integrated_random_walk`: d̈ = w, a second state per chain for its rate ḋ (after the m d's),
 so that an error that drifts as the state moves (the motor's m g l sin θ / J under a wrong
-mass) is followed without the random walk's lag; w white with density q_i per chain. Only the
-held predictor carries them (its transition is the exponential of the augmented A; the
-Brunovsky chain has no place for them).
+mass) is followed without the random walk's lag; `integrated_gauss_markov`: d̈ = -ḋ / tau + w,
+the integrated walk whose rate forgets over tau, so that through a gap in the measurements the
+predicted d stops ramping after about tau instead of extrapolating its last rate for the whole
+gap; w white with density q_i per chain. Only the held and scheduled predictors carry them
+(their transition is the exponential of the augmented A; the Brunovsky chain has no place for
+them).
 """
 
 from __future__ import annotations
@@ -17,7 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-KINDS = ("random_walk", "gauss_markov", "integrated_random_walk")
+KINDS = ("random_walk", "gauss_markov", "integrated_random_walk", "integrated_gauss_markov")
+SECOND_ORDER = ("integrated_random_walk", "integrated_gauss_markov")     # d and its rate per chain
+TIMED = ("gauss_markov", "integrated_gauss_markov")                      # with a time constant tau
 KEYS = {"kind", "q", "tau", "p0_std"}
 
 
@@ -25,38 +30,41 @@ KEYS = {"kind", "q", "tau", "p0_std"}
 class Disturbance:
     kind: str
     q: tuple                 # density per chain (1 value: every chain)
-    tau: float | None = None     # Gauss-Markov time constant [s]
+    tau: float | None = None     # Gauss-Markov time constant [s] (of d, or of its rate)
     p0_std: tuple | None = None  # initial std per chain (integrated walk: of d, or of d then its
                                  # rate); None: the stationary one (Gauss-Markov) or the spread one
                                  # second of the walk gathers (initial_std)
 
     @property
     def order(self) -> int:
-        """Disturbance states per chain: d, and its rate for the integrated random walk."""
-        return 2 if self.kind == "integrated_random_walk" else 1
+        """Disturbance states per chain: d, and its rate for the integrated kinds."""
+        return 2 if self.kind in SECOND_ORDER else 1
 
     def densities(self, m: int) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.q, dtype=float), (m,)).copy()
 
     def drift(self, m: int) -> np.ndarray:
         """ḋ = D d over the order * m disturbance states: 0 for the random walk, -1/tau for
-        Gauss-Markov, and for the integrated random walk each d driven by its rate."""
+        Gauss-Markov; for the integrated kinds each d driven by its rate, the rate's own -1/tau
+        (integrated Gauss-Markov) or 0 (integrated random walk)."""
+        decay = np.eye(m) * (-1.0 / self.tau if self.kind in TIMED else 0.0)
         if self.order == 2:
-            return np.block([[np.zeros((m, m)), np.eye(m)], [np.zeros((m, 2 * m))]])
-        return np.eye(m) * (-1.0 / self.tau if self.kind == "gauss_markov" else 0.0)
+            return np.block([[np.zeros((m, m)), np.eye(m)], [np.zeros((m, m)), decay]])
+        return decay
 
     def initial_std(self, m: int) -> np.ndarray:
         """The order * m states' initial std: p0_std when given (the integrated random walk's:
         the d's, or the d's then the rates'), otherwise the spread the density gathers (over
         tau / 2 for Gauss-Markov, 1 s else: d ~ sqrt(q) for the random walk; for the integrated
-        one, its rate sqrt(q) and d sqrt(q / 3), the integrals of a white d̈ over 1 s)."""
+        ones, d sqrt(q / 3) and its rate sqrt(q), the integrals of a white d̈ over 1 s, or the
+        rate's stationary sqrt(q tau / 2) when it forgets over tau)."""
         q = self.densities(m)
         given = None if self.p0_std is None else np.asarray(self.p0_std, dtype=float)
         if self.order == 2:
             if given is not None and len(given) == 2 * m:
                 return given.copy()
             d = np.sqrt(q / 3) if given is None else np.broadcast_to(given, (m,))
-            return np.concatenate([d, np.sqrt(q)])
+            return np.concatenate([d, np.sqrt(q * (self.tau / 2 if self.kind in TIMED else 1.0))])
         if given is not None:
             return np.broadcast_to(given, (m,)).copy()
         span = self.tau / 2 if self.kind == "gauss_markov" else 1.0
@@ -113,12 +121,12 @@ def from_table(table: dict, fail) -> Disturbance:
         fail("disturbance.kind", f"must be one of {', '.join(KINDS)}, got {kind!r}")
     q = numbers(table.get("q"), "disturbance.q", fail, allow_zero=True)
     tau = table.get("tau")
-    if kind == "gauss_markov":
+    if kind in TIMED:
         if not finite_number(tau) or tau <= 0:
             fail("disturbance.tau", f"the Gauss-Markov time constant must be a number > 0 [s], got {tau!r}")
         tau = float(tau)
     elif tau is not None:
-        fail("disturbance.tau", "applies to kind = \"gauss_markov\" only")
+        fail("disturbance.tau", "applies to kind = \"gauss_markov\" or \"integrated_gauss_markov\" only")
     p0 = numbers(table["p0_std"], "disturbance.p0_std", fail, allow_zero=False) if "p0_std" in table else None
     if p0 is None and 0.0 in q:
         # the default initial spread is the one the density gathers: none for q = 0, which would
