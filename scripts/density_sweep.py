@@ -2,9 +2,9 @@
 same recordings (docs/experiment.md, "The comparison under model error"). Loops closed by the
 held filter with the scenario's q and [disturbance] (what `codegen simulate` runs), on a plant
 whose parameters are drawn per seed; on each recording the EKF at the scenario's q_ekf and the
-held filter re-run with each variant KIND:FACTOR (the scenario's densities times FACTOR, of
-kind KIND). Prints, per delay row, the master RMSE over the EKF's (per seed, then averaged) and
-the master NEES. Why: which densities the calibration should land on is a question of accuracy
+held filter re-run with each variant KIND:FACTOR[:TAU] (the scenario's densities times FACTOR,
+of kind KIND, with time constant TAU or the scenario's). Prints, per delay row, the master RMSE
+over the EKF's (per seed, then averaged) and the master NEES. Why: which densities the calibration should land on is a question of accuracy
 as much as of NEES, and re-filtering one set of loops answers it without closing new ones.
 Usage:
 
@@ -22,7 +22,17 @@ import numpy as np
 
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import compare, model_error, plan, scenario
-from dfeif_codegen.symbolic.disturbance import Disturbance
+from dfeif_codegen.symbolic.disturbance import KINDS, TIMED, Disturbance
+
+
+def variant(dist: Disturbance, text: str) -> Disturbance:
+    """KIND:FACTOR[:TAU]: the scenario's densities times FACTOR, of kind KIND, with the time
+    constant TAU (a timed kind's; default the scenario's own)."""
+    kind, factor, *tau = text.split(":")
+    if kind == dist.kind and not tau:
+        return dist.scaled(float(factor))
+    tau = float(tau[0]) if tau else (dist.tau if kind in TIMED else None)
+    return Disturbance(kind, tuple(float(v) * float(factor) for v in dist.q), tau if kind in TIMED else None)
 
 
 def one(job) -> dict:
@@ -34,9 +44,7 @@ def one(job) -> dict:
     res = ex.run(cfg)
     out = {"ekf": compare.evaluate(res, "ekf")}
     for v in a.variants.split(","):
-        kind, factor = v.split(":")
-        dist = Disturbance(kind, tuple(np.asarray(sc.disturbance.q) * float(factor)), sc.disturbance.tau)
-        out[v] = compare.evaluate(res, "df", disturbance=dist)
+        out[v] = compare.evaluate(res, "df", disturbance=variant(sc.disturbance, v))
     return {k: None if "failed" in m else (np.asarray(m["rmse_master"]), float(np.mean(m["nees_master"])))
             for k, m in out.items()}
 
@@ -51,7 +59,16 @@ def main() -> None:
     ap.add_argument("--variants", default="random_walk:1,random_walk:0.5,integrated_random_walk:10")
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args()
-    rows = range(len(scenario.load(a.scenario).grid)) if a.rows is None else [int(r) for r in a.rows.split(",")]
+    sc = scenario.load(a.scenario)
+    if sc.disturbance is None:
+        ap.error(f"--scenario {a.scenario}: has no [disturbance] (codegen scenario --disturbance KIND)")
+    for v in a.variants.split(","):
+        kind, *rest = v.split(":")
+        if kind not in KINDS or len(rest) not in (1, 2):
+            ap.error(f"--variants {v}: KIND:FACTOR[:TAU], KIND one of {', '.join(KINDS)}")
+        if kind in TIMED and len(rest) == 1 and sc.disturbance.tau is None:
+            ap.error(f"--variants {v}: {kind} needs a time constant: {v}:TAU")
+    rows = range(len(sc.grid)) if a.rows is None else [int(r) for r in a.rows.split(",")]
     jobs = [(a, s, r) for r in rows for s in range(a.runs)]
     with multiprocessing.Pool(a.workers) as pool:
         results = pool.map(one, jobs)

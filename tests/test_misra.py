@@ -92,3 +92,13 @@ def test_a_finding_in_an_owned_file_is_caught(tmp_path, suffix, probe, rule):
     at = text.rindex("#endif") if suffix.endswith(".h") else len(text)
     path.write_text(text[:at] + probe + text[at:])
     assert any(f.rule == rule and f.file == path.name for f in misra.findings(mod.path, mod.name))
+
+
+def test_help_prints_usage_and_writes_no_file(tmp_path, monkeypatch, capsys):
+    """`python -m dfeif_codegen.check.misra --help` once wrote the report to a file named
+    `--help`: the one argument is the report's path, an option is not."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as done:
+        misra.main(["--help"])
+    assert done.value.code == 0 and "usage:" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []

@@ -64,3 +64,28 @@ def test_poles_are_slowed_until_the_corner_holds(tmp_path):
         cli.main(["simulate", "dc_motor_link", "--scenario", str(path), "--runs", "2", "--json", str(out)])
         lost[poles] = len(json.loads(out.read_text())["failures"])
     assert lost == {10: 2, 7: 0}, lost
+
+
+def test_where_no_pole_holds_the_fewest_lost_corners_are_kept(monkeypatch):
+    """No pole tried holds every corner: of the four tried (10, 7, 4.9, 3.43) the check keeps
+    those that lose the fewest corners, the fastest among equals, and its WARNING gives each
+    one's count. The loops are stood in for (first_loss): corner 0 is lost above 5 rad/s,
+    corner 1 at every pole, corner 2 only at 10."""
+    from dfeif_codegen.experiment import model_error
+
+    def first_loss(configs):
+        for i, cfg in enumerate(configs):
+            p, corner = cfg.poles[0], cfg.seed
+            if (corner == 0 and p > 5) or corner == 1 or (corner == 2 and p == 10):
+                return i, "diverged (stood in)"
+        return None
+
+    monkeypatch.setattr(pole_margin, "first_loss", first_loss)
+    error = model_error.from_option("m=0.2")
+    errors = [error, error, error]
+    monkeypatch.setattr(model_error.ParamError, "corners", lambda self, model: errors)
+    config = lambda j: ex.Config(model="dc_motor_link", seed=j, poles=(10.0,))  # noqa: E731
+    poles, log = pole_margin.hold(config, [10.0], error, None, (ex.Link(0.6, 25), ex.Link(0.6, 30)), ["start"])
+    assert poles == [4.9]
+    assert log[-1].startswith(pole_margin.WARNING)
+    assert "corners lost of 3: [10] 3, [7] 2, [4.9] 1, [3.43] 1; [4.9] kept" in log[-1]

@@ -160,8 +160,9 @@ def test_refuses_to_overwrite_a_foreign_file(tmp_path, capsys):
 
 def test_disturbance_densities_put_the_held_filters_nees_in_its_band(tmp_path):
     """`--disturbance random_walk --param-error 0.2`: with the written q and disturbance densities
-    the held filter (run on recordings of loops the Brunovsky filter closes, as the calibration
-    does) has a master NEES, averaged over 8 seeds the calibration did not use, inside the 95%
+    the held filter (run on recordings of loops the Brunovsky filter closes, as the calibration's
+    first match does; the second, on the held filter's own loops, tests/test_disturbance_calibration.py)
+    has a master NEES, averaged over 8 seeds the calibration did not use, inside the 95%
     band of 8 runs or at most twice its top (issue 22's target under model error: each seed draws
     other parameters, and one run's NEES ranges 1.6-21 on the motor), where the same filter
     without the disturbance states is far above it (the model error is not white noise on the

@@ -8,6 +8,7 @@ built-in models (regenerate it with `python -m dfeif_codegen.check.misra docs/mi
 
 from __future__ import annotations
 
+import argparse
 import re
 import shutil
 import subprocess
@@ -154,15 +155,17 @@ def main(argv: list[str] | None = None) -> int:
     """Build the built-in models in a temporary folder and print (or write) the report."""
     from dfeif_codegen.codegen import build
 
-    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(prog="python -m dfeif_codegen.check.misra", description=__doc__.split("\n\n")[0])
+    ap.add_argument("out", nargs="?", help="the report's file (default: standard output)")
+    args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         modules = {}
         for i, (label, (model_name, opts)) in enumerate(VARIANTS.items()):
             mod = build.build(model_name, Path(tmp) / str(i), **opts)
             modules[label] = (mod.path, mod.name)
         text = report(modules, cppcheck_version())
-    if argv:
-        Path(argv[0]).write_text(text)
+    if args.out:
+        Path(args.out).write_text(text)
     else:
         sys.stdout.write(text)
     return 0

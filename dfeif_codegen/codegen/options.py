@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from dfeif_codegen.errors import CodegenError
-from dfeif_codegen.symbolic.disturbance import KINDS as DISTURBANCES, TIMED, Disturbance
+from dfeif_codegen.symbolic.disturbance import KINDS as DISTURBANCES, TAU_ONLY_TIMED, TIMED, Disturbance
 from dfeif_codegen.symbolic.sampling import PREDICTORS, for_method
 
 MAX_LAG_LIMIT = 4096
@@ -73,7 +73,7 @@ class Options:
         kind, tau = self.disturbance, self.tau
         if kind is None:
             if tau is not None:
-                raise BuildError("--tau applies to --disturbance gauss_markov or integrated_gauss_markov only")
+                raise BuildError(TAU_ONLY_TIMED)
             return
         if kind not in DISTURBANCES:
             raise BuildError(f"--disturbance must be one of {', '.join(DISTURBANCES)}, got {kind!r}")
@@ -86,7 +86,7 @@ class Options:
                 raise BuildError(f"--tau must be the {kind} time constant in seconds, > 0, got {tau!r}")
             object.__setattr__(self, "tau", float(tau))
         elif tau is not None:
-            raise BuildError("--tau applies to --disturbance gauss_markov or integrated_gauss_markov only")
+            raise BuildError(TAU_ONLY_TIMED)
 
     @property
     def holds_u(self) -> bool:

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from dfeif_codegen.experiment import disturbance_calibration
+from dfeif_codegen.experiment import disturbance_calibration, pole_margin
 from dfeif_codegen.symbolic.disturbance import Disturbance
 
 CANDIDATES = ("random_walk", "integrated_random_walk")
@@ -58,7 +58,7 @@ def choose(flat, q, loops: list, match, tol: float, log: list[str], hold):
     for i in order:
         qk, lines, dk = tried[i]
         poles, out = hold(qk, dk, log + lines)
-        if not out[-1].startswith("WARNING:"):
+        if not out[-1].startswith(pole_margin.WARNING):
             if first is not None:
                 out.append(f"disturbance kind: {CANDIDATES[i]} instead: with {CANDIDATES[order[0]]} no pole tried "
                            "held the error's corners, with it they hold")

@@ -190,9 +190,8 @@ def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offs
     q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:]), q)
     log.append(f"along the closed loop: q = {_fmt(held)} (held), {_fmt(q)} (the loop's filter)")
     held, log = _white_q(flat, held * np.min(q / held), config, seed, log, say)
-    # a model error drawn per run makes each run's NEES another (1.1 to 12.6 between the 5%
-    # and 95% points at 5% on the motor): the draw's orthogonal-array design stands in for
-    # it (model_error.ParamError.design), the fixed model takes its two runs
+    # a drawn model error makes each run's NEES another (motor, 5%: 1.1 to 12.6 between the 5% and 95%
+    # points): the draw's orthogonal-array design stands in for it (ParamError.design)
     drawn = cfg.plant_error.draw != "none"
     errors = cfg.plant_error.design(flat.model) if drawn else [cfg.plant_error] * NEES_RUNS
     seeds = [seed + i for i in range(len(errors))]
@@ -200,15 +199,16 @@ def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offs
     loops = [ex.run(dataclasses.replace(config(q, s, NEES_SECONDS), plant_error=e))
              for s, e in zip(seeds, errors)]
     match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, progress=say)  # noqa: E731
-    hold = lambda qq, d, lg: pole_margin.hold(  # noqa: E731
+    hold = lambda qq, d, lg, start=tuple(poles): pole_margin.hold(  # noqa: E731  (from the scenario's poles)
         lambda j: dataclasses.replace(config(qq, seed + j, NEES_SECONDS), predictor="held", disturbance=d),
-        poles, cfg.plant_error, flat.model, delays, lg, progress=say)
-    say(f"disturbance densities ({dist.kind}): scaled until the held filter's NEES on those loops is n")
+        start, cfg.plant_error, flat.model, delays, lg, progress=say)
+    say(f"disturbance densities ({dist.kind}): scaled until the held filter's NEES on those loops, then on its own, is n")
     if dist.kind == disturbance_calibration.AUTO:
         held, log, dist, poles = disturbance_choice.choose(flat, held, loops, match, NEES_TOL, log, hold)
     else:
         held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
         poles, log = hold(held, dist, log)
+    dist, poles, log = disturbance_calibration.settle(flat, held, dist, poles, hold, config, errors, seeds, log, say)
     if offsets is not None:     # a reference filter that closes no loop here: no floor
         say("the offset filter's chains: q scaled until its NEES on those loops is n")
         free = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, floor=None, progress=say)  # noqa: E731

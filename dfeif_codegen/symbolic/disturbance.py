@@ -23,6 +23,7 @@ import numpy as np
 KINDS = ("random_walk", "gauss_markov", "integrated_random_walk", "integrated_gauss_markov")
 SECOND_ORDER = ("integrated_random_walk", "integrated_gauss_markov")     # d and its rate per chain
 TIMED = ("gauss_markov", "integrated_gauss_markov")                      # with a time constant tau
+TAU_ONLY_TIMED = "--tau: applies to --disturbance " + " or ".join(TIMED) + " only"   # the one wording
 KEYS = {"kind", "q", "tau", "p0_std"}
 
 
