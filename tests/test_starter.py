@@ -179,6 +179,8 @@ def test_disturbance_densities_put_the_held_filters_nees_in_its_band(tmp_path):
                      "--offsets", "R,k_e,m", "--out", str(out)]) == 0
     sc = scenario.load(str(out))
     assert sc.disturbance.kind == "random_walk" and sc.model_error.active
+    # the d's initial spread: their size on the calibration loops, below the default sqrt(q_d)
+    assert len(sc.disturbance.p0_std) == 1 and 0 < sc.disturbance.p0_std[0] < np.sqrt(sc.disturbance.q[0])
     assert sc.offsets.params == ("R", "k_e", "m") and sc.offsets.q == 0.0
     assert np.allclose(sc.offsets.std, 0.2 / np.sqrt(3.0), rtol=1e-3)     # written to 4 digits
     assert len(sc.offsets.chains_q) == 1 and sc.offsets.chains_q[0] > 0

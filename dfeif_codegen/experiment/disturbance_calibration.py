@@ -10,7 +10,14 @@ same data an EKF is judged on). Its q stays the one-step residual's; the densiti
 white noise on the top derivatives does not describe (a wrong parameter, the coloured part of
 the residual). If the NEES is at or below n already with negligible densities (1e-6 q: the
 model explains the data), q is scaled instead and the densities stay at that floor.
-"""
+
+The d's initial spread (the scenario's `p0_std` in `[disturbance]`) is their size on the same
+loops: the root mean square of what the held model misses on each chain's top derivative (the
+one-step residual over Ts, first_guess). The default, the spread the density gathers in a second,
+is far larger at the densities a drifting error needs (arm +-20%, integrated Gauss-Markov: 3,500
+against 512 per chain), and that prior leaves the master's first information differences so
+ill-conditioned that the C drifts 1.5e-9 from the reference where the budget is 1e-10 (1.0e-11
+with the measured spread)."""
 
 from __future__ import annotations
 
@@ -85,7 +92,10 @@ def densities(flat, q, loops: list, dist: Disturbance, match, tol: float, log: l
         q, log = match(q, log, lambda qq: held_nees(loops, qq, floor))
         return q, log, floor
     # an integrated random walk's d spreads q T^3 / 3 in T = 1 s where a random walk's spreads q T
-    guess = first_guess(flat, loops[0].recording.ts, loops) * (3.0 if dist.order == 2 else 1.0)
+    size = first_guess(flat, loops[0].recording.ts, loops)
+    guess = size * (3.0 if dist.order == 2 else 1.0)
+    if dist.p0_std is None:     # the d's initial spread: their size on these loops (module docstring)
+        dist = Disturbance(dist.kind, dist.q, dist.tau, tuple(float(f"{v:.4g}") for v in np.sqrt(size)))
     log.append(f"disturbance q from what the held model misses on the top derivatives: {_text(guess)}")
     qd, log = match(guess, log, lambda qd: held_nees(loops, q, with_densities(dist, qd)))
     log[-1] = log[-1].replace(" at q = ", f" at q = {_text(q)}, disturbance q = ")

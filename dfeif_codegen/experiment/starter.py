@@ -190,8 +190,7 @@ def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offs
     q = np.maximum(implied_q(flat, ts, res.zeta[k0:], rec.v[k0:], rec.u[k0:]), q)
     log.append(f"along the closed loop: q = {_fmt(held)} (held), {_fmt(q)} (the loop's filter)")
     held, log = _white_q(flat, held * np.min(q / held), config, seed, log, say)
-    # a drawn model error makes each run's NEES another (motor, 5%: 1.1 to 12.6 between the 5% and 95%
-    # points): the draw's orthogonal-array design stands in for it (ParamError.design)
+    # a drawn error makes each run's NEES another: the draw's orthogonal array stands in for it (ParamError.design)
     drawn = cfg.plant_error.draw != "none"
     errors = cfg.plant_error.design(flat.model) if drawn else [cfg.plant_error] * NEES_RUNS
     seeds = [seed + i for i in range(len(errors))]
@@ -338,8 +337,9 @@ def _extra_tables(plant_error, disturbance: Disturbance | None) -> list[str]:
                   + " (run with --predictor held);",
                   "# q: their densities, scaled so that the master's NEES averages n",
                   "[disturbance]", f'kind = "{disturbance.kind}"', f"q = {toml_list(disturbance.q)}"]
-        lines += [f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []
-        lines += [""]
+        lines += ([f"tau = {disturbance.tau:g}"] if disturbance.tau is not None else []) + (
+            [f"p0_std = {toml_list(disturbance.p0_std)}   # the d's initial spread: their size on those loops"]
+            if disturbance.p0_std else []) + [""]
     return lines
 
 
