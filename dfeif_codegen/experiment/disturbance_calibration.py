@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from dfeif_codegen.experiment import compare, pole_margin
+from dfeif_codegen.experiment import compare
 from dfeif_codegen.experiment.nees_match import match_nees
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.errors import ScenarioError
