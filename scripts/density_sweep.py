@@ -3,9 +3,10 @@ same recordings (docs/experiment.md, "The comparison under model error"). Loops 
 held filter with the scenario's q and [disturbance] (what `codegen simulate` runs), on a plant
 whose parameters are drawn per seed; on each recording the EKF at the scenario's q_ekf and the
 held filter re-run with each variant KIND:FACTOR[:TAU] (the scenario's densities times FACTOR,
-of kind KIND, with time constant TAU or the scenario's). Prints, per delay row, the master RMSE
-over the EKF's (per seed, then averaged) and the master NEES. Why: which densities the calibration should land on is a question of accuracy
-as much as of NEES, and re-filtering one set of loops answers it without closing new ones.
+of kind KIND, with time constant TAU or the scenario's, and the scenario's initial spread of the
+d's). Prints, per delay row, the master RMSE over the EKF's (per seed, then averaged) and the
+master NEES. Why: which densities the calibration should land on is a question of accuracy as
+much as of NEES, and re-filtering one set of loops answers it without closing new ones.
 Usage:
 
     codegen scenario two_link_arm --disturbance random_walk --param-error 0.2 --amplitude 1,1 --offset 0,0 --out F
@@ -22,17 +23,27 @@ import numpy as np
 
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import compare, model_error, plan, scenario
-from dfeif_codegen.symbolic.disturbance import KINDS, TIMED, Disturbance
+from dfeif_codegen.symbolic.disturbance import KINDS, SECOND_ORDER, TIMED, Disturbance
 
 
-def variant(dist: Disturbance, text: str) -> Disturbance:
+def variant(dist: Disturbance, text: str, m: int) -> Disturbance:
     """KIND:FACTOR[:TAU]: the scenario's densities times FACTOR, of kind KIND, with the time
-    constant TAU (a timed kind's; default the scenario's own)."""
-    kind, factor, *tau = text.split(":")
-    if kind == dist.kind and not tau:
-        return dist.scaled(float(factor))
-    tau = float(tau[0]) if tau else (dist.tau if kind in TIMED else None)
-    return Disturbance(kind, tuple(float(v) * float(factor) for v in dist.q), tau if kind in TIMED else None)
+    constant TAU (a timed kind's; default the scenario's own) and the scenario's p0_std (for a
+    kind without rates, only the d's of a d-then-rates p0_std); m chains. ValueError says what
+    is wrong with `text`."""
+    kind, *rest = text.split(":")
+    if kind not in KINDS or len(rest) not in (1, 2):
+        raise ValueError(f"KIND:FACTOR[:TAU], KIND one of {', '.join(KINDS)}")
+    try:
+        factor, tau = float(rest[0]), float(rest[1]) if len(rest) == 2 else dist.tau
+    except ValueError:
+        raise ValueError("FACTOR and TAU are numbers") from None
+    if kind in TIMED and tau is None:
+        raise ValueError(f"{kind} needs a time constant: {text}:TAU")
+    p0 = dist.p0_std
+    if p0 is not None and len(p0) == 2 * m and kind not in SECOND_ORDER:
+        p0 = p0[:m]
+    return Disturbance(kind, tuple(float(v) * factor for v in dist.q), tau if kind in TIMED else None, p0)
 
 
 def one(job) -> dict:
@@ -44,7 +55,7 @@ def one(job) -> dict:
     res = ex.run(cfg)
     out = {"ekf": compare.evaluate(res, "ekf")}
     for v in a.variants.split(","):
-        out[v] = compare.evaluate(res, "df", disturbance=variant(sc.disturbance, v))
+        out[v] = compare.evaluate(res, "df", disturbance=variant(sc.disturbance, v, ex._flat(a.model).m))
     return {k: None if "failed" in m else (np.asarray(m["rmse_master"]), float(np.mean(m["nees_master"])))
             for k, m in out.items()}
 
@@ -63,11 +74,10 @@ def main() -> None:
     if sc.disturbance is None:
         ap.error(f"--scenario {a.scenario}: has no [disturbance] (codegen scenario --disturbance KIND)")
     for v in a.variants.split(","):
-        kind, *rest = v.split(":")
-        if kind not in KINDS or len(rest) not in (1, 2):
-            ap.error(f"--variants {v}: KIND:FACTOR[:TAU], KIND one of {', '.join(KINDS)}")
-        if kind in TIMED and len(rest) == 1 and sc.disturbance.tau is None:
-            ap.error(f"--variants {v}: {kind} needs a time constant: {v}:TAU")
+        try:
+            variant(sc.disturbance, v, ex._flat(a.model).m)
+        except ValueError as exc:
+            ap.error(f"--variants {v}: {exc}")
     rows = range(len(sc.grid)) if a.rows is None else [int(r) for r in a.rows.split(",")]
     jobs = [(a, s, r) for r in rows for s in range(a.runs)]
     with multiprocessing.Pool(a.workers) as pool:

@@ -59,9 +59,9 @@ def main() -> None:
     rows = [("derivative-free, generated kernels", node), ("derivative-free, the comparison's", ops[kind]),
             ("EKF, the comparison's", ops["ekf"]), ("EKF, upper triangle in and out",
              {k: f.n_instructions() for k, f in ekf_packed(a.model, ts, a.substeps).items()})]
-    for label, c in rows:
-        print(f"{label:38s} predict {c['predict']:6,d}  update {c['update']:5,d}  step {c['predict'] + c['update']:6,d}")
     step = lambda c: c["predict"] + c["update"]  # noqa: E731
+    for label, c in rows:
+        print(f"{label:38s} predict {c['predict']:6,d}  update {c['update']:5,d}  step {step(c):6,d}")
     print(f"EKF / derivative-free per node step: {step(rows[3][1]) / step(node):.2f}x on the generated kernels and "
           f"the packed EKF, {step(ops['ekf']) / step(ops[kind]):.2f}x as the comparison counts both")
 

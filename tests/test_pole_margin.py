@@ -69,23 +69,33 @@ def test_poles_are_slowed_until_the_corner_holds(tmp_path):
 def test_where_no_pole_holds_the_fewest_lost_corners_are_kept(monkeypatch):
     """No pole tried holds every corner: of the four tried (10, 7, 4.9, 3.43) the check keeps
     those that lose the fewest corners, the fastest among equals, and its WARNING gives each
-    one's count. The loops are stood in for (first_loss): corner 0 is lost above 5 rad/s,
-    corner 1 at every pole, corner 2 only at 10."""
+    one's count, or "more than" the fewest so far where it stopped counting. The loops are stood
+    in for (first_loss): corner 0 is lost above 5 rad/s, corner 1 at every pole, corner 2 only at
+    10, corners 3-5 hold. No (poles, corner) loop runs twice, and the count of a set that can no
+    longer be kept stops: here 10 and 7 stop at corner 1, their second loss."""
     from dfeif_codegen.experiment import model_error
+
+    ran = []
 
     def first_loss(configs):
         for i, cfg in enumerate(configs):
             p, corner = cfg.poles[0], cfg.seed
+            ran.append((p, corner))
             if (corner == 0 and p > 5) or corner == 1 or (corner == 2 and p == 10):
                 return i, "diverged (stood in)"
         return None
 
     monkeypatch.setattr(pole_margin, "first_loss", first_loss)
     error = model_error.from_option("m=0.2")
-    errors = [error, error, error]
+    errors = [error] * 6
     monkeypatch.setattr(model_error.ParamError, "corners", lambda self, model: errors)
     config = lambda j: ex.Config(model="dc_motor_link", seed=j, poles=(10.0,))  # noqa: E731
     poles, log = pole_margin.hold(config, [10.0], error, None, (ex.Link(0.6, 25), ex.Link(0.6, 30)), ["start"])
     assert poles == [4.9]
     assert log[-1].startswith(pole_margin.WARNING)
-    assert "corners lost of 3: [10] 3, [7] 2, [4.9] 1, [3.43] 1; [4.9] kept" in log[-1]
+    assert "corners lost of 6: [10] more than 1, [7] more than 1, [4.9] 1, [3.43] 1; [4.9] kept" in log[-1]
+    assert len(ran) == len(set(ran)), sorted(ran)
+    # the search: 10 and 7 to corner 0, 4.9 and 3.43 to corner 1; the count: 3.43 and 4.9 on to
+    # corner 5, 10 and 7 corner 1 only
+    assert sorted(ran) == sorted([(10.0, 0), (7.0, 0), (4.9, 0), (4.9, 1), (3.43, 0), (3.43, 1)]
+                                 + [(p, c) for p in (3.43, 4.9) for c in range(2, 6)] + [(10.0, 1), (7.0, 1)])

@@ -4,7 +4,6 @@ set to the master's broadcast flat outputs σ."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import numpy as np

@@ -116,7 +116,7 @@ def test_harness_files_ship_in_the_wheel(tmp_path):
 from conftest import Case  # noqa: E402
 from conftest import require_tool  # noqa: E402
 from dfeif_codegen.check import verify  # noqa: E402
-from dfeif_codegen.check import driver_io, harness
+from dfeif_codegen.check import driver_io
 
 TARGET_RUNS = [(Case("dc_motor_link", "replay", "difference", "sinusoid", 1), "float"),
                (Case("two_link_arm", "retrodict", "paper", "seesaw", 1), "float"),      # Brunovsky

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import require_tool
-from dfeif_codegen.check import target, target_count
+from dfeif_codegen.check import target_count
 
 pytestmark = pytest.mark.target
 

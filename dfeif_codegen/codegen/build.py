@@ -9,7 +9,6 @@ committed generated/ can be checked against a fresh build.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re

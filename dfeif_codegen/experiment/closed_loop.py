@@ -140,15 +140,17 @@ class Result:
 
 # --- the replay ------------------------------------------------------------------------------------
 
-def replay_recording(rec: Recording, dtype=np.float64) -> dict[str, np.ndarray]:
+def replay_recording(rec: Recording, dtype=np.float64, inputs=None, right_first: bool = False) -> dict[str, np.ndarray]:
     """Re-run only the filters and the controller from a recording (no plant, no network) and
     return the outputs: late_applied, node_x, node_P, x, P, u, v. `dtype=np.float32` runs
     the nodes and the master in single precision: a second single-precision implementation to judge
-    the C's (the controller stays in double)."""
+    the C's (the controller stays in double). `inputs` (K rows): the inputs the filters predict
+    with, as the C harness's recorded inputs (None: the replay's own controller's);
+    `right_first`: the covariance products associated the other way (FilterBank)."""
     flat = _flat(rec.model)
     bank = FilterBank(flat, rec.ts, rec.q, rec.R, rec.node_x0, rec.node_P0, rec.master_x0, rec.master_P0,
                       rec.gains, rec.max_lag, rec.oosm, rec.fusion, dtype, rec.predictor,
-                      Disturbance.from_json(rec.disturbance))
+                      Disturbance.from_json(rec.disturbance), right_first)
     K = rec.ref.shape[0]
     out = _Outputs(rec.nodes, K, rec.n, rec.m)
     late_at = np.searchsorted(rec.late_step, np.arange(K + 1))
@@ -156,7 +158,8 @@ def replay_recording(rec: Recording, dtype=np.float64) -> dict[str, np.ndarray]:
     sources[rec.pkt_step, rec.pkt_node] = rec.pkt_src
     for k in range(K):
         late = [(int(rec.late_node[e]), int(rec.late_lag[e]), rec.late_z[e]) for e in range(late_at[k], late_at[k + 1])]
-        out.put(k, bank.step(k, rec.z[:, k], rec.gamma[:, k], late, sources[k], rec.ref[k]))
+        out.put(k, bank.step(k, rec.z[:, k], rec.gamma[:, k], late, sources[k], rec.ref[k],
+                             None if inputs is None else inputs[k]))
     return {"late_applied": np.array(out.applied, dtype=bool), "node_x": out.node_x, "node_P": out.node_P,
             "x": out.x, "P": out.P, "u": out.u, "v": out.v}
 

@@ -12,7 +12,7 @@ the scenario's own loop (its filter, q and disturbance states) on each corner of
 (model_error.ParamError.corners) under the grid's hardest delay row, with simulate's
 divergence watch, and slows every pole by SLOWER until no corner is lost, at most STEPS times;
 past that it keeps, of the poles tried, those that lose the fewest corners (the fastest among
-equals) and writes a warning with each one's count.
+equals) and writes a warning with each one's count (pole_margin.fewest_lost).
 """
 
 from __future__ import annotations
@@ -25,12 +25,15 @@ SLOWER, STEPS = 0.7, 3
 WARNING = "WARNING:"      # the log line's start when no pole tried holds
 
 
-def lost_corner(config, poles, errors, links) -> str | None:
-    """The first corner whose loop (`config(j)`, an ex.Config, for the j-th) is lost at `poles`
-    under `links`, with why; None when every one holds."""
-    loss = first_loss(dataclasses.replace(config(j), poles=tuple(poles), plant_error=error, sensor=tuple(links),
-                                          watch_nees=True) for j, error in enumerate(errors))
-    return None if loss is None else f"{errors[loss[0]].describe()}: {loss[1].split(' (')[0]}"
+def lost_corner(config, poles, errors, links, start: int = 0) -> tuple[int, str] | None:
+    """The first corner from `start` on whose loop (`config(j)`, an ex.Config, for the j-th) is
+    lost at `poles` under `links`: its index and why; None when every one holds."""
+    loss = first_loss(dataclasses.replace(config(j), poles=tuple(poles), plant_error=errors[j], sensor=tuple(links),
+                                          watch_nees=True) for j in range(start, len(errors)))
+    if loss is None:
+        return None
+    at = start + loss[0]
+    return at, f"{errors[at].describe()}: {loss[1].split(' (')[0]}"
 
 
 def hold(config, poles, plant_error, model, links, log: list[str], progress=None) -> tuple[list[float], list[str]]:
@@ -47,29 +50,44 @@ def hold(config, poles, plant_error, model, links, log: list[str], progress=None
     if first is None:
         log.append(f"poles {fmt(poles)} hold the loop on the error's {len(errors)} corners under {where}")
         return list(poles), log
-    tried = [list(poles)] + [slowed(poles, step) for step in range(1, STEPS + 1)]
+    tried, firsts = [list(poles)] + [slowed(poles, step) for step in range(1, STEPS + 1)], [first[0]]
     for step, slower in enumerate(tried[1:], start=1):
         say(f"poles {fmt(slower)} on the error's {len(errors)} corners ({step} of at most {STEPS})")
-        if lost_corner(config, slower, errors, links) is None:
-            log.append(f"poles {fmt(poles)} lost the loop on a corner of the error under {where} ({first}); "
+        loss = lost_corner(config, slower, errors, links)
+        if loss is None:
+            log.append(f"poles {fmt(poles)} lost the loop on a corner of the error under {where} ({first[1]}); "
                        f"{fmt(slower)} hold all {len(errors)}")
             return slower, log
-    lost = []
-    for p in tried:
-        say(f"no poles tried hold every corner: the corners poles {fmt(p)} lose ({len(lost) + 1} of {len(tried)})")
-        lost.append(lost_count(config, p, errors, links))
-    best = min(range(len(tried)), key=lambda i: (lost[i], i))        # the fewest lost, then the fastest
-    counts = ", ".join(f"{fmt(p)} {k}" for p, k in zip(tried, lost))
-    log.append(f"{WARNING} poles {fmt(poles)} lose the loop on a corner of the error under {where} ({first}), "
+        firsts.append(loss[0])
+    best, counts = fewest_lost(config, tried, firsts, errors, links, say)
+    log.append(f"{WARNING} poles {fmt(poles)} lose the loop on a corner of the error under {where} ({first[1]}), "
                f"and so do they slowed to {fmt(tried[-1])}; corners lost of {len(errors)}: {counts}; "
                f"{fmt(tried[best])} kept")
     return tried[best], log
 
 
-def lost_count(config, poles, errors, links) -> int:
-    """How many of the corners' loops (as lost_corner) are lost at `poles` under `links`."""
-    return sum(lost_corner(lambda _, j=j: config(j), poles, [error], links) is not None
-               for j, error in enumerate(errors))
+def fewest_lost(config, tried, firsts, errors, links, say) -> tuple[int, str]:
+    """(the index in `tried` of the poles that lose the fewest corners, the fastest among equals;
+    each one's count as text). Each set is counted from the corner after its first loss
+    (`firsts`, which hold's search found: those loops are not run again), slowest first (the
+    likeliest to lose few), and a set's count stops once it passes the fewest so far: it can no
+    longer be kept, and the text says "more than" that. Measured on the arm at +-20%, integrated
+    Gauss-Markov: 44 loops instead of 128 (the counts 10, 7, 4.9 lose 4 corners, 3.43 one)."""
+    best, text = None, {}
+    for i in reversed(range(len(tried))):
+        say(f"no poles tried hold every corner: the corners poles {fmt(tried[i])} lose "
+            f"({len(tried) - i} of {len(tried)})")
+        lost, at = 1, firsts[i] + 1
+        while at < len(errors) and (best is None or lost <= best[1]):
+            loss = lost_corner(config, tried[i], errors, links, start=at)
+            if loss is None:
+                break
+            lost, at = lost + 1, loss[0] + 1
+        over = best is not None and lost > best[1]
+        text[i] = f"{fmt(tried[i])} {'more than ' if over else ''}{best[1] if over else lost}"
+        if not over:
+            best = (i, lost)
+    return best[0], ", ".join(text[i] for i in range(len(tried)))
 
 
 def slowed(poles, step: int) -> list[float]:

@@ -90,10 +90,12 @@ class FilterBank:
     """Nodes, master and controller, stepped exactly as the protocol says."""
 
     def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None):
+                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None, right_first: bool = False):
         """`disturbance`: the filters' states are extended by its states (their x0, P0 here
         are the canonical ones; the disturbances start at 0 with their initial spread); what
-        `step` returns stays the canonical part, what the controller and the metrics read."""
+        `step` returns stays the canonical part, what the controller and the metrics read.
+        `right_first`: every filter's covariance products associated the other way
+        (predictor.Brunovsky.right_first), the second double implementation."""
         m, self.n, self.m = flat.m, flat.n, flat.m
         node_x0, node_P0 = zip(*[augment(x, P, disturbance, m) for x, P in zip(node_x0, node_P0)])
         master_x0, master_P0 = augment(master_x0, master_P0, disturbance, m)
@@ -102,6 +104,8 @@ class FilterBank:
                       for i in range(len(R))]
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
                              predictor=predictor, disturbance=disturbance, dtype=dtype)
+        for f in (*self.nodes, self.master):
+            f.predictor.right_first = right_first
         held = predictors.held_constants(flat, ts) if predictor != "brunovsky" else None
         self.control = FlatController(flat, gains=gains, held=held)   # the law for what the plant holds
         # the law cancels the filters' estimate of what the model misses (docs/algorithms.md)
@@ -109,9 +113,11 @@ class FilterBank:
         self.max_lag = max_lag
         self.sent: list[dict[int, object]] = [{} for _ in self.nodes]
 
-    def step(self, k, z, gamma, late, sources, ref):
+    def step(self, k, z, gamma, late, sources, ref, w=None):
         """`late`: (node, lag, z) in arrival order; `sources[i]`: source step of node i's packet
-        fused now (-1: none). Returns (late applied flags, node x, node P, x, P, u, v)."""
+        fused now (-1: none); `w`: the input the filters predict with (None: what the master
+        broadcasts from its controller's u and v). Returns (late applied flags, node x, node P,
+        x, P, u, v)."""
         for node, zi, gi in zip(self.nodes, z, gamma):
             node.update(zi if gi else None, bool(gi))
         applied = [self.nodes[i].update_delayed(zl, lag) for i, lag, zl in late]
@@ -124,7 +130,8 @@ class FilterBank:
         u, v = self.control(self.master.x[:n], ref, disturbance=d)
         out = (applied, [nd.x[:n].copy() for nd in self.nodes], [nd.P[:n, :n].copy() for nd in self.nodes],
                self.master.x[:n].copy(), self.master.P[:n, :n].copy(), u, v)
-        w = self.master.predictor.input(u, v, self.master.x)   # what the master broadcasts for the prediction
+        if w is None:
+            w = self.master.predictor.input(u, v, self.master.x)   # what the master broadcasts for the prediction
         for node in self.nodes:
             node.predict(w)
         self.master.predict(w)

@@ -42,6 +42,9 @@ class Brunovsky:
     """x⁺ = A_d x + B_d v, P⁺ = A_d P A_dᵀ + Q_d (closed forms, discretize.py)."""
 
     name = "brunovsky"
+    # Φ (P Φᵀ) instead of (Φ P) Φᵀ: the same filter with other roundings, the second double
+    # implementation `codegen verify` judges a double mismatch by (FilterBank's right_first)
+    right_first = False
 
     def __init__(self, flat, ts: float, q, dtype=np.float64):
         self.flat, self.ts, self.q, self.dtype = flat, float(ts), q, np.dtype(dtype)
@@ -64,15 +67,19 @@ class Brunovsky:
         """What the master broadcasts for this predictor at a step: v."""
         return np.atleast_1d(v)
 
+    def sandwich(self, A, P) -> np.ndarray:
+        """A P Aᵀ, associated as `right_first` says."""
+        return A @ (P @ A.T) if self.right_first else A @ P @ A.T
+
     def covariance(self, P, w) -> np.ndarray:
         """P one step on (the transition does not depend on the input)."""
-        return self.Phi @ P @ self.Phi.T + self.Q
+        return self.sandwich(self.Phi, P) + self.Q
 
     def carry(self, Ps: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
         """Covariances brought over len(inputs) steps in one step of that length (closed forms,
         equal to len(inputs) one-step predictions)."""
         A, Q = (a.astype(self.dtype, copy=False) for a in self.ahead(len(inputs)))
-        return [A @ P @ A.T + Q for P in Ps]
+        return [self.sandwich(A, P) + Q for P in Ps]
 
     def bring(self, xs: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
         """Means predicted over len(inputs) steps: A(N Ts) x plus the inputs' effect (linear)."""
@@ -116,6 +123,8 @@ class Held:
             self._ahead[N] = (H.E, H.Q(self.q, self.qd))
         return self._ahead[N]
 
+    right_first = False
+    sandwich = Brunovsky.sandwich
     covariance = Brunovsky.covariance
     carry = Brunovsky.carry
 
@@ -154,8 +163,7 @@ class Scheduled(Held):
         return self._transition(w[self.m:]).astype(self.dtype)
 
     def covariance(self, P, w) -> np.ndarray:
-        Phi = self.transition(w)
-        return Phi @ P @ Phi.T + self.Q
+        return self.sandwich(self.transition(w), P) + self.Q
 
     def carry(self, Ps: list[np.ndarray], inputs: list[np.ndarray]) -> list[np.ndarray]:
         """Covariances predicted step by step (each step's Φ(σ) its own)."""
