@@ -49,3 +49,32 @@ def test_densities_rematched_on_the_held_filters_own_loops():
     second = own_nees(dist, second_path=True)
     print(f"\ndensity {dist.q[0]:.3g}: master NEES on the held filter's own loops, re-filtered {second:.3f} (n = 3)")
     assert abs(math.log(second / flat.n)) <= 2 * math.log(NEES_TOL)
+
+
+def test_loops_the_chapters_filter_loses_are_closed_by_the_held_filter(monkeypatch):
+    """error_loops: the calibration's loops under the model error are the chapter's filter's; where
+    that filter loses one (stood in: ex.run raises for it on the second plant), every loop is
+    closed by the held filter at its white q instead, and the log says why. Where it keeps them
+    all, the held filter runs none."""
+    ran = []
+
+    def run(cfg):
+        ran.append((cfg.predictor, cfg.seed, cfg.q))
+        if cfg.predictor == "brunovsky" and cfg.seed == 11 and lose:
+            raise ArithmeticError("stopped tracking at t = 0.94 s (stood in)")
+        return (cfg.predictor, cfg.seed)
+
+    monkeypatch.setattr(ex, "run", run)
+    config = lambda qq, seed, duration: ex.Config(model="dc_motor_link", q=tuple(qq), seed=seed,  # noqa: E731
+                                                  predictor="brunovsky")
+    errors = [model_error.from_option("J=0.2"), model_error.from_option("J=-0.2")]
+    lose = False
+    loops, log = disturbance_calibration.error_loops(config, [20.0], [3.0], [10, 11], errors, ["start"], print)
+    assert loops == [("brunovsky", 10), ("brunovsky", 11)] and log == ["start"]
+    ran.clear()
+    lose = True
+    loops, log = disturbance_calibration.error_loops(config, [20.0], [3.0], [10, 11], errors, ["start"], print)
+    assert loops == [("held", 10), ("held", 11)]
+    assert ran == [("brunovsky", 10, (20.0,)), ("brunovsky", 11, (20.0,)), ("held", 10, (3.0,)), ("held", 11, (3.0,))]
+    assert log[-1] == ("the chapter's filter lost a loop under the model error (stopped tracking at t = 0.94 s): "
+                       "the calibration's loops closed by the held filter at q = [3] instead")

@@ -6,6 +6,7 @@ The model (tests/data/sqrt_motor.toml): torque k I^2, so theta'' = (k I^2 - c om
 gives I = +-sqrt((J theta'' + c theta' + ks theta)/k); the current's domain is [0.05, 5] A."""
 
 import ctypes
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -115,6 +116,24 @@ def test_near_singular_control_refuses_in_c_and_reference(flat, lib):
         ctl(zeta, flags)
     # ten times more current is 1e-6 of nominal: accepted again
     assert c_control(lib, flat.phi_num(np.array([0.0, 0.0, 1.01e-6])), flags, ctl.gains)[0] == 0
+
+
+def test_control_outside_the_domain_says_so_in_c_and_reference(flat, lib):
+    """A finite estimate whose theta, theta', theta'' ask for I^2 < 0 (k I^2 = J theta'' + c theta'
+    + ks theta: 0.5 I^2 = -3.3e-3 at the point `codegen scenario --param-error 0.1` met on this
+    model): F and G are NaN there. The reference refuses with what happened (the estimate left the
+    model's domain, not "diverged"), without numpy's warning on det(NaN); the C refuses too
+    (ERR_SINGULAR, outputs untouched)."""
+    zeta = np.array([0.0012, -0.1348, 0.1138])
+    assert 0.02 * zeta[2] + 0.05 * zeta[1] + 1.0 * zeta[0] < 0
+    flags = np.zeros(4)
+    ctl = FlatController(flat, poles=5.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SingularControl, match="left the model's domain"):
+            ctl(zeta, flags)
+    rc, u, v, _ = c_control(lib, zeta, flags, ctl.gains)
+    assert rc == -4 and u == 42.0 and v == 42.0
 
 
 @pytest.mark.parametrize("kind", ["node", "master"])

@@ -72,7 +72,7 @@ def fewest_lost(config, tried, firsts, errors, links, say) -> tuple[int, str]:
     (`firsts`, which hold's search found: those loops are not run again), slowest first (the
     likeliest to lose few), and a set's count stops once it passes the fewest so far: it can no
     longer be kept, and the text says "more than" that. Measured on the arm at +-20%, integrated
-    Gauss-Markov: 44 loops instead of 128 (the counts 10, 7, 4.9 lose 4 corners, 3.43 one)."""
+    Gauss-Markov: 44 loops instead of 128 (10, 7 and 4.9 lose 4 corners each, 3.43 one)."""
     best, text = None, {}
     for i in reversed(range(len(tried))):
         say(f"no poles tried hold every corner: the corners poles {fmt(tried[i])} lose "

@@ -194,9 +194,7 @@ def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offs
     drawn = cfg.plant_error.draw != "none"
     errors = cfg.plant_error.design(flat.model) if drawn else [cfg.plant_error] * NEES_RUNS
     seeds = [seed + i for i in range(len(errors))]
-    say(f"the calibration's {len(errors)} loops under the model error, closed by the chapter's filter")
-    loops = [ex.run(dataclasses.replace(config(q, s, NEES_SECONDS), plant_error=e))
-             for s, e in zip(seeds, errors)]
+    loops, log = disturbance_calibration.error_loops(config, q, held, seeds, errors, log, say)
     match = lambda qq, lg, nees: match_nees(flat, qq, None, seeds, lg, nees, progress=say)  # noqa: E731
     hold = lambda qq, d, lg, start=tuple(poles): pole_margin.hold(  # noqa: E731  (from the scenario's poles)
         lambda j: dataclasses.replace(config(qq, seed + j, NEES_SECONDS), predictor="held", disturbance=d),

@@ -75,8 +75,14 @@ class FlatController:
         G, F = self.flat.G_num(x, params), self.flat.F_num(x, params)
         if self._det_nominal is None:
             self._det_nominal = self.flat.nominal_det()
+        if not np.all(np.isfinite(x)):
+            raise SingularControl(f"x = {np.array2string(x, precision=4)}: the estimate the law is given has diverged")
+        if not (np.all(np.isfinite(G)) and np.all(np.isfinite(F))):
+            raise SingularControl(f"F(x), G(x) are not finite at x = {np.array2string(x, precision=4)}: the estimate "
+                                  "the law is given has left the model's domain (its inverse transform is undefined "
+                                  "there)")
         det = np.linalg.det(G)
-        if not np.all(np.isfinite(x)) or not np.isfinite(det):
+        if not np.isfinite(det):
             raise SingularControl(f"det G(x) = {det:.3g} at x = {np.array2string(x, precision=4)}: the estimate the "
                                   "law is given has diverged")
         if not abs(det) >= self.singular_rtol * self._det_nominal:
