@@ -1040,7 +1040,9 @@ def test_looped_held_predictions_equal_the_straight_line_ones(tmp_path, monkeypa
     CasADi keeps E's rows as they are (measured bit-equal on the chain and two_link_arm), else in
     another: each of two evaluations of (E P E')_ij, nested sums of at most n products, is within
     2 n u (|E| |P| |E|')_ij <= 2 n u |E|_inf^2 max|P| of the exact value (u the unit roundoff,
-    first order), and the nq + 1 additions of Q0 add u max|P1| each: the bound checked."""
+    first order), and the addition of Q0 (kern_noise's of the nq densities, the same array in
+    both) adds u max|P1|, where in the sum it falls moving it by at most (nq + 1) u max|P1|
+    (the bound when Q0 was summed as its nq terms): the bound checked."""
     from dfeif_codegen.check import bench_peers
     from dfeif_codegen.codegen import kernels
     from dfeif_codegen.symbolic import sampling
@@ -1066,9 +1068,11 @@ def test_looped_held_predictions_equal_the_straight_line_ones(tmp_path, monkeypa
             mod = build.build(spec, folder, precision=precision, **opts)
             text = next(Path(mod.path).glob("*_kernels_filter.c")).read_text()
             lib = Lib(shared_library(mod.path, folder), flat.model.name)
-            calls = [("kern_node_predict", [np.concatenate([x, Pp]), u, q, centre], [n, npk]),
-                     ("kern_node_predict_P", [Pp, q], [npk]),
-                     ("kern_predict", [x, P.ravel(), u, q, centre], [n, n * n])]
+            Q = np.zeros(npk, dtype)
+            assert lib("kern_noise", q.astype(dtype), Q) == 0
+            calls = [("kern_node_predict", [np.concatenate([x, Pp]), u, Q, centre], [n, npk]),
+                     ("kern_node_predict_P", [Pp, Q], [npk]),
+                     ("kern_predict", [x, P.ravel(), u, Q, centre], [n, n * n])]
             out = []
             for kern, ins, sizes in calls:
                 args = [a.astype(dtype) for a in ins] + [np.zeros(k, dtype) for k in sizes]

@@ -184,6 +184,8 @@ typedef struct {
     dc_motor_link_real R[DC_MOTOR_LINK_NYY];
     /** process-noise density per chain */
     dc_motor_link_real q[DC_MOTOR_LINK_NQ];
+    /** the process noise of one period the predictions add, Q0 of q (upper triangle packed) */
+    dc_motor_link_real Qd[DC_MOTOR_LINK_NPP];
     dc_motor_link_real ring_x[DC_MOTOR_LINK_NRING * DC_MOTOR_LINK_NX];
     dc_motor_link_real ring_z[DC_MOTOR_LINK_NRING_NY];
     dc_motor_link_real ring_v[DC_MOTOR_LINK_NRING_NW];
@@ -244,6 +246,8 @@ typedef struct {
     dc_motor_link_real x_prior[DC_MOTOR_LINK_NX];
     dc_motor_link_real P_prior[DC_MOTOR_LINK_NXX];
     dc_motor_link_real q[DC_MOTOR_LINK_NQ];
+    /** Q0 of q, as the node's */
+    dc_motor_link_real Qd[DC_MOTOR_LINK_NPP];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
     dc_motor_link_real v[DC_MOTOR_LINK_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot

@@ -10,9 +10,9 @@
 
 #include "dc_motor_link.h"
 
-/* dc_motor_link_kern_node_predict:(post[9],u,q,centre)->(x1[3],P1[6]) */
+/* dc_motor_link_kern_node_predict:(post[9],u,Q[6],centre)->(x1[3],P1[6]) */
 int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real u[1],
-                                    const dc_motor_link_real q[1],
+                                    const dc_motor_link_real Q[6],
                                     const dc_motor_link_real centre[1], dc_motor_link_real x1[3],
                                     dc_motor_link_real P1[6]);
 
@@ -26,17 +26,20 @@ int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_r
                             const dc_motor_link_real c[3], dc_motor_link_real Y[9],
                             dc_motor_link_real y[3], dc_motor_link_real piv[3]);
 
-/* dc_motor_link_kern_node_predict_P:(P[6],q)->(P1[6]) */
-int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_motor_link_real q[1],
+/* dc_motor_link_kern_node_predict_P:(P[6],Q[6])->(P1[6]) */
+int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_motor_link_real Q[6],
                                       dc_motor_link_real P1[6]);
 
 /* dc_motor_link_kern_domain:(x[3])->(F,G) */
 int dc_motor_link_kern_domain(const dc_motor_link_real x[3], dc_motor_link_real F[1],
                               dc_motor_link_real G[1]);
 
-/* dc_motor_link_kern_predict:(x[3],P[3x3],u,q,centre)->(x1[3],P1[3x3]) */
+/* dc_motor_link_kern_noise:(q)->(Q[6]) */
+int dc_motor_link_kern_noise(const dc_motor_link_real q[1], dc_motor_link_real Q[6]);
+
+/* dc_motor_link_kern_predict:(x[3],P[3x3],u,Q[6],centre)->(x1[3],P1[3x3]) */
 int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
-                               const dc_motor_link_real u[1], const dc_motor_link_real q[1],
+                               const dc_motor_link_real u[1], const dc_motor_link_real Q[6],
                                const dc_motor_link_real centre[1], dc_motor_link_real x1[3],
                                dc_motor_link_real P1[9]);
 

@@ -1,7 +1,7 @@
 /* DO NOT EDIT: dc_motor_link module, generated from template kernels.c.j2 by dfeif-codegen
  * 0.1.0; regenerate with `codegen build dc_motor_link`. */
 /* Node filter kernels (the master reuses predict): node_predict, update, info, node_predict_P,
- * domain, predict.
+ * domain, noise, predict.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
@@ -13,9 +13,9 @@ static dc_motor_link_real casadi_sq(dc_motor_link_real x)
     return x * x;
 }
 
-/* dc_motor_link_kern_node_predict:(post[9],u,q,centre)->(x1[3],P1[6]) */
+/* dc_motor_link_kern_node_predict:(post[9],u,Q[6],centre)->(x1[3],P1[6]) */
 int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_motor_link_real u[1],
-                                    const dc_motor_link_real q[1],
+                                    const dc_motor_link_real Q[6],
                                     const dc_motor_link_real centre[1], dc_motor_link_real x1[3],
                                     dc_motor_link_real P1[6])
 {
@@ -188,90 +188,83 @@ int dc_motor_link_kern_node_predict(const dc_motor_link_real post[9], const dc_m
     w[4] = (w[4] + w[6]);
     w[0] = (w[0] * w[4]);
     w[3] = (w[3] + w[0]);
-    w[0] = 9.1146539526454965e-13;
-    w[6] = q[0];
-    w[0] = (w[0] * w[6]);
+    w[0] = Q[0];
     w[3] = (w[3] + w[0]);
     P1[0] = w[3];
     w[3] = -2.7058189522040277e-01;
     w[0] = (w[3] * w[2]);
-    w[14] = 9.3383790290257962e-01;
-    w[12] = (w[14] * w[7]);
+    w[6] = 9.3383790290257962e-01;
+    w[14] = (w[6] * w[7]);
+    w[0] = (w[0] + w[14]);
+    w[14] = 2.3246418812892375e-03;
+    w[12] = (w[14] * w[4]);
     w[0] = (w[0] + w[12]);
-    w[12] = 2.3246418812892375e-03;
-    w[13] = (w[12] * w[4]);
-    w[0] = (w[0] + w[13]);
-    w[13] = 1.6906236507244616e-10;
-    w[13] = (w[13] * w[6]);
-    w[0] = (w[0] + w[13]);
+    w[12] = Q[1];
+    w[0] = (w[0] + w[12]);
     P1[1] = w[0];
     w[0] = (w[3] * w[19]);
-    w[13] = (w[14] * w[17]);
-    w[0] = (w[0] + w[13]);
-    w[13] = (w[12] * w[1]);
-    w[0] = (w[0] + w[13]);
-    w[13] = (w[3] * w[0]);
-    w[10] = (w[3] * w[17]);
-    w[20] = (w[14] * w[15]);
-    w[10] = (w[10] + w[20]);
-    w[20] = (w[12] * w[16]);
-    w[10] = (w[10] + w[20]);
-    w[20] = (w[14] * w[10]);
-    w[13] = (w[13] + w[20]);
+    w[12] = (w[6] * w[17]);
+    w[0] = (w[0] + w[12]);
+    w[12] = (w[14] * w[1]);
+    w[0] = (w[0] + w[12]);
+    w[12] = (w[3] * w[0]);
+    w[13] = (w[3] * w[17]);
+    w[10] = (w[6] * w[15]);
+    w[13] = (w[13] + w[10]);
+    w[10] = (w[14] * w[16]);
+    w[13] = (w[13] + w[10]);
+    w[10] = (w[6] * w[13]);
+    w[12] = (w[12] + w[10]);
     w[3] = (w[3] * w[1]);
-    w[14] = (w[14] * w[16]);
-    w[3] = (w[3] + w[14]);
-    w[14] = (w[12] * w[5]);
-    w[3] = (w[3] + w[14]);
-    w[12] = (w[12] * w[3]);
-    w[13] = (w[13] + w[12]);
-    w[12] = 3.7468169875215248e-08;
-    w[12] = (w[12] * w[6]);
-    w[13] = (w[13] + w[12]);
-    P1[2] = w[13];
-    w[13] = -3.4207105283165617e+01;
-    w[2] = (w[13] * w[2]);
-    w[12] = -8.4923462429406626e+00;
-    w[7] = (w[12] * w[7]);
+    w[6] = (w[6] * w[16]);
+    w[3] = (w[3] + w[6]);
+    w[6] = (w[14] * w[5]);
+    w[3] = (w[3] + w[6]);
+    w[14] = (w[14] * w[3]);
+    w[12] = (w[12] + w[14]);
+    w[14] = Q[2];
+    w[12] = (w[12] + w[14]);
+    P1[2] = w[12];
+    w[12] = -3.4207105283165617e+01;
+    w[2] = (w[12] * w[2]);
+    w[14] = -8.4923462429406626e+00;
+    w[7] = (w[14] * w[7]);
     w[2] = (w[2] + w[7]);
     w[7] = -1.8304543163933681e-03;
     w[4] = (w[7] * w[4]);
     w[2] = (w[2] + w[4]);
-    w[4] = 5.2777360675608860e-09;
-    w[4] = (w[4] * w[6]);
+    w[4] = Q[3];
     w[2] = (w[2] + w[4]);
     P1[3] = w[2];
-    w[0] = (w[13] * w[0]);
-    w[10] = (w[12] * w[10]);
-    w[0] = (w[0] + w[10]);
+    w[0] = (w[12] * w[0]);
+    w[13] = (w[14] * w[13]);
+    w[0] = (w[0] + w[13]);
     w[3] = (w[7] * w[3]);
     w[0] = (w[0] + w[3]);
-    w[3] = 2.7019799381214976e-06;
-    w[3] = (w[3] * w[6]);
+    w[3] = Q[4];
     w[0] = (w[0] + w[3]);
     P1[4] = w[0];
-    w[19] = (w[13] * w[19]);
-    w[0] = (w[12] * w[17]);
+    w[19] = (w[12] * w[19]);
+    w[0] = (w[14] * w[17]);
     w[19] = (w[19] + w[0]);
     w[0] = (w[7] * w[1]);
     w[19] = (w[19] + w[0]);
-    w[19] = (w[13] * w[19]);
-    w[17] = (w[13] * w[17]);
-    w[15] = (w[12] * w[15]);
+    w[19] = (w[12] * w[19]);
+    w[17] = (w[12] * w[17]);
+    w[15] = (w[14] * w[15]);
     w[17] = (w[17] + w[15]);
     w[15] = (w[7] * w[16]);
     w[17] = (w[17] + w[15]);
-    w[17] = (w[12] * w[17]);
+    w[17] = (w[14] * w[17]);
     w[19] = (w[19] + w[17]);
-    w[13] = (w[13] * w[1]);
-    w[12] = (w[12] * w[16]);
-    w[13] = (w[13] + w[12]);
+    w[12] = (w[12] * w[1]);
+    w[14] = (w[14] * w[16]);
+    w[12] = (w[12] + w[14]);
     w[5] = (w[7] * w[5]);
-    w[13] = (w[13] + w[5]);
-    w[7] = (w[7] * w[13]);
+    w[12] = (w[12] + w[5]);
+    w[7] = (w[7] * w[12]);
     w[19] = (w[19] + w[7]);
-    w[7] = 1.2182964818928002e-03;
-    w[7] = (w[7] * w[6]);
+    w[7] = Q[5];
     w[19] = (w[19] + w[7]);
     P1[5] = w[19];
     return 0;
@@ -421,11 +414,11 @@ int dc_motor_link_kern_info(const dc_motor_link_real x[3], const dc_motor_link_r
     return 0;
 }
 
-/* dc_motor_link_kern_node_predict_P:(P[6],q)->(P1[6]) */
-int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_motor_link_real q[1],
+/* dc_motor_link_kern_node_predict_P:(P[6],Q[6])->(P1[6]) */
+int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_motor_link_real Q[6],
                                       dc_motor_link_real P1[6])
 {
-    dc_motor_link_real w[17];
+    dc_motor_link_real w[16];
     w[0] = 9.9887294637787072e-01;
     w[1] = P[0];
     w[2] = (w[0] * w[1]);
@@ -455,90 +448,83 @@ int dc_motor_link_kern_node_predict_P(const dc_motor_link_real P[6], const dc_mo
     w[0] = (w[0] + w[11]);
     w[5] = (w[5] * w[0]);
     w[7] = (w[7] + w[5]);
-    w[5] = 9.1146539526454965e-13;
-    w[11] = q[0];
-    w[5] = (w[5] * w[11]);
+    w[5] = Q[0];
     w[7] = (w[7] + w[5]);
     P1[0] = w[7];
     w[7] = -2.7058189522040277e-01;
     w[5] = (w[7] * w[2]);
-    w[12] = 9.3383790290257962e-01;
-    w[13] = (w[12] * w[8]);
+    w[11] = 9.3383790290257962e-01;
+    w[12] = (w[11] * w[8]);
+    w[5] = (w[5] + w[12]);
+    w[12] = 2.3246418812892375e-03;
+    w[13] = (w[12] * w[0]);
     w[5] = (w[5] + w[13]);
-    w[13] = 2.3246418812892375e-03;
-    w[14] = (w[13] * w[0]);
-    w[5] = (w[5] + w[14]);
-    w[14] = 1.6906236507244616e-10;
-    w[14] = (w[14] * w[11]);
-    w[5] = (w[5] + w[14]);
+    w[13] = Q[1];
+    w[5] = (w[5] + w[13]);
     P1[1] = w[5];
     w[5] = (w[7] * w[1]);
-    w[14] = (w[12] * w[4]);
-    w[5] = (w[5] + w[14]);
-    w[14] = (w[13] * w[6]);
-    w[5] = (w[5] + w[14]);
-    w[14] = (w[7] * w[5]);
-    w[15] = (w[7] * w[4]);
-    w[16] = (w[12] * w[9]);
-    w[15] = (w[15] + w[16]);
-    w[16] = (w[13] * w[10]);
-    w[15] = (w[15] + w[16]);
-    w[16] = (w[12] * w[15]);
-    w[14] = (w[14] + w[16]);
+    w[13] = (w[11] * w[4]);
+    w[5] = (w[5] + w[13]);
+    w[13] = (w[12] * w[6]);
+    w[5] = (w[5] + w[13]);
+    w[13] = (w[7] * w[5]);
+    w[14] = (w[7] * w[4]);
+    w[15] = (w[11] * w[9]);
+    w[14] = (w[14] + w[15]);
+    w[15] = (w[12] * w[10]);
+    w[14] = (w[14] + w[15]);
+    w[15] = (w[11] * w[14]);
+    w[13] = (w[13] + w[15]);
     w[7] = (w[7] * w[6]);
-    w[12] = (w[12] * w[10]);
-    w[7] = (w[7] + w[12]);
-    w[12] = (w[13] * w[3]);
-    w[7] = (w[7] + w[12]);
-    w[13] = (w[13] * w[7]);
-    w[14] = (w[14] + w[13]);
-    w[13] = 3.7468169875215248e-08;
-    w[13] = (w[13] * w[11]);
-    w[14] = (w[14] + w[13]);
-    P1[2] = w[14];
-    w[14] = -3.4207105283165617e+01;
-    w[2] = (w[14] * w[2]);
-    w[13] = -8.4923462429406626e+00;
-    w[8] = (w[13] * w[8]);
+    w[11] = (w[11] * w[10]);
+    w[7] = (w[7] + w[11]);
+    w[11] = (w[12] * w[3]);
+    w[7] = (w[7] + w[11]);
+    w[12] = (w[12] * w[7]);
+    w[13] = (w[13] + w[12]);
+    w[12] = Q[2];
+    w[13] = (w[13] + w[12]);
+    P1[2] = w[13];
+    w[13] = -3.4207105283165617e+01;
+    w[2] = (w[13] * w[2]);
+    w[12] = -8.4923462429406626e+00;
+    w[8] = (w[12] * w[8]);
     w[2] = (w[2] + w[8]);
     w[8] = -1.8304543163933681e-03;
     w[0] = (w[8] * w[0]);
     w[2] = (w[2] + w[0]);
-    w[0] = 5.2777360675608860e-09;
-    w[0] = (w[0] * w[11]);
+    w[0] = Q[3];
     w[2] = (w[2] + w[0]);
     P1[3] = w[2];
-    w[5] = (w[14] * w[5]);
-    w[15] = (w[13] * w[15]);
-    w[5] = (w[5] + w[15]);
+    w[5] = (w[13] * w[5]);
+    w[14] = (w[12] * w[14]);
+    w[5] = (w[5] + w[14]);
     w[7] = (w[8] * w[7]);
     w[5] = (w[5] + w[7]);
-    w[7] = 2.7019799381214976e-06;
-    w[7] = (w[7] * w[11]);
+    w[7] = Q[4];
     w[5] = (w[5] + w[7]);
     P1[4] = w[5];
-    w[1] = (w[14] * w[1]);
-    w[5] = (w[13] * w[4]);
+    w[1] = (w[13] * w[1]);
+    w[5] = (w[12] * w[4]);
     w[1] = (w[1] + w[5]);
     w[5] = (w[8] * w[6]);
     w[1] = (w[1] + w[5]);
-    w[1] = (w[14] * w[1]);
-    w[4] = (w[14] * w[4]);
-    w[9] = (w[13] * w[9]);
+    w[1] = (w[13] * w[1]);
+    w[4] = (w[13] * w[4]);
+    w[9] = (w[12] * w[9]);
     w[4] = (w[4] + w[9]);
     w[9] = (w[8] * w[10]);
     w[4] = (w[4] + w[9]);
-    w[4] = (w[13] * w[4]);
+    w[4] = (w[12] * w[4]);
     w[1] = (w[1] + w[4]);
-    w[14] = (w[14] * w[6]);
-    w[13] = (w[13] * w[10]);
-    w[14] = (w[14] + w[13]);
+    w[13] = (w[13] * w[6]);
+    w[12] = (w[12] * w[10]);
+    w[13] = (w[13] + w[12]);
     w[3] = (w[8] * w[3]);
-    w[14] = (w[14] + w[3]);
-    w[8] = (w[8] * w[14]);
+    w[13] = (w[13] + w[3]);
+    w[8] = (w[8] * w[13]);
     w[1] = (w[1] + w[8]);
-    w[8] = 1.2182964818928002e-03;
-    w[8] = (w[8] * w[11]);
+    w[8] = Q[5];
     w[1] = (w[1] + w[8]);
     P1[5] = w[1];
     return 0;
@@ -582,9 +568,36 @@ int dc_motor_link_kern_domain(const dc_motor_link_real x[3], dc_motor_link_real 
     return 0;
 }
 
-/* dc_motor_link_kern_predict:(x[3],P[3x3],u,q,centre)->(x1[3],P1[3x3]) */
+/* dc_motor_link_kern_noise:(q)->(Q[6]) */
+int dc_motor_link_kern_noise(const dc_motor_link_real q[1], dc_motor_link_real Q[6])
+{
+    dc_motor_link_real w[2];
+    w[0] = 9.1146539526454965e-13;
+    w[1] = q[0];
+    w[0] = (w[0] * w[1]);
+    Q[0] = w[0];
+    w[0] = 1.6906236507244616e-10;
+    w[0] = (w[0] * w[1]);
+    Q[1] = w[0];
+    w[0] = 3.7468169875215248e-08;
+    w[0] = (w[0] * w[1]);
+    Q[2] = w[0];
+    w[0] = 5.2777360675608860e-09;
+    w[0] = (w[0] * w[1]);
+    Q[3] = w[0];
+    w[0] = 2.7019799381214976e-06;
+    w[0] = (w[0] * w[1]);
+    Q[4] = w[0];
+    w[0] = 1.2182964818928002e-03;
+    w[0] = (w[0] * w[1]);
+    Q[5] = w[0];
+    return 0;
+    return 0;
+}
+
+/* dc_motor_link_kern_predict:(x[3],P[3x3],u,Q[6],centre)->(x1[3],P1[3x3]) */
 int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_link_real P[9],
-                               const dc_motor_link_real u[1], const dc_motor_link_real q[1],
+                               const dc_motor_link_real u[1], const dc_motor_link_real Q[6],
                                const dc_motor_link_real centre[1], dc_motor_link_real x1[3],
                                dc_motor_link_real P1[9])
 {
@@ -603,7 +616,7 @@ int dc_motor_link_kern_predict(const dc_motor_link_real x[3], const dc_motor_lin
             k++;
         }
     }
-    (void)dc_motor_link_kern_node_predict(post_packed, u, q, centre, x1, P1_packed);
+    (void)dc_motor_link_kern_node_predict(post_packed, u, Q, centre, x1, P1_packed);
     k = 0;
     for (j = 0; j < 3; j++) {
         for (i = 0; i <= j; i++) {

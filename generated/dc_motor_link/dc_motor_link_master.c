@@ -32,12 +32,13 @@ static size_t input_at(const dc_motor_link_master* master, uint32_t step)
     return (size_t)slot;
 }
 
-/* One prediction of (x, P) with the input of one step (the heads relative to `centre`). */
-static int master_step(const real* x, const real* P, const real* v, const real* q,
+/* One prediction of (x, P) with the input of one step (the heads relative to `centre`) and the
+ * process noise (Q0 packed, Qd). */
+static int master_step(const real* x, const real* P, const real* v, const real* noise,
                        const real* centre, real* x1, real* P1)
 {
     int rc = DC_MOTOR_LINK_OK;
-    (void)dc_motor_link_kern_predict(x, P, v, q, centre, x1, P1);
+    (void)dc_motor_link_kern_predict(x, P, v, noise, centre, x1, P1);
     if ((dc_motor_link_finite(x1, NX) == 0) || (dc_motor_link_finite(P1, NXX) == 0)) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
@@ -73,7 +74,7 @@ static inline int bring(const dc_motor_link_master* master, const dc_motor_link_
     *P_out = P_in;
     /* step <= k, modulo 2^32 */
     for (s = pk->step; (s != master->k) && (rc == DC_MOTOR_LINK_OK); s++) {
-        rc = master_step(x, *P_out, &master->v[input_at(master, s)], master->q, master->centre, x1,
+        rc = master_step(x, *P_out, &master->v[input_at(master, s)], master->Qd, master->centre, x1,
                          P1);
         (void)memcpy(x, x1, sizeof(x1));
         (void)memcpy(P_buf, P1, sizeof(P1));
@@ -205,6 +206,7 @@ int dc_motor_link_master_init(dc_motor_link_master* master, const real x0[NX], c
         (void)memcpy(master->x_prior, x0, sizeof(master->x_prior));
         (void)memcpy(master->P_prior, P0, sizeof(master->P_prior));
         (void)memcpy(master->q, q, sizeof(master->q));
+        (void)dc_motor_link_kern_noise(q, master->Qd);
         master_recentre(master);
     }
     return rc;
@@ -330,7 +332,7 @@ int dc_motor_link_master_predict(dc_motor_link_master* master, const real input[
     } else if (dc_motor_link_finite(v, NW) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     } else {
-        rc = master_step(master->x, master->P, v, master->q, master->centre, x1, P1);
+        rc = master_step(master->x, master->P, v, master->Qd, master->centre, x1, P1);
     }
     if (rc == DC_MOTOR_LINK_OK) {
         (void)memcpy(&master->v[input_at(master, master->k)], v, sizeof(real[NW]));

@@ -160,13 +160,13 @@ static inline int pivots_ok(const real* piv)
     return (piv[0] > (real)0) ? 1 : 0;
 }
 
-/* Prediction of a state with the input u held (the heads relative to `centre`); 0 or an error
- * code. */
-static inline int predict_step(const real* post, const real* u, const real* q, const real* centre,
+/* Prediction of a state with the input u held (the heads relative to `centre`) and the process
+ * noise Q (Q0 packed); 0 or an error code. */
+static inline int predict_step(const real* post, const real* u, const real* Q, const real* centre,
                                real* prior)
 {
     int rc = DC_MOTOR_LINK_OK;
-    (void)dc_motor_link_kern_node_predict(post, u, q, centre, prior, &prior[NX]);
+    (void)dc_motor_link_kern_node_predict(post, u, Q, centre, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = DC_MOTOR_LINK_ERR_NONFINITE;
     }
@@ -239,6 +239,7 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const real x0[NX], const r
         (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP);
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
+        (void)dc_motor_link_kern_noise(q, node->Qd);
         recentre(node, node->post);
     }
     return rc;
@@ -359,7 +360,7 @@ static int prior_P(const dc_motor_link_node* node, uint32_t j, real* prior)
         rc = update_step(prior, zero, used, node->R, post);
         if (rc == DC_MOTOR_LINK_OK) {
             /* the covariance alone: the held mean at x = 0 may leave the model's domain */
-            (void)dc_motor_link_kern_node_predict_P(&post[NX], node->q, &prior[NX]);
+            (void)dc_motor_link_kern_node_predict_P(&post[NX], node->Qd, &prior[NX]);
             if (dc_motor_link_finite(&prior[NX], (size_t)NPP) == 0) {
                 rc = DC_MOTOR_LINK_ERR_NONFINITE;
             }
@@ -399,7 +400,7 @@ static int replay(dc_motor_link_node* node, uint32_t j0, const real* zlate, real
         if ((rc == DC_MOTOR_LINK_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot], node->q, node->centre, prior);
+            rc = predict_step(post, &node->ring_v[slot], node->Qd, node->centre, prior);
             if (rc == DC_MOTOR_LINK_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -492,7 +493,7 @@ int dc_motor_link_node_predict(dc_motor_link_node* node, const real input[NW])
         rc = DC_MOTOR_LINK_ERR_SEQUENCE;
     }
     if (rc == DC_MOTOR_LINK_OK) { /* a non-finite v makes the prediction so */
-        rc = predict_step(node->post, v, node->q, node->centre, next);
+        rc = predict_step(node->post, v, node->Qd, node->centre, next);
     }
     if (rc == DC_MOTOR_LINK_OK) {
         slot = (int)node->slot;

@@ -44,11 +44,11 @@ static real normal(void)
  * a model error. */
 static void plant(real zeta[NX], const real u[DC_MOTOR_LINK_NW])
 {
-    real P[NX * NX], P1[NX * NX], x1[NX], q[DC_MOTOR_LINK_NQ], c[NY];
+    real P[NX * NX], P1[NX * NX], x1[NX], Q[DC_MOTOR_LINK_NPP], c[NY];
     memset(P, 0, sizeof(P));
-    memset(q, 0, sizeof(q));
+    memset(Q, 0, sizeof(Q));
     memset(c, 0, sizeof(c));
-    (void)dc_motor_link_kern_predict(zeta, P, u, q, c, x1, P1);
+    (void)dc_motor_link_kern_predict(zeta, P, u, Q, c, x1, P1);
     memcpy(zeta, x1, sizeof(x1));
 }
 

@@ -175,6 +175,8 @@ typedef struct {
     pvtol_real R[PVTOL_NYY];
     /** process-noise density per chain */
     pvtol_real q[PVTOL_NQ];
+    /** the process noise of one period the predictions add, Q0 of q (upper triangle packed) */
+    pvtol_real Qd[PVTOL_NPP];
     pvtol_real ring_x[PVTOL_NRING * PVTOL_NX];
     pvtol_real ring_z[PVTOL_NRING_NY];
     pvtol_real ring_v[PVTOL_NRING_NW];
@@ -235,6 +237,8 @@ typedef struct {
     pvtol_real x_prior[PVTOL_NX];
     pvtol_real P_prior[PVTOL_NXX];
     pvtol_real q[PVTOL_NQ];
+    /** Q0 of q, as the node's */
+    pvtol_real Qd[PVTOL_NPP];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
     pvtol_real v[PVTOL_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot

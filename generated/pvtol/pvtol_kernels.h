@@ -10,27 +10,31 @@
 
 #include "pvtol.h"
 
-/* pvtol_kern_node_predict:(post[44],u[2],q[2],centre[2])->(x1[8],P1[36]) */
-int pvtol_kern_node_predict(const pvtol_real post[44], const pvtol_real u[2], const pvtol_real q[2],
-                            const pvtol_real centre[2], pvtol_real x1[8], pvtol_real P1[36]);
+/* pvtol_kern_node_predict:(post[44],u[2],Q[36],centre[2])->(x1[8],P1[36]) */
+int pvtol_kern_node_predict(const pvtol_real post[44], const pvtol_real u[2],
+                            const pvtol_real Q[36], const pvtol_real centre[2], pvtol_real x1[8],
+                            pvtol_real P1[36]);
 
 /* pvtol_kern_update:(prior[44],e[2],R[2x2])->(post[44],piv[2]) */
 int pvtol_kern_update(const pvtol_real prior[44], const pvtol_real e[2], const pvtol_real R[4],
                       pvtol_real post[44], pvtol_real piv[2]);
 
-/* pvtol_kern_node_predict_P:(P[36],q[2])->(P1[36]) */
-int pvtol_kern_node_predict_P(const pvtol_real P[36], const pvtol_real q[2], pvtol_real P1[36]);
+/* pvtol_kern_node_predict_P:(P[36],Q[36])->(P1[36]) */
+int pvtol_kern_node_predict_P(const pvtol_real P[36], const pvtol_real Q[36], pvtol_real P1[36]);
 
 /* pvtol_kern_domain:(x[8])->(F[2],G[2x2]) */
 int pvtol_kern_domain(const pvtol_real x[8], pvtol_real F[2], pvtol_real G[4]);
+
+/* pvtol_kern_noise:(q[2])->(Q[36]) */
+int pvtol_kern_noise(const pvtol_real q[2], pvtol_real Q[36]);
 
 /* pvtol_kern_info:(x[8],P[8x8],c[8])->(Y[8x8],y[8],piv[8]) */
 int pvtol_kern_info(const pvtol_real x[8], const pvtol_real P[64], const pvtol_real c[8],
                     pvtol_real Y[64], pvtol_real y[8], pvtol_real piv[8]);
 
-/* pvtol_kern_predict:(x[8],P[8x8],u[2],q[2],centre[2])->(x1[8],P1[8x8]) */
+/* pvtol_kern_predict:(x[8],P[8x8],u[2],Q[36],centre[2])->(x1[8],P1[8x8]) */
 int pvtol_kern_predict(const pvtol_real x[8], const pvtol_real P[64], const pvtol_real u[2],
-                       const pvtol_real q[2], const pvtol_real centre[2], pvtol_real x1[8],
+                       const pvtol_real Q[36], const pvtol_real centre[2], pvtol_real x1[8],
                        pvtol_real P1[64]);
 
 /* pvtol_kern_master_gain:(x[8],P[8x8],xp[8],Pp[8x8],c[8])->(dY[36],dy[8],piv[16]) */

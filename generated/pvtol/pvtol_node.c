@@ -160,13 +160,13 @@ static inline int pivots_ok(const real* piv)
     return pvtol_positive(piv, NY);
 }
 
-/* Prediction of a state with the input u held (the heads relative to `centre`); 0 or an error
- * code. */
-static inline int predict_step(const real* post, const real* u, const real* q, const real* centre,
+/* Prediction of a state with the input u held (the heads relative to `centre`) and the process
+ * noise Q (Q0 packed); 0 or an error code. */
+static inline int predict_step(const real* post, const real* u, const real* Q, const real* centre,
                                real* prior)
 {
     int rc = PVTOL_OK;
-    (void)pvtol_kern_node_predict(post, u, q, centre, prior, &prior[NX]);
+    (void)pvtol_kern_node_predict(post, u, Q, centre, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = PVTOL_ERR_NONFINITE;
     }
@@ -244,6 +244,7 @@ int pvtol_node_init(pvtol_node* node, const real x0[NX], const real P0[NXX],
         (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP);
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
+        (void)pvtol_kern_noise(q, node->Qd);
         recentre(node, node->post);
     }
     return rc;
@@ -364,7 +365,7 @@ static int prior_P(const pvtol_node* node, uint32_t j, real* prior)
         rc = update_step(prior, zero, used, node->R, post);
         if (rc == PVTOL_OK) {
             /* the covariance alone: the held mean at x = 0 may leave the model's domain */
-            (void)pvtol_kern_node_predict_P(&post[NX], node->q, &prior[NX]);
+            (void)pvtol_kern_node_predict_P(&post[NX], node->Qd, &prior[NX]);
             if (pvtol_finite(&prior[NX], (size_t)NPP) == 0) {
                 rc = PVTOL_ERR_NONFINITE;
             }
@@ -404,7 +405,7 @@ static int replay(pvtol_node* node, uint32_t j0, const real* zlate, real* post)
         if ((rc == PVTOL_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot * NW], node->q, node->centre, prior);
+            rc = predict_step(post, &node->ring_v[slot * NW], node->Qd, node->centre, prior);
             if (rc == PVTOL_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -497,7 +498,7 @@ int pvtol_node_predict(pvtol_node* node, const real input[NW])
         rc = PVTOL_ERR_SEQUENCE;
     }
     if (rc == PVTOL_OK) { /* a non-finite v makes the prediction so */
-        rc = predict_step(node->post, v, node->q, node->centre, next);
+        rc = predict_step(node->post, v, node->Qd, node->centre, next);
     }
     if (rc == PVTOL_OK) {
         slot = (int)node->slot;

@@ -190,6 +190,8 @@ typedef struct {
     two_link_arm_real R[TWO_LINK_ARM_NYY];
     /** process-noise density per chain */
     two_link_arm_real q[TWO_LINK_ARM_NQ];
+    /** the process noise of one period the predictions add, Q0 of q (upper triangle packed) */
+    two_link_arm_real Qd[TWO_LINK_ARM_NPP];
     two_link_arm_real ring_x[TWO_LINK_ARM_NRING * TWO_LINK_ARM_NX];
     two_link_arm_real ring_z[TWO_LINK_ARM_NRING_NY];
     two_link_arm_real ring_v[TWO_LINK_ARM_NRING_NW];
@@ -250,6 +252,8 @@ typedef struct {
     two_link_arm_real x_prior[TWO_LINK_ARM_NX];
     two_link_arm_real P_prior[TWO_LINK_ARM_NXX];
     two_link_arm_real q[TWO_LINK_ARM_NQ];
+    /** Q0 of q, as the node's */
+    two_link_arm_real Qd[TWO_LINK_ARM_NPP];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
     two_link_arm_real v[TWO_LINK_ARM_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot

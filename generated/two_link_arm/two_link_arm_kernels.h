@@ -10,9 +10,9 @@
 
 #include "two_link_arm.h"
 
-/* two_link_arm_kern_node_predict:(post[27],u[2],q[2],centre[2])->(x1[6],P1[21]) */
+/* two_link_arm_kern_node_predict:(post[27],u[2],Q[21],centre[2])->(x1[6],P1[21]) */
 int two_link_arm_kern_node_predict(const two_link_arm_real post[27], const two_link_arm_real u[2],
-                                   const two_link_arm_real q[2], const two_link_arm_real centre[2],
+                                   const two_link_arm_real Q[21], const two_link_arm_real centre[2],
                                    two_link_arm_real x1[6], two_link_arm_real P1[21]);
 
 /* two_link_arm_kern_update:(prior[27],e[2],R[2x2])->(post[27],piv[2]) */
@@ -25,17 +25,20 @@ int two_link_arm_kern_info(const two_link_arm_real x[6], const two_link_arm_real
                            const two_link_arm_real c[6], two_link_arm_real Y[36],
                            two_link_arm_real y[6], two_link_arm_real piv[6]);
 
-/* two_link_arm_kern_node_predict_P:(P[21],q[2])->(P1[21]) */
-int two_link_arm_kern_node_predict_P(const two_link_arm_real P[21], const two_link_arm_real q[2],
+/* two_link_arm_kern_node_predict_P:(P[21],Q[21])->(P1[21]) */
+int two_link_arm_kern_node_predict_P(const two_link_arm_real P[21], const two_link_arm_real Q[21],
                                      two_link_arm_real P1[21]);
 
 /* two_link_arm_kern_domain:(x[6])->(F[2],G[2x2]) */
 int two_link_arm_kern_domain(const two_link_arm_real x[6], two_link_arm_real F[2],
                              two_link_arm_real G[4]);
 
-/* two_link_arm_kern_predict:(x[6],P[6x6],u[2],q[2],centre[2])->(x1[6],P1[6x6]) */
+/* two_link_arm_kern_noise:(q[2])->(Q[21]) */
+int two_link_arm_kern_noise(const two_link_arm_real q[2], two_link_arm_real Q[21]);
+
+/* two_link_arm_kern_predict:(x[6],P[6x6],u[2],Q[21],centre[2])->(x1[6],P1[6x6]) */
 int two_link_arm_kern_predict(const two_link_arm_real x[6], const two_link_arm_real P[36],
-                              const two_link_arm_real u[2], const two_link_arm_real q[2],
+                              const two_link_arm_real u[2], const two_link_arm_real Q[21],
                               const two_link_arm_real centre[2], two_link_arm_real x1[6],
                               two_link_arm_real P1[36]);
 

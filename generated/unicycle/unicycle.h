@@ -168,6 +168,8 @@ typedef struct {
     unicycle_real R[UNICYCLE_NYY];
     /** process-noise density per chain */
     unicycle_real q[UNICYCLE_NQ];
+    /** the process noise of one period the predictions add, Q0 of q (upper triangle packed) */
+    unicycle_real Qd[UNICYCLE_NPP];
     unicycle_real ring_x[UNICYCLE_NRING * UNICYCLE_NX];
     unicycle_real ring_z[UNICYCLE_NRING_NY];
     unicycle_real ring_v[UNICYCLE_NRING_NW];
@@ -228,6 +230,8 @@ typedef struct {
     unicycle_real x_prior[UNICYCLE_NX];
     unicycle_real P_prior[UNICYCLE_NXX];
     unicycle_real q[UNICYCLE_NQ];
+    /** Q0 of q, as the node's */
+    unicycle_real Qd[UNICYCLE_NPP];
     /** inputs (u) of steps k-NMAX..k-1, step k-d in slot (vslot - d) mod NMAX */
     unicycle_real v[UNICYCLE_NMAX_NW];
     /** current step (modulo 2^32: it wraps; a packet's age is k - step modulo 2^32), and the slot

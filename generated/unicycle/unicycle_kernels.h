@@ -10,9 +10,9 @@
 
 #include "unicycle.h"
 
-/* unicycle_kern_node_predict:(post[14],u[2],q[2],centre[2])->(x1[4],P1[10]) */
+/* unicycle_kern_node_predict:(post[14],u[2],Q[10],centre[2])->(x1[4],P1[10]) */
 int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real u[2],
-                               const unicycle_real q[2], const unicycle_real centre[2],
+                               const unicycle_real Q[10], const unicycle_real centre[2],
                                unicycle_real x1[4], unicycle_real P1[10]);
 
 /* unicycle_kern_update:(prior[14],e[2],R[2x2])->(post[14],piv[2]) */
@@ -24,16 +24,19 @@ int unicycle_kern_info(const unicycle_real x[4], const unicycle_real P[16],
                        const unicycle_real c[4], unicycle_real Y[16], unicycle_real y[4],
                        unicycle_real piv[4]);
 
-/* unicycle_kern_node_predict_P:(P[10],q[2])->(P1[10]) */
-int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real q[2],
+/* unicycle_kern_node_predict_P:(P[10],Q[10])->(P1[10]) */
+int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real Q[10],
                                  unicycle_real P1[10]);
 
 /* unicycle_kern_domain:(x[4])->(F[2],G[2x2]) */
 int unicycle_kern_domain(const unicycle_real x[4], unicycle_real F[2], unicycle_real G[4]);
 
-/* unicycle_kern_predict:(x[4],P[4x4],u[2],q[2],centre[2])->(x1[4],P1[4x4]) */
+/* unicycle_kern_noise:(q[2])->(Q[10]) */
+int unicycle_kern_noise(const unicycle_real q[2], unicycle_real Q[10]);
+
+/* unicycle_kern_predict:(x[4],P[4x4],u[2],Q[10],centre[2])->(x1[4],P1[4x4]) */
 int unicycle_kern_predict(const unicycle_real x[4], const unicycle_real P[16],
-                          const unicycle_real u[2], const unicycle_real q[2],
+                          const unicycle_real u[2], const unicycle_real Q[10],
                           const unicycle_real centre[2], unicycle_real x1[4], unicycle_real P1[16]);
 
 /* unicycle_kern_master_gain:(x[4],P[4x4],xp[4],Pp[4x4],c[4])->(dY[10],dy[4],piv[8]) */

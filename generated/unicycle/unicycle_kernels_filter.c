@@ -1,7 +1,7 @@
 /* DO NOT EDIT: unicycle module, generated from template kernels.c.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build unicycle`. */
 /* Node filter kernels (the master reuses predict): node_predict, update, info, node_predict_P,
- * domain, predict.
+ * domain, noise, predict.
  * Straight-line code printed by CasADi 3.8 and post-processed by
  * dfeif_codegen.kernels (helpers static, named entry points, double arithmetic only); a
  * kernel that is another on packed copies of its matrices is that call between two copy loops. */
@@ -18,9 +18,9 @@ static unicycle_real casadi_sq(unicycle_real x)
     return x * x;
 }
 
-/* unicycle_kern_node_predict:(post[14],u[2],q[2],centre[2])->(x1[4],P1[10]) */
+/* unicycle_kern_node_predict:(post[14],u[2],Q[10],centre[2])->(x1[4],P1[10]) */
 int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real u[2],
-                               const unicycle_real q[2], const unicycle_real centre[2],
+                               const unicycle_real Q[10], const unicycle_real centre[2],
                                unicycle_real x1[4], unicycle_real P1[10])
 {
     (void)centre;
@@ -67,10 +67,10 @@ int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real
     x1[1] = w[2];
     w[2] = post[2];
     w[10] = (w[1] * w[5]);
-    w[15] = (w[4] * w[12]);
-    w[10] = (w[10] + w[15]);
-    w[15] = casadi_hypot(w[11], w[14]);
-    w[14] = (w[14] / w[15]);
+    w[4] = (w[4] * w[12]);
+    w[10] = (w[10] + w[4]);
+    w[4] = casadi_hypot(w[11], w[14]);
+    w[14] = (w[14] / w[4]);
     w[14] = (w[14] * w[7]);
     w[11] = (w[11] * w[8]);
     w[14] = (w[14] + w[11]);
@@ -92,52 +92,49 @@ int unicycle_kern_node_predict(const unicycle_real post[14], const unicycle_real
     w[13] = (w[13] + w[14]);
     w[14] = (w[1] * w[13]);
     w[5] = (w[5] + w[14]);
-    w[14] = 2.6666666666666668e-06;
-    w[2] = q[0];
-    w[10] = (w[14] * w[2]);
-    w[5] = (w[5] + w[10]);
+    w[14] = Q[0];
+    w[5] = (w[5] + w[14]);
     P1[0] = w[5];
-    w[5] = (w[4] * w[2]);
+    w[5] = Q[1];
     w[13] = (w[13] + w[5]);
     P1[1] = w[13];
-    w[2] = (w[1] * w[2]);
-    w[0] = (w[0] + w[2]);
+    w[13] = Q[2];
+    w[0] = (w[0] + w[13]);
     P1[2] = w[0];
     w[0] = post[7];
-    w[2] = post[8];
-    w[13] = (w[1] * w[2]);
-    w[0] = (w[0] + w[13]);
-    w[13] = post[10];
-    w[5] = post[11];
-    w[10] = (w[1] * w[5]);
-    w[13] = (w[13] + w[10]);
-    w[10] = (w[1] * w[13]);
-    w[0] = (w[0] + w[10]);
+    w[13] = post[8];
+    w[5] = (w[1] * w[13]);
+    w[0] = (w[0] + w[5]);
+    w[5] = post[10];
+    w[14] = post[11];
+    w[2] = (w[1] * w[14]);
+    w[5] = (w[5] + w[2]);
+    w[2] = (w[1] * w[5]);
+    w[0] = (w[0] + w[2]);
     P1[3] = w[0];
-    w[0] = (w[1] * w[5]);
-    w[2] = (w[2] + w[0]);
-    P1[4] = w[2];
-    w[2] = post[9];
+    w[0] = (w[1] * w[14]);
+    w[13] = (w[13] + w[0]);
+    P1[4] = w[13];
+    w[13] = post[9];
     w[0] = post[12];
-    w[10] = (w[1] * w[0]);
-    w[2] = (w[2] + w[10]);
-    w[10] = post[13];
-    w[9] = (w[1] * w[10]);
-    w[0] = (w[0] + w[9]);
-    w[9] = (w[1] * w[0]);
-    w[2] = (w[2] + w[9]);
-    w[9] = q[1];
-    w[14] = (w[14] * w[9]);
-    w[2] = (w[2] + w[14]);
-    P1[5] = w[2];
-    P1[6] = w[13];
-    P1[7] = w[5];
-    w[4] = (w[4] * w[9]);
-    w[0] = (w[0] + w[4]);
+    w[2] = (w[1] * w[0]);
+    w[13] = (w[13] + w[2]);
+    w[2] = post[13];
+    w[10] = (w[1] * w[2]);
+    w[0] = (w[0] + w[10]);
+    w[1] = (w[1] * w[0]);
+    w[13] = (w[13] + w[1]);
+    w[1] = Q[5];
+    w[13] = (w[13] + w[1]);
+    P1[5] = w[13];
+    P1[6] = w[5];
+    P1[7] = w[14];
+    w[14] = Q[8];
+    w[0] = (w[0] + w[14]);
     P1[8] = w[0];
-    w[1] = (w[1] * w[9]);
-    w[10] = (w[10] + w[1]);
-    P1[9] = w[10];
+    w[0] = Q[9];
+    w[2] = (w[2] + w[0]);
+    P1[9] = w[2];
     return 0;
     return 0;
 }
@@ -445,11 +442,11 @@ int unicycle_kern_info(const unicycle_real x[4], const unicycle_real P[16],
     return 0;
 }
 
-/* unicycle_kern_node_predict_P:(P[10],q[2])->(P1[10]) */
-int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real q[2],
+/* unicycle_kern_node_predict_P:(P[10],Q[10])->(P1[10]) */
+int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real Q[10],
                                  unicycle_real P1[10])
 {
-    unicycle_real w[9];
+    unicycle_real w[7];
     w[0] = P[0];
     w[1] = 2.0000000000000000e-02;
     w[2] = P[1];
@@ -460,53 +457,49 @@ int unicycle_kern_node_predict_P(const unicycle_real P[10], const unicycle_real 
     w[2] = (w[2] + w[4]);
     w[4] = (w[1] * w[2]);
     w[0] = (w[0] + w[4]);
-    w[4] = 2.6666666666666668e-06;
-    w[5] = q[0];
-    w[6] = (w[4] * w[5]);
-    w[0] = (w[0] + w[6]);
+    w[4] = Q[0];
+    w[0] = (w[0] + w[4]);
     P1[0] = w[0];
-    w[0] = 2.0000000000000001e-04;
-    w[6] = (w[0] * w[5]);
-    w[2] = (w[2] + w[6]);
+    w[0] = Q[1];
+    w[2] = (w[2] + w[0]);
     P1[1] = w[2];
-    w[5] = (w[1] * w[5]);
-    w[3] = (w[3] + w[5]);
+    w[2] = Q[2];
+    w[3] = (w[3] + w[2]);
     P1[2] = w[3];
     w[3] = P[3];
-    w[5] = P[4];
-    w[2] = (w[1] * w[5]);
-    w[3] = (w[3] + w[2]);
-    w[2] = P[6];
-    w[6] = P[7];
-    w[7] = (w[1] * w[6]);
-    w[2] = (w[2] + w[7]);
-    w[7] = (w[1] * w[2]);
-    w[3] = (w[3] + w[7]);
-    P1[3] = w[3];
-    w[3] = (w[1] * w[6]);
-    w[5] = (w[5] + w[3]);
-    P1[4] = w[5];
-    w[5] = P[5];
-    w[3] = P[8];
-    w[7] = (w[1] * w[3]);
-    w[5] = (w[5] + w[7]);
-    w[7] = P[9];
-    w[8] = (w[1] * w[7]);
-    w[3] = (w[3] + w[8]);
-    w[8] = (w[1] * w[3]);
-    w[5] = (w[5] + w[8]);
-    w[8] = q[1];
-    w[4] = (w[4] * w[8]);
-    w[5] = (w[5] + w[4]);
-    P1[5] = w[5];
-    P1[6] = w[2];
-    P1[7] = w[6];
-    w[0] = (w[0] * w[8]);
+    w[2] = P[4];
+    w[0] = (w[1] * w[2]);
     w[3] = (w[3] + w[0]);
+    w[0] = P[6];
+    w[4] = P[7];
+    w[5] = (w[1] * w[4]);
+    w[0] = (w[0] + w[5]);
+    w[5] = (w[1] * w[0]);
+    w[3] = (w[3] + w[5]);
+    P1[3] = w[3];
+    w[3] = (w[1] * w[4]);
+    w[2] = (w[2] + w[3]);
+    P1[4] = w[2];
+    w[2] = P[5];
+    w[3] = P[8];
+    w[5] = (w[1] * w[3]);
+    w[2] = (w[2] + w[5]);
+    w[5] = P[9];
+    w[6] = (w[1] * w[5]);
+    w[3] = (w[3] + w[6]);
+    w[1] = (w[1] * w[3]);
+    w[2] = (w[2] + w[1]);
+    w[1] = Q[5];
+    w[2] = (w[2] + w[1]);
+    P1[5] = w[2];
+    P1[6] = w[0];
+    P1[7] = w[4];
+    w[4] = Q[8];
+    w[3] = (w[3] + w[4]);
     P1[8] = w[3];
-    w[1] = (w[1] * w[8]);
-    w[7] = (w[7] + w[1]);
-    P1[9] = w[7];
+    w[3] = Q[9];
+    w[5] = (w[5] + w[3]);
+    P1[9] = w[5];
     return 0;
     return 0;
 }
@@ -533,9 +526,39 @@ int unicycle_kern_domain(const unicycle_real x[4], unicycle_real F[2], unicycle_
     return 0;
 }
 
-/* unicycle_kern_predict:(x[4],P[4x4],u[2],q[2],centre[2])->(x1[4],P1[4x4]) */
+/* unicycle_kern_noise:(q[2])->(Q[10]) */
+int unicycle_kern_noise(const unicycle_real q[2], unicycle_real Q[10])
+{
+    unicycle_real w[5];
+    w[0] = 2.6666666666666668e-06;
+    w[1] = q[0];
+    w[2] = (w[0] * w[1]);
+    Q[0] = w[2];
+    w[2] = 2.0000000000000001e-04;
+    w[3] = (w[2] * w[1]);
+    Q[1] = w[3];
+    w[3] = 2.0000000000000000e-02;
+    w[1] = (w[3] * w[1]);
+    Q[2] = w[1];
+    w[1] = 0.;
+    Q[3] = w[1];
+    Q[4] = w[1];
+    w[4] = q[1];
+    w[0] = (w[0] * w[4]);
+    Q[5] = w[0];
+    Q[6] = w[1];
+    Q[7] = w[1];
+    w[2] = (w[2] * w[4]);
+    Q[8] = w[2];
+    w[3] = (w[3] * w[4]);
+    Q[9] = w[3];
+    return 0;
+    return 0;
+}
+
+/* unicycle_kern_predict:(x[4],P[4x4],u[2],Q[10],centre[2])->(x1[4],P1[4x4]) */
 int unicycle_kern_predict(const unicycle_real x[4], const unicycle_real P[16],
-                          const unicycle_real u[2], const unicycle_real q[2],
+                          const unicycle_real u[2], const unicycle_real Q[10],
                           const unicycle_real centre[2], unicycle_real x1[4], unicycle_real P1[16])
 {
     unicycle_real post_packed[14];
@@ -553,7 +576,7 @@ int unicycle_kern_predict(const unicycle_real x[4], const unicycle_real P[16],
             k++;
         }
     }
-    (void)unicycle_kern_node_predict(post_packed, u, q, centre, x1, P1_packed);
+    (void)unicycle_kern_node_predict(post_packed, u, Q, centre, x1, P1_packed);
     k = 0;
     for (j = 0; j < 4; j++) {
         for (i = 0; i <= j; i++) {

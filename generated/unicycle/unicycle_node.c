@@ -169,13 +169,13 @@ static inline int pivots_ok(const real* piv)
     return unicycle_positive(piv, NY);
 }
 
-/* Prediction of a state with the input u held (the heads relative to `centre`); 0 or an error
- * code. */
-static inline int predict_step(const real* post, const real* u, const real* q, const real* centre,
+/* Prediction of a state with the input u held (the heads relative to `centre`) and the process
+ * noise Q (Q0 packed); 0 or an error code. */
+static inline int predict_step(const real* post, const real* u, const real* Q, const real* centre,
                                real* prior)
 {
     int rc = UNICYCLE_OK;
-    (void)unicycle_kern_node_predict(post, u, q, centre, prior, &prior[NX]);
+    (void)unicycle_kern_node_predict(post, u, Q, centre, prior, &prior[NX]);
     if (finite_state(prior) == 0) {
         rc = UNICYCLE_ERR_NONFINITE;
     }
@@ -254,6 +254,7 @@ int unicycle_node_init(unicycle_node* node, const real x0[NX], const real P0[NXX
         (void)memcpy(node->ring_P, &xP[NX], sizeof(real) * (size_t)NPP);
         (void)memcpy(node->R, R, sizeof(node->R));
         (void)memcpy(node->q, q, sizeof(node->q));
+        (void)unicycle_kern_noise(q, node->Qd);
         recentre(node, node->post);
     }
     return rc;
@@ -374,7 +375,7 @@ static int prior_P(const unicycle_node* node, uint32_t j, real* prior)
         rc = update_step(prior, zero, used, node->R, post);
         if (rc == UNICYCLE_OK) {
             /* the covariance alone: the held mean at x = 0 may leave the model's domain */
-            (void)unicycle_kern_node_predict_P(&post[NX], node->q, &prior[NX]);
+            (void)unicycle_kern_node_predict_P(&post[NX], node->Qd, &prior[NX]);
             if (unicycle_finite(&prior[NX], (size_t)NPP) == 0) {
                 rc = UNICYCLE_ERR_NONFINITE;
             }
@@ -414,7 +415,7 @@ static int replay(unicycle_node* node, uint32_t j0, const real* zlate, real* pos
         if ((rc == UNICYCLE_OK) && (j != node->k)) {
             (void)memcpy(&old_x[written * (uint32_t)NX], xnext, sizeof(real) * (size_t)NX);
             written++;
-            rc = predict_step(post, &node->ring_v[slot * NW], node->q, node->centre, prior);
+            rc = predict_step(post, &node->ring_v[slot * NW], node->Qd, node->centre, prior);
             if (rc == UNICYCLE_OK) {
                 (void)memcpy(xnext, prior, sizeof(real) * (size_t)NX);
             }
@@ -507,7 +508,7 @@ int unicycle_node_predict(unicycle_node* node, const real input[NW])
         rc = UNICYCLE_ERR_SEQUENCE;
     }
     if (rc == UNICYCLE_OK) { /* a non-finite v makes the prediction so */
-        rc = predict_step(node->post, v, node->q, node->centre, next);
+        rc = predict_step(node->post, v, node->Qd, node->centre, next);
     }
     if (rc == UNICYCLE_OK) {
         slot = (int)node->slot;

@@ -35,9 +35,9 @@ from dfeif_codegen.codegen.options import Options
 # Kernels whose work array is a local of the kernel, not a parameter: then no store into it can
 # alias an argument, and the compiler keeps the intermediates in registers (the node's kernels,
 # called once per step on the hot path; measured: about half their instructions; and info, whose
-# Cortex-M4F code this halves at n = 10; and domain, called at init only, so that its callers
-# need no work array).
-LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_finish", "info", "domain")
+# Cortex-M4F code this halves at n = 10; and domain and noise, called at init only, so that
+# their callers need no work array).
+LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_finish", "info", "domain", "noise")
 
 # node_predict and info are printed as loops (`Loop`) when their straight-line code would have
 # more operations (CasADi's count) than their limit here. The limits differ because what the
@@ -59,9 +59,10 @@ LOCAL_WORK = ("update", "node_predict", "node_predict_P", "retro_step", "retro_f
 # The held predictor's node_predict and node_predict_P (the default build's) are loops when the
 # covariance step alone (held.covariance_ops: the mean is printed straight-line either way) has
 # more operations than "held_covariance": held.node_predict_loop, 1.15-1.26x the straight line's
-# instructions (n = 6..12), O(n^2) code. Chains of n: 951 operations at n = 9, 1,272 at 10
-# (two_link_arm 560, 1,124 with disturbance states, pvtol 705 with them: every built-in model
-# straight-line with any options). Looped from n = 10, the node step
+# instructions (n = 6..12), O(n^2) code. Chains of n: 908 operations at n = 9, 1,219 at 10
+# (with Q0 an argument, `held.noise`: 951 and 1,272 when it was summed from q each step);
+# two_link_arm 474, 897 with Gauss-Markov states, pvtol 638 with them: straight-line; the
+# arm's integrated kinds (1,437 and 1,459: two states per chain) looped. Looped from n = 10, the node step
 # (update + node_predict) grows at most 1.53x per n over n = 2..12 (1.38x from n = 9 to 10; 1.51x
 # on the Cortex-M4F), the filter kernels' .text as n^1.75 (straight-line n^2.03: 19,344 B at
 # n = 12, now 10,452). Looped from n = 9 the Cortex-M4F's node step jumped 1.59x, from n = 8
@@ -97,7 +98,7 @@ def build(flat, opts: Options, prefix: str) -> KernelSet:
         node_predict = held.node_predict(h, name("node_predict"))
         filt = [held.predict(h, name("predict")), node_predict, node.update(s, name("update")), info]
         filt += [held.node_predict_P(h, name("node_predict_P"))] if opts.oosm == "replay" and opts.check_every > 1 else []
-        filt += [held.domain(h, name("domain"))]
+        filt += [held.domain(h, name("domain")), held.noise(h, name("noise"))]
     else:
         node_predict = node.node_predict(s, name("node_predict"))
         filt = [node.predict(s, name("predict")), node_predict, node.update(s, name("update")), info]

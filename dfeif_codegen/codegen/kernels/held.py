@@ -1,7 +1,8 @@
 """The held-input predictor's kernels (`--predictor held`, the default; docs/mathematics.md
 section 3; the reference's is reference/predictor.py): the node's and the master's prediction,
-the covariance-only step a node's replay carries its checkpoints with, and F-bar, G-bar at a
-prior (`domain`: init refuses a prior outside the model's domain); above
+the covariance-only step a node's replay carries its checkpoints with, F-bar, G-bar at a prior
+(`domain`: init refuses a prior outside the model's domain) and Q₀ of the densities
+(`noise`: taken at init, each prediction adds it); above
 kernels.LOOP_OPS["held_covariance"] the node's two printed as loops over small parts
 (`node_predict_loop`, the master's calls the node's).
 
@@ -56,23 +57,43 @@ class Held:
         z = x + ca.mtimes(dm(self.embed), c)
         return x + sampling.held_increment_sx(self.flat, self.H, x, z, w[:self.m], self.p)
 
-    def covariance(self, P: ca.SX, q: ca.SX, sigma: ca.SX | None = None) -> ca.SX:
-        """Φ P Φᵀ + Q₀ (Q₀ = Σ_j q_j U_j) from the upper triangle of P: Φ = Φ₀, or Φ(σ) when
-        scheduled."""
+    def covariance(self, P: ca.SX, Q: ca.SX, sigma: ca.SX | None = None) -> ca.SX:
+        """Φ P Φᵀ + Q₀ from the upper triangles of P and Q₀ (`noise`'s, packed): Φ = Φ₀, or
+        Φ(σ) when scheduled."""
         E = sampling.scheduled_transition_sx(self.flat, self.H, sigma, self.p) if self.scheduled else dm(self.H.E)
-        out = ca.mtimes(ca.mtimes(E, symmetric(P)), E.T)
+        return ca.mtimes(ca.mtimes(E, symmetric(P)), E.T) + self.noise_in(Q)
+
+    def noise_in(self, Q: ca.SX) -> ca.SX:
+        """Q₀ from its packed upper triangle, only where some U_j has a nonzero (elsewhere Q₀ is
+        0 for every q): decoupled chains add no more entries than Σ q_j U_j had."""
+        where = np.any([U != 0 for U in self.H.U], axis=0)
+        return ca.SX(unpack(Q, self.n) * dm(where.astype(float)))
+
+    def noise_of(self, q: ca.SX) -> ca.SX:
+        """Q₀ = Σ_j q_j U_j of the densities q, its upper triangle packed."""
+        out = ca.SX(self.n, self.n)
         for j in range(self.nq):
             out = out + q[j] * dm(self.H.U[j])
-        return out
+        return pack(out)
+
+
+def noise(h: Held, name: str) -> ca.Function:
+    """Q₀ packed from the densities: constant between inits, so the node and the master take it
+    once at init and each prediction adds it (n(n+1)/2 additions) instead of forming Σ q_j U_j
+    (two operations per nonzero of every U_j: dc_motor_link's node_predict 347 -> 317
+    operations with a random walk per chain, two_link_arm's 2,818 -> 2,585 with an integrated
+    Gauss-Markov)."""
+    q = sym("q", h.nq)   # dense: CasADi writes a sparse result's nonzeros only, one after another
+    return ca.Function(name, [q], [ca.densify(h.noise_of(q))], ["q"], ["Q"])
 
 
 def node_predict(h: Held, name: str) -> ca.Function:
     """The node's prediction of its state (x, then P packed: one argument) with the applied u
-    (and σ, scheduled: the argument u is then w = (u, σ))."""
+    (and σ, scheduled: the argument u is then w = (u, σ)) and Q₀ packed (`noise`)."""
     n, m, npp = h.n, h.m, h.n * (h.n + 1) // 2
-    post, u, q, c = sym("post", n + npp), sym("u", h.nw), sym("q", h.nq), sym("centre", m)
-    P1 = h.covariance(unpack(post[n:], n), q, u[m:])
-    return ca.Function(name, [post, u, q, c], [h.mean(post[:n], u, c), pack(P1)], ["post", "u", "q", "centre"],
+    post, u, Q, c = sym("post", n + npp), sym("u", h.nw), sym("Q", npp), sym("centre", m)
+    P1 = h.covariance(unpack(post[n:], n), Q, u[m:])
+    return ca.Function(name, [post, u, Q, c], [h.mean(post[:n], u, c), pack(P1)], ["post", "u", "Q", "centre"],
                        ["x1", "P1"])
 
 
@@ -93,15 +114,16 @@ def node_predict_P(h: Held, name: str) -> ca.Function:
     """The covariance alone (a replay's checkpoints: P reads neither x nor u). Not for the
     scheduled predictor, whose P reads σ: its node stores every step's P prior instead
     (Options.check_every)."""
-    P, q = sym("P", h.n * (h.n + 1) // 2), sym("q", h.nq)
-    return ca.Function(name, [P, q], [pack(h.covariance(unpack(P, h.n), q))], ["P", "q"], ["P1"])
+    P, Q = sym("P", h.n * (h.n + 1) // 2), sym("Q", h.n * (h.n + 1) // 2)
+    return ca.Function(name, [P, Q], [pack(h.covariance(unpack(P, h.n), Q))], ["P", "Q"], ["P1"])
 
 
 def predict(h: Held, name: str) -> ca.Function:
-    """The master's prediction (x, P full): printed as node_predict on packed copies."""
-    x, P, u, q, c = sym("x", h.n), sym("P", h.n, h.n), sym("u", h.nw), sym("q", h.nq), sym("centre", h.m)
-    P1 = symmetric(h.covariance(symmetric(P), q, u[h.m:]))
-    return ca.Function(name, [x, P, u, q, c], [h.mean(x, u, c), P1], ["x", "P", "u", "q", "centre"], ["x1", "P1"])
+    """The master's prediction (x, P full; Q₀ packed): printed as node_predict on packed copies."""
+    x, P, u, c = sym("x", h.n), sym("P", h.n, h.n), sym("u", h.nw), sym("centre", h.m)
+    Q = sym("Q", h.n * (h.n + 1) // 2)
+    P1 = symmetric(h.covariance(symmetric(P), Q, u[h.m:]))
+    return ca.Function(name, [x, P, u, Q, c], [h.mean(x, u, c), P1], ["x", "P", "u", "Q", "centre"], ["x1", "P1"])
 
 
 # The covariance loops' bands: G = E P and E Gᵀ are computed a band of columns (rows) at a time
@@ -130,13 +152,11 @@ def _parts(h: Held, name: str) -> list[ca.Function]:
     """The looped form's parts (`node_predict_loop`), each O(n^2) code: `mean` (x1), `unpack`
     (P, both triangles), `top<t>` (rows 0..t-1 of E times a column), `bot<s>` (rows s..n-1 of
     it, from a row of E P read with stride n in E P's columns; E's structural zeros folded away
-    in both) and `q` (P1 packed from E P Eᵀ by rows plus Q₀)."""
+    in both) and `q` (P1 packed from E P Eᵀ by rows plus Q₀, packed)."""
     n, m, E = h.n, h.m, h.H.E
-    x, u, c, col, q = sym("x", n), sym("u", m), sym("centre", m), sym("col", n), sym("q", h.nq)
+    x, u, c, col, Q = sym("x", n), sym("u", m), sym("centre", m), sym("col", n), sym("Q", n * (n + 1) // 2)
     P, M, row = sym("P", n * (n + 1) // 2), sym("EPE", n * n), sym("EProw", (n - 1) * n + 1)
-    out = ca.reshape(M, n, n).T   # row i of E P Eᵀ at M[i n ...]: entry (i, j) as the straight line's
-    for j in range(h.nq):
-        out = out + q[j] * dm(h.H.U[j])
+    out = ca.reshape(M, n, n).T + h.noise_in(Q)   # row i of E P Eᵀ at M[i n ...]: entry (i, j) as the straight line's
     bands = _bands(E)
     strided = ca.vertcat(*[row[k * n] for k in range(n)])   # row i of E P, read in its columns
     parts = {f"{name}_top{t}": ca.Function(f"{name}_top{t}", [col], [ca.mtimes(dm(E[:t, :]), col)], ["col"], ["Ecol"])
@@ -145,7 +165,7 @@ def _parts(h: Held, name: str) -> list[ca.Function]:
                                                 ["EProw"], ["Erow"]) for s, _, _, _ in bands})
     return [ca.Function(f"{name}_mean", [x, u, c], [h.mean(x, u, c)], ["x", "u", "centre"], ["x1"]),
             ca.Function(f"{name}_unpack", [P], [ca.reshape(unpack(P, n), n * n, 1)], ["P"], ["S"]),
-            *parts.values(), ca.Function(f"{name}_q", [M, q], [pack(out)], ["EPE", "q"], ["P1"])]
+            *parts.values(), ca.Function(f"{name}_q", [M, Q], [pack(out)], ["EPE", "Q"], ["P1"])]
 
 
 def _covariance_lines(E: np.ndarray, parts: str, packed: str, out: str) -> list[str]:
@@ -161,7 +181,7 @@ def _covariance_lines(E: np.ndarray, parts: str, packed: str, out: str) -> list[
     for s, e, _, _ in _bands(E):
         at = f"(i * {n}) + {s}" if s else f"i * {n}"   # no `+ 0` (MISRA 2.2)
         lines += for_lines(f"i = {s}; i < {e}; i++", [f"(void){parts}_bot{s}(&G[i], &S[{at}]);"])
-    return lines + [f"(void){parts}_q(S, q, {out});"]
+    return lines + [f"(void){parts}_q(S, Q, {out});"]
 
 
 def _decls(n: int) -> list[str]:
