@@ -105,19 +105,31 @@ def test_float_equals_reference(store, run):
 
 @pytest.mark.parametrize("case", CI_FLOAT, ids=str)
 def test_float_ci_where_single_precision_loses_digits(store, case):
-    """The arm's covariance-intersection master in float sits at the float budget (master P
-    7.6e-5 held, 1.09e-4 scheduled, at the first steps, where the weights are chosen on the
-    widest P), and a second single-precision implementation lands as far: the reference's own
-    nodes and master in float32 (numpy and LAPACK, verify.float32_reference_errors) measured
-    7.9e-5 and 9.4e-5. So each node and master signal is within the float budget (1e-4) or within
-    3x that implementation's distance from the float64 reference (verify's yardstick: two
-    single-precision roundings of one computation are alike in size, measured 0.96x and 1.16x on
-    the master); u, v and the late frames within their own tolerances, and the twin itself must
-    lose digits (above 3e-5 on the master), else the case belongs in FLOAT."""
+    """The arm's covariance-intersection master in float sits at the float budget: its worst
+    master P is at the first steps, where the weights are chosen on the widest P, and there a
+    one-ulp change anywhere moves it by up to about 1e-4 (measured, master P: the C 7.6e-5 held
+    and 1.1e-4 scheduled with Q0 summed from q every step, 1.4e-4 and 2.4e-4 with Q0 formed once
+    at init, the products in the same order; the reference in float32 7.9e-5 and 9.4e-5, with
+    its covariance products associated the other way 2.9e-5 and 5.8e-5). So one second
+    single-precision implementation is one draw; the sensitivity is the worst over an ensemble:
+    the reference's nodes and master in float32 (numpy and LAPACK, verify.float32_reference_errors)
+    on the recording and with the nodes' P0 nudged by one float ulp (random signs, 4 nudges;
+    measured worst, master P: 1.0e-4 held, 1.5e-4 scheduled). Each node and master signal is within the float budget (1e-4) or within 3x the ensemble's
+    worst distance from the float64 reference (verify's yardstick's factor: two single-precision
+    roundings of one computation are alike in size); u, v and the late frames within their own
+    tolerances; and the ensemble itself must lose digits (above 3e-5 on the master), else the
+    case belongs in FLOAT."""
     rec = store.recording(case)
     errors = verify.compare_run(store.library(case, "float").run(rec), rec, "float")
     twin = {e.signal: e.worst for e in verify.float32_reference_errors(rec)}
-    print(f"\n{case}: float C / float32 numpy, distance from the float64 reference")
+    eps = float(np.finfo(np.float32).eps)
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        P0 = rec.node_P0 * (1 + eps * rng.choice([-1, 1], rec.node_P0.shape))
+        nudged = dataclasses.replace(rec, node_P0=(P0 + np.swapaxes(P0, 1, 2)) / 2)
+        for e in verify.compare_run(experiment.replay_recording(nudged, dtype=np.float32), rec, "float"):
+            twin[e.signal] = max(twin[e.signal], e.worst)
+    print(f"\n{case}: float C / float32 numpy (worst of 5), distance from the float64 reference")
     for e in errors:
         print(f"  {e.signal:12s} {e.worst:.1e} / {twin.get(e.signal, 0.0):.1e}")
         assert e.ok or ("." in e.signal and e.worst <= 3 * twin[e.signal]), e.signal
