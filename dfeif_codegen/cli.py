@@ -205,7 +205,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--period", type=float, default=None, metavar="S", help="seconds (default 5)")
     p.add_argument("--disturbance", metavar="KIND", default=None,
                    help="random_walk, gauss_markov, integrated_random_walk, integrated_gauss_markov or auto (the "
-                        "more accurate of the first and the third, measured): add disturbance states, calibrated")
+                        "most accurate whose loop holds, measured): add disturbance states, calibrated")
     p.add_argument("--tau", type=float, default=None, metavar="S", help="the (rate's) Gauss-Markov time constant [s]")
     p.add_argument("--param-error", default=None, metavar="SPREAD|NAME=REL,...",
                    help="calibrate against a plant with that model error (as simulate's), and write it")

@@ -229,6 +229,10 @@ def generated() -> dict:
             ["disturbance", f"codegen {cmd}", "codegen simulate"])
     c |= _opt("option: not a choice", "scenario", "--disturbance", ["walk", ""])
     c |= _opt("option: out of range", "scenario", "--tau", ["0", "-1", "nan"], extra=("--disturbance", "gauss_markov"))
+    for v in ("0", "nan"):     # auto takes a tau for its Gauss-Markov candidates: the same check
+        c[f"scenario --disturbance auto --tau {v}"] = ("option: out of range",
+                                                      ["scenario", "--disturbance", "auto", "--tau", v], {},
+                                                      ["--tau", "auto"])
     c |= _opt("option: not a choice", "scenario", "--offsets", ["R"], extra=("--param-error", "0.2"),
               words=["--offsets", "--disturbance"])
     c |= _opt("option: not a choice", "scenario", "--offsets", ["Rx", "R,R", "R,"],

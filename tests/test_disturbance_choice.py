@@ -1,7 +1,7 @@
 """`codegen scenario --disturbance auto` (experiment/disturbance_choice.py): the rule that picks a
-kind, on stand-ins for the two calibrations and the pole check, so that each branch is checked
-against the rule itself: the more accurate kind, unless its loop is lost on a corner of the
-error at every pole tried and the other's holds."""
+kind, on stand-ins for the calibrations and the pole check, so that each branch is checked
+against the rule itself: the most accurate kind whose loop holds the error's corners at some
+pole tried, else the most accurate."""
 
 import math
 
@@ -43,3 +43,39 @@ def test_the_more_accurate_kind_unless_only_the_other_holds(monkeypatch, irw_err
     assert dist.kind == kind and got_poles == poles and log[0] == "start"
     assert f"{kind} calibrated" in log
     assert any(line.startswith("disturbance kind: ") for line in log)
+
+
+def test_candidates_take_the_gauss_markov_kinds_with_a_tau():
+    assert [d.kind for d in choice.candidates(None)] == ["random_walk", "integrated_random_walk"]
+    got = choice.candidates(0.3)
+    assert [d.kind for d in got] == ["random_walk", "integrated_random_walk", "gauss_markov",
+                                     "integrated_gauss_markov"]
+    assert [d.tau for d in got] == [None, None, 0.3, 0.3]     # a walk with a tau would be refused
+
+
+@pytest.mark.parametrize("errors, lost, kind", [
+    # per kind, its RMSE relative to the random walk's: rw, irw, gm, igm
+    ((1.0, 0.6, 0.9, 0.4), (), "integrated_gauss_markov"),                       # the most accurate
+    ((1.0, 0.6, 0.9, 0.4), ("integrated_gauss_markov",), "integrated_random_walk"),  # the next that holds
+    ((1.0, math.inf, 0.9, 1.2), (), "gauss_markov"),                              # a failed one ranks last
+    ((1.0, 0.6, 0.9, 0.4), ("random_walk", "integrated_random_walk", "gauss_markov", "integrated_gauss_markov"),
+     "integrated_gauss_markov"),                                                  # none holds: the most accurate
+])
+def test_with_a_tau_the_most_accurate_of_four_that_holds(monkeypatch, errors, lost, kind):
+    scale = dict(zip(("random_walk", "integrated_random_walk", "gauss_markov", "integrated_gauss_markov"), errors))
+    seen = []
+
+    def densities(flat, q, loops, dist, match, tol, log):
+        seen.append((dist.kind, dist.tau))
+        return q, [], dist
+
+    def hold(q, dist, log):
+        return [1.0], log + ["WARNING: lost" if dist.kind in lost else "poles hold"]
+
+    monkeypatch.setattr(choice.disturbance_calibration, "densities", densities)
+    monkeypatch.setattr(choice, "master_rmse", lambda loops, q, dist: np.full(3, scale[dist.kind]))
+    _, log, dist, _ = choice.choose(None, np.ones(1), [], None, 1.1, [], hold, tau=0.3)
+    assert dist.kind == kind and len(seen) == 4
+    assert dist.tau == (0.3 if kind in choice.TIMED else None)
+    ranked = sorted(scale, key=lambda k: scale[k])
+    assert log[0].startswith(f"disturbance kind: {ranked[0]} ")

@@ -32,12 +32,13 @@ from dfeif_codegen.experiment import compare
 from dfeif_codegen.experiment.nees_match import NEES_SECONDS, match_nees
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.symbolic.disturbance import KINDS, TAU_ONLY_TIMED, TIMED, Disturbance
+from dfeif_codegen.symbolic.disturbance import KINDS, TIMED, Disturbance
 
 FLOOR = 1e-6
 
 
 AUTO = "auto"     # --disturbance auto: the kind chosen by measurement (disturbance_choice.py)
+TAU_ONLY = f"--tau: applies to --disturbance {' or '.join((*TIMED, AUTO))} only"
 
 
 def held_metrics(res, q, dist: Disturbance) -> dict:
@@ -172,14 +173,19 @@ def from_options(kind: str | None, tau: float | None) -> Disturbance | None:
     """--disturbance KIND [--tau S], checked before any work."""
     if kind is None:
         if tau is not None:
-            raise ScenarioError(TAU_ONLY_TIMED)
+            raise ScenarioError(TAU_ONLY)
         return None
     if kind not in (*KINDS, AUTO):
         raise ScenarioError(f"--disturbance {kind}: choose from {', '.join(KINDS)}, or auto (the calibration "
-                            "measures random_walk against integrated_random_walk)")
-    if kind in TIMED:
+                            "measures random_walk against integrated_random_walk, and with --tau the "
+                            "Gauss-Markov kinds too)")
+    if kind == AUTO and tau is not None:
+        if not math.isfinite(tau) or tau <= 0:
+            raise ScenarioError(f"--tau {tau}: --disturbance auto needs a time constant > 0 [s] for its "
+                                "Gauss-Markov candidates")
+    elif kind in TIMED:
         if tau is None or not math.isfinite(tau) or tau <= 0:
             raise ScenarioError(f"--tau {tau}: --disturbance {kind} needs a time constant > 0 [s]")
     elif tau is not None:
-        raise ScenarioError(TAU_ONLY_TIMED)
+        raise ScenarioError(TAU_ONLY)
     return Disturbance(kind, (1.0,), tau)

@@ -201,7 +201,8 @@ def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offs
         start, cfg.plant_error, flat.model, delays, lg, progress=say)
     say(f"disturbance densities ({dist.kind}): scaled until the held filter's NEES on those loops, then on its own, is n")
     if dist.kind == disturbance_calibration.AUTO:
-        held, log, dist, poles = disturbance_choice.choose(flat, held, loops, match, NEES_TOL, log, hold)
+        held, log, dist, poles = disturbance_choice.choose(flat, held, loops, match, NEES_TOL, log, hold,
+                                                              dist.tau)
     else:
         held, log, dist = disturbance_calibration.densities(flat, held, loops, dist, match, NEES_TOL, log)
         poles, log = hold(held, dist, log)

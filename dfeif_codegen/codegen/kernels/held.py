@@ -67,7 +67,7 @@ class Held:
         """Q₀ from its packed upper triangle, only where some U_j has a nonzero (elsewhere Q₀ is
         0 for every q): decoupled chains add no more entries than Σ q_j U_j had."""
         where = np.any([U != 0 for U in self.H.U], axis=0)
-        return ca.SX(unpack(Q, self.n) * dm(where.astype(float)))
+        return unpack(Q, self.n) * dm(where.astype(float))
 
     def noise_of(self, q: ca.SX) -> ca.SX:
         """Q₀ = Σ_j q_j U_j of the densities q, its upper triangle packed."""
