@@ -79,3 +79,19 @@ def test_with_a_tau_the_most_accurate_of_four_that_holds(monkeypatch, errors, lo
     assert dist.tau == (0.3 if kind in choice.TIMED else None)
     ranked = sorted(scale, key=lambda k: scale[k])
     assert log[0].startswith(f"disturbance kind: {ranked[0]} ")
+
+
+@pytest.mark.parametrize("ratios, kind", [
+    # per kind, its RMSE relative to the random walk's: rw, irw, gm, igm
+    ((1.0, 1.0, 1.0, 1.0), "random_walk"),                    # no model error: all alike, the simplest
+    ((1.0, 1.07, 1.51, 0.983), "random_walk"),                # the arm at +-20%: 1.7% is within BETTER
+    ((1.0, 0.613, 1.51, 0.728), "integrated_random_walk"),    # the motor at +-20%
+    ((1.0, 0.70, 0.69, 0.60), "integrated_gauss_markov"),
+    ((1.0, 0.70, 0.695, 0.69), "gauss_markov"),              # three alike: one state, before two
+])
+def test_rank_keeps_the_simplest_of_those_within_better_of_the_best(ratios, kind):
+    kinds = choice.candidates(0.3)
+    order = choice.rank(kinds, list(ratios))
+    assert kinds[order[0]].kind == kind and sorted(order) == [0, 1, 2, 3]
+    rest = [ratios[i] for i in order[1:]]
+    assert rest == sorted(rest)                               # then by accuracy
