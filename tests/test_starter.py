@@ -3,6 +3,8 @@ paper's delay grid, without hand tuning, for a relative-degree-4 model and a two
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -120,6 +122,26 @@ def test_too_fast_a_mode_is_named(tmp_path, capsys):
     assert said and not any(": error:" in line for line in said)
     _reported(err, omega)
     assert not (tmp_path / "s.toml").exists()
+
+
+def test_a_model_error_the_loop_cannot_hold_is_named(tmp_path, capsys):
+    """The maglev (unstable open loop) under a drawn 10% parameter error: its calibration loops
+    leave the tracking bound within 0.1 s (10% of g or of k is about 1 m/s² against a bound of
+    3.2 mm), so the calibration fails: with disturbance states at its first closed loops, whose
+    last reason the one-line error gives (not only "diverged"), without them at the NEES stage;
+    both errors offer a smaller --param-error beside the reference's options."""
+    model = Path(__file__).parent / "data" / "maglev_like.toml"
+    out = tmp_path / "s.toml"
+    assert cli.main(["scenario", str(model), "--param-error", "0.1", "--disturbance", "random_walk",
+                     "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("codegen scenario: error:") and "the last: stopped tracking" in err
+    assert "tracking bound" in err and err.endswith("or a smaller --param-error")
+    assert not out.exists()
+    # without disturbance states the loops fail at the NEES stage: the same advice
+    assert cli.main(["scenario", str(model), "--param-error", "0.1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "does not close" in err and err.endswith("or a smaller --param-error") and not out.exists()
 
 
 def test_progress_is_on_stderr_and_agrees_with_the_calibration_log(capsys):

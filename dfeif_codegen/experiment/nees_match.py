@@ -76,12 +76,8 @@ NEES_LOST = 6      # scales of q whose closed loops were lost, at most, before g
 # Y_i - Y_pred cancels more digits the smaller q is (measured on a rotor, C against reference:
 # 1e-12 at the residual's q, 6e-11 at 1e-2 of it, 2e-4 at 3e-9 of it), and a filter that trusts
 # its model that much has no margin for the model's errors; a NEES below n is the safe side.
-# When the loop was lost at the residual's q (a PVTOL's closed-loop residual overshoots by
-# decades) the search goes where loops close, and then at most a decade below the first q that
-# closed: without that floor the held filter's white q on a PVTOL at ±10% went 7 decades down,
-# chasing a NEES that hardly moves with q there (4.3-6.5 over 5 decades), and its disturbance
-# densities then rose 1,100 times and still missed n (12.6 for 8); with it the white q alone
-# matches (8.19), and the float C's master moves from 2.6e-4 to 1.4e-4 of the reference.
+# Not when the loop was lost at the residual's q (a PVTOL's closed-loop residual overshoots by
+# decades): the search then goes where loops close.
 NEES_FLOOR = 0.1
 NO_LOOP = "every scale of q tried"
 
@@ -119,9 +115,8 @@ def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEE
     there: it is coloured (correlated from step to step), which white noise of the same variance
     does not describe, and the estimate's own error feeds back through u. `nees(q)`: another
     measure of the master's NEES at q than `seeds` closed loops of `config`; `floor`: how far
-    below the start q may go, or below the first q whose loops closed when the start's were lost
-    (None: no floor, for a filter whose start is not the residual's scale and which does not
-    close the loop); `progress(line)` hears
+    below the start q may go when the first loop closed (None: no floor, for a filter whose
+    start is not the residual's scale and which does not close the loop); `progress(line)` hears
     each evaluation's NEES."""
     n = flat.n
     nees_at = nees or (lambda qq: _master_nees(config, qq, seeds))
@@ -150,8 +145,8 @@ def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEE
             slope = min(slope, -0.05)            # NEES falls with q; a flat stretch takes large steps
         step = max(-3.0, min(3.0, tried[-1][1] / slope))                   # within e^+-3 per step
         scale = tried[-1][0] - step
-        if floor is not None:                    # a decade below the residual, or below the first q that closed
-            scale = max(scale, min(min(tried[0][0], 0.0) + math.log(floor), tried[-1][0]))
+        if floor is not None and tried[0][0] >= math.log(floor):  # closed near the residual: keep the floor
+            scale = max(scale, min(math.log(floor), tried[-1][0]))
             floored = scale == tried[-1][0]
             if floored:
                 break                            # at the floor, and NEES still asks for less q
@@ -165,6 +160,5 @@ def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEE
     log.append(f"master NEES over {len(seeds)} runs without delays: {n * math.exp(best[1]):.3g} at q = {fmt(q)} "
                f"(x{math.exp(best[0]):.3g}; target n = {n}"
                + ("" if inside else f", not reached in {len(tried)} tries")
-               + (f", q lowered at most x{floor:g}" + (" of the first q whose loops closed" if tried[0][0] < 0 else "")
-                  if floored else "") + ")")
+               + (f", q lowered at most x{floor:g}" if floored else "") + ")")
     return q, log

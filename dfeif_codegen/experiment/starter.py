@@ -147,13 +147,14 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     scheduled = options.pop("scheduled", False)
     if dist is not None:      # the loops are closed by the chapter's filter (module docstring)
         options["predictor"] = "brunovsky"
+    reason = None      # the last loop's: it names what to change (the reference, or an error it cannot hold)
     for k in range(rounds):
         say(f"closed-loop round {k + 1} of at most {rounds}: q from the residual along a {duration:g} s loop")
         cfg = config(q, seed)
         try:
             res = ex.run(cfg)
-        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
-            q = q * 10
+        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            q, reason = q * 10, exc
             log.append(f"closed loop diverged: q x 10 -> {_fmt(q)}")
             continue
         if dist is not None:
@@ -165,7 +166,7 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
         log.append(f"along the closed loop: q = {_fmt(q)}")
         break
     if dist is not None:
-        raise ArithmeticError(f"every closed loop of the calibration diverged (q up to {_fmt(q)})")
+        raise ArithmeticError(f"every closed loop of the calibration diverged (q up to {_fmt(q)}; the last: {reason})")
     seeds = [seed + i for i in range(NEES_RUNS)]
     say(f"scaling q until the master's NEES over {NEES_RUNS} runs of {NEES_SECONDS:g} s without delays is n")
     q, log = match_nees(flat, q, config, seeds, log, progress=say)
@@ -274,10 +275,10 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     fast = shapes.fast_mode(omega, ts)
     if NO_LOOP in log[-1]:     # no closed loop of the NEES stage survived: nothing was calibrated
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged or lost "
-                            f"its closed loop "
-                            f"(q up to {_fmt(q)} on a {shape.kind} of amplitude {_fmt(shape.amplitude)} around "
-                            f"{_fmt(shape.offset)}): the loop does not close on that reference; try "
-                            "--amplitude, --offset, --period or --shape" + (f"; {fast}" if fast else ""))
+                            f"its closed loop (q up to {_fmt(q)} on a {shape.kind} of amplitude "
+                            f"{_fmt(shape.amplitude)} around {_fmt(shape.offset)}): the loop does not close on that "
+                            "reference; try --amplitude, --offset, --period or --shape"
+                            + (", or a smaller --param-error" if plant_error else "") + (f"; {fast}" if fast else ""))
     lost = any(entry.startswith("WARNING") for entry in log)     # a loop lost under delays or model error
     warn = [f"# WARNING: {fast}."] if fast and (lost or omega * ts > 1.0) else []
     lines = [
@@ -392,7 +393,7 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise ScenarioError(f"{flat.model.source}: the starting scenario's calibration failed on a {ref.kind} of "
                             f"amplitude {_fmt(ref.amplitude)} around {_fmt(ref.offset)}: {exc}; try --amplitude, "
-                            "--offset, --period or --shape") from None
+                            "--offset, --period or --shape" + (", or a smaller --param-error" if plant_error else "")) from None
     scenario_mod.loads(text, str(path or "<generated>")).check_model(ex._flat(model))
     if path is not None:
         path.write_text(text + "\n", encoding="utf-8")
