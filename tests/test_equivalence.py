@@ -33,7 +33,7 @@ import numpy as np
 import pytest
 
 from conftest import Case
-from dfeif_codegen.check import harness, verify
+from dfeif_codegen.check import driver_io, harness, verify
 from dfeif_codegen.experiment import closed_loop as experiment
 
 GRID = [Case(row=row) for row in range(6)]
@@ -244,6 +244,30 @@ def test_float_yardstick_after_a_mismatch_is_the_worst_of_five():
     assert rows == {s: f"{five[s]:.3e}" for s in five if s != "late_applied"}
     assert all(five[s] >= one[s] for s in one) and max(five[s] for s in five if "." in s) < 1e-4
     assert result.yardstick.endswith("the C's rounding is the likely cause")
+
+
+def test_a_recordings_beginning_replays_as_the_whole_runs_beginning(store):
+    """Recording.head(k), what a target too small for the whole run is checked on: the reference
+    replayed on it gives, bit for bit, the first k steps of the whole recording (the filters are
+    causal), with only the late frames and packets that arrived within them; and the driver's
+    heap for it (driver_io.driver_bytes) is what its scenario.bin carries plus its outputs."""
+    import tempfile
+
+    rec = store.recording(ILL_CONDITIONED)
+    k = rec.ref.shape[0] // 3
+    head = rec.head(k)
+    late = rec.late_step < k
+    assert 0 < late.sum() < len(late) and np.array_equal(head.late_step, rec.late_step[late])
+    out = experiment.replay_recording(head)
+    for name, got in out.items():
+        want = np.asarray(getattr(rec, name))
+        want = want[late] if name == "late_applied" else (want[:, :k] if name in ("node_x", "node_P") else want[:k])
+        assert np.array_equal(np.asarray(got), want), name
+    model = store.library(ILL_CONDITIONED, "double").model
+    with tempfile.TemporaryDirectory() as tmp:
+        size = driver_io.write_scenario(head, model, Path(tmp) / "s.bin").stat().st_size
+    outputs = sum(a.nbytes for a in driver_io.output_arrays(head, model.dtype).values())
+    assert driver_io.driver_bytes(head, model) == size - 4 * (9 + 1) + outputs   # less the header and flag
 
 
 def test_double_twin_is_the_reference_with_other_roundings():

@@ -163,6 +163,27 @@ def test_verify_command_on_cortex_m4f(store, monkeypatch, capsys, cross_tools):
     assert rc == (1 if "FAIL" in out else 0)
 
 
+def test_a_run_larger_than_the_boards_ram_is_verified_on_its_beginning(store, monkeypatch, capsys, cross_tools):
+    """The driver holds the whole run's inputs and outputs: 10,000 steps of a five-state filter
+    (4.4 MB) do not fit the board's 4 MiB, and the program ended without results. verify now
+    runs the longest beginning that fits (target.fitting, Recording.head) and says so; here with
+    the budget cut to a third of the motor recording's need, the beginning's C outputs pass against
+    the reference's own beginning (the filters are causal: the same numbers as the whole run's)."""
+    from dfeif_codegen import cli
+
+    case, precision = TARGET_RUNS[0]
+    rec, model = store.recording(case), store.library(case, precision).model
+    need = driver_io.driver_bytes(rec, model)
+    monkeypatch.setattr(target, "HEAP_BUDGET", need // 3)
+    head, steps = target.fitting(rec, model)
+    whole = rec.ref.shape[0]
+    assert driver_io.driver_bytes(head, model) <= need // 3 and 0.25 * whole < steps < whole / 3 + 1
+    monkeypatch.setattr(verify, "record", lambda *a, **k: rec)
+    rc = cli.main(["verify", "dc_motor_link", "--target", "cortex-m4f"])
+    out = capsys.readouterr().out
+    assert f"the first {steps} of its {whole} steps" in out and rc == 0, out
+
+
 def test_missing_cross_tool_is_a_setup_error(monkeypatch):
     from dfeif_codegen.errors import SetupError
 

@@ -113,6 +113,14 @@ def write_scenario(rec, model: ModelDir, path: Path, inputs: str = "recorded") -
     return path
 
 
+def driver_bytes(rec, model: ModelDir, inputs: str = "recorded") -> int:
+    """The heap the stand-alone driver allocates for `rec`: it holds every input and every output
+    of the run at once (driver.c.j2), which a target's RAM must hold besides the program."""
+    arrays = scenario_arrays(rec, model.dtype)
+    names = _FILE_ORDER + (("v_in",) if recorded_inputs(inputs) else ())
+    return sum(arrays[k].nbytes for k in names) + sum(a.nbytes for a in output_arrays(rec, model.dtype).values())
+
+
 def recorded_inputs(inputs: str) -> bool:
     """Whether the filters predict with the recorded inputs ("recorded": the input the plant
     received, which the recorded measurements reflect) or with the v the C controller computes

@@ -26,6 +26,9 @@ CPU_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d1
 CFLAGS = ["-Wall", "-Wextra", "-ffunction-sections", "-fdata-sections",
           "-fno-math-errno", "-fstack-usage", "-fcallgraph-info=su"]
 QEMU_ARGS = ["-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
+# what the driver may allocate: the board's 4 MiB of RAM (mps2_an386.ld) less 512 KiB for the
+# program's statics, newlib's buffers and the stack (the stack paint alone takes 64 KiB)
+HEAP_BUDGET = 4 * 1024 * 1024 - 512 * 1024
 
 # tool -> Debian package that provides it
 PACKAGES = {
@@ -244,6 +247,22 @@ def build_app(model, work: Path, opt: str = "-O2") -> App:
     drv_objs = compile_objects([driver], work / "driver", [model.path], opt=opt,
                                extra=["-DHARNESS_MAIN", "-DHARNESS_STACK_PAINT"])
     return App(model, link([*lib_objs, *drv_objs], work / "app.elf"), lib_objs, work)
+
+
+def fitting(rec, model, inputs: str = "recorded"):
+    """(rec, or its longest beginning whose inputs and outputs the driver can hold in the target's
+    RAM; the steps kept): a long recording of a larger state (10,000 steps of a five-state
+    filter: 4.4 MB) would otherwise leave the program without memory and without results."""
+    from dfeif_codegen.check import driver_io
+
+    steps = rec.ref.shape[0]
+    need = driver_io.driver_bytes(rec, model, inputs)
+    if need <= HEAP_BUDGET:
+        return rec, steps
+    steps = int(steps * HEAP_BUDGET / need)
+    while steps > 1 and driver_io.driver_bytes(rec.head(steps), model, inputs) > HEAP_BUDGET:
+        steps = int(steps * 0.95)
+    return rec.head(steps), steps
 
 
 def run_app(app: App, rec, timeout: float = 600.0, inputs: str = "recorded") -> TargetRun:

@@ -363,9 +363,12 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
             raise ScenarioError(f"{sc.source}: run {ref} row {row + 1} seed 0: the Python reference itself "
                                 f"failed ({type(exc).__name__}: {exc}), so there is nothing to compare the C "
                                 "with") from None
-        K = rec.ref.shape[0]
+        whole = rec.ref.shape[0]
+        rec, K = targets.fitting(rec, built, inputs) if target == "cortex-m4f" else (rec, whole)
         about = (f"scenario: {sc.name}, {ref}, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
-                 f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)")
+                 f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)"
+                 + (f"; the first {K} of its {whole} steps: the emulated board's RAM holds the run that far"
+                    if K < whole else ""))
         say(about)
         compiled = stages.compile(built, target, sanitize, work)    # compile -> run -> compare, once each
         ran = stages.run(compiled, rec, inputs)

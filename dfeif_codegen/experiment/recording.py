@@ -4,7 +4,7 @@ and gave (`Recording`: the scenario format the C harness consumes)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -70,6 +70,18 @@ class Recording:
 
     def save(self, path) -> None:
         np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
+
+    def head(self, steps: int) -> "Recording":
+        """The first `steps` steps: their inputs, the late frames and packets that arrive within
+        them, their outputs. The filters are causal, so a run on it is the whole run's beginning
+        (a target whose RAM cannot hold the whole run is checked on that)."""
+        late, pkt = np.asarray(self.late_step) < steps, np.asarray(self.pkt_step) < steps
+        cut = {name: np.asarray(getattr(self, name))[late] for name in
+               ("late_step", "late_node", "late_lag", "late_z", "late_applied")}
+        cut |= {name: np.asarray(getattr(self, name))[pkt] for name in ("pkt_step", "pkt_node", "pkt_src")}
+        cut |= {name: np.asarray(getattr(self, name))[:, :steps] for name in ("z", "gamma", "node_x", "node_P")}
+        cut |= {name: np.asarray(getattr(self, name))[:steps] for name in ("ref", "x", "P", "u", "v")}
+        return replace(self, **cut)
 
     @classmethod
     def load(cls, path) -> "Recording":
