@@ -17,7 +17,7 @@ A reference that is exactly zero with its scale zero must be matched exactly.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -139,11 +139,9 @@ def nudged(rec, eps: float, seed: int):
     """The recording with its nodes' P0 moved by one ulp (`eps`, random signs, symmetrized): a
     perturbation as small as one rounding, so a rerun's distance from the reference measures how
     much the problem itself amplifies rounding."""
-    import dataclasses
-
     rng = np.random.default_rng(seed)
     P0 = rec.node_P0 * (1 + eps * rng.choice([-1, 1], rec.node_P0.shape))
-    return dataclasses.replace(rec, node_P0=(P0 + np.swapaxes(P0, 1, 2)) / 2)
+    return replace(rec, node_P0=(P0 + np.swapaxes(P0, 1, 2)) / 2)
 
 
 def worst_of(runs) -> list[SignalError]:

@@ -11,8 +11,8 @@ RMSE target there but loses a corner too, where the random walk holds them all. 
 calibration calibrates every candidate on the same loops (the two walks, and with --tau the two
 Gauss–Markov kinds at that τ: a time constant is the user's knowledge of the error, not a thing
 these few loops can fit), ranks them by their held filter's accuracy there (the loops are
-simulations: the truth is known), and keeps the most accurate whose loop holds the error's
-corners under the hardest delays (pole_margin).
+simulations: the truth is known; a simpler kind first unless BETTER), and keeps the first in rank
+whose loop holds the error's corners under the hardest delays (pole_margin).
 """
 
 from __future__ import annotations
