@@ -123,3 +123,20 @@ x = 0.001
     told = []
     _say(model.loads_toml(text, "g.toml"), told.append)("solving")
     assert told == ["solving; largest expression g.toml:18: dynamics.g.T.v"]   # the text opens with a newline
+
+
+def test_names_sympy_would_read_as_constants_are_the_users(tmp_path):
+    """A parameter named e (a restitution), E (a Young's modulus), t or pi is the declared value:
+    declared names shadow the expression constants, as [dynamics.definitions] already did. Checked
+    against the closed form of the canonical model x'' = -(e + E + t + pi) x + u at the declared
+    values (sum 10), not at Euler's number or pi."""
+    path = tmp_path / "shadow.toml"
+    params = "".join(f'[[parameters]]\nname = "{p}"\nvalue = {v}\n' for p, v in
+                     (("e", 1.0), ("E", 2.0), ("t", 3.0), ("pi", 4.0)))
+    path.write_text('[model]\nname = "shadow"\nts = 0.01\n[[states]]\nname = "x"\n[[states]]\nname = "xd"\n'
+                    f'[[inputs]]\nname = "u"\n{params}[dynamics.f]\nx = "xd"\nxd = "-(e + E + t + pi)*x"\n'
+                    '[dynamics.g.u]\nxd = "1"\n[[outputs]]\nname = "y"\nexpr = "x"\n')
+    flat = flatness.derive(model.load(str(path)))
+    zeta = np.array([0.3, -0.2])
+    assert flat.F_num(zeta)[0] == pytest.approx(-10.0 * 0.3, rel=1e-15)
+    assert flat.G_num(zeta)[0, 0] == 1.0

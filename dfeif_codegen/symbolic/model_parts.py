@@ -16,7 +16,6 @@ import sympy as sp
 from dfeif_codegen.errors import ModelError
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-_RESERVED = {"pi", "e", "E", "I_", "t"}
 # Names that reach C (the model name is the prefix of every file, function and macro; the others
 # end up in macros and comments): no C keyword, no standard header's stem (a model `math` would
 # write `math.h` and shadow the system's), nothing in CasADi's or the generated code's namespace.
@@ -204,7 +203,7 @@ class Model:
         for kind, items in groups:
             for i, item in enumerate(items):
                 at = self.where(f"{kind}s#{i}")    # the item's own table, not the first one
-                if not c_safe(item.name) or keyword.iskeyword(item.name) or item.name in _RESERVED:
+                if not c_safe(item.name) or keyword.iskeyword(item.name):
                     raise ModelError(f"{at}: {item.name!r} is not a usable {kind} name "
                                      "(letters, digits, _; no C or Python keyword; at most 31 characters)")
                 if item.name in names:
@@ -241,7 +240,7 @@ class Model:
                 if item.nominal is not None and not lo <= item.nominal <= hi:
                     raise ModelError(f"{at}: {item.name}: nominal {item.nominal:g} is outside [{lo:g}, {hi:g}]")
         for o in self.outputs:
-            if not c_safe(o.name) or o.name in _RESERVED or keyword.iskeyword(o.name):
+            if not c_safe(o.name) or keyword.iskeyword(o.name):
                 raise ModelError(f"{self.where('outputs')}: {o.name!r} is not a usable flat output name "
                                  "(letters, digits, _; no C or Python keyword; at most 31 characters)")
         if self.f.shape != (n, 1):
