@@ -79,6 +79,38 @@ def test_float_run_equals_reference(runs):
     assert all(e.ok for e in errors), verify.table(errors)
 
 
+def test_disturbance_states_and_model_error_run_equal_reference(runs, tmp_path_factory):
+    """A scenario with disturbance states (an integrated random walk: two per chain) and a plant
+    whose J and R are off the model's: the programs carry the filters' five states (their frames
+    sized for them, the clock's ticks for the reference's four flags), end on the plant's end
+    tick, and equal the reference on the logged arrivals. The plant is the scenario's: its flat
+    outputs are the in-process closed loop's on the same draws (the same commands: 1e-8 relative
+    over 100 steps of a loop whose commands agree to 1e-13), and not the exact model's (which
+    leaves them by more than 1e-4: the check can fail)."""
+    from pathlib import Path
+
+    from dfeif_codegen.experiment import closed_loop as ex
+    from dfeif_codegen.experiment import model_error, scenario
+
+    path = tmp_path_factory.mktemp("scenario") / "dist.toml"
+    path.write_text(Path(scenario.__file__).with_name("scenarios").joinpath("paper.toml").read_text()
+                    + '\n[disturbance]\nkind = "integrated_random_walk"\nq = 1e5\n'
+                    + '\n[model_error]\nrelative = { J = 0.2, R = -0.15 }\n')
+    out = runs("disturbance", scenario=str(path), duration=1.0)
+    errors, _ = run.compare(out)
+    assert all(e.ok for e in errors), verify.table(errors)
+    assert out.returncodes == {name: 0 for name in out.returncodes}   # the end tick was taken
+    assert out.layout.n == 5 and out.layout.tick_reals == 1 + 4
+    assert all(len(x) == 5 and P.shape == (5, 5) for _, x, P in out.nodes[0]["steps"].values())
+    cfg = launch.make_config(out.opts)
+    zeta = out.plant["zeta"]
+    own = ex.run(cfg).zeta[:len(zeta)]
+    exact = ex.run(dataclasses.replace(cfg, plant_error=model_error.NONE)).zeta[:len(zeta)]
+    scale = np.abs(own).max(axis=0)
+    assert np.all(np.abs(zeta - own) <= 1e-8 * scale)
+    assert np.max(np.abs(exact - own) / scale) > 1e-4
+
+
 def test_bit_flips_rejected_counted_and_rest_equal_reference(runs):
     out = runs("flips", duration=2.0, flip_rate=1e-4)
     corrupted = sum(1 for e in out.relay if e.get("corrupt"))
@@ -375,7 +407,8 @@ def test_bench_network_summary_prints_no_dict_repr():
     from types import SimpleNamespace
 
     lay = SimpleNamespace(size=lambda k: 8 * k, packet_reals=3, command_reals=1)
-    out = SimpleNamespace(steps=10, layout=lay)
+    setup = SimpleNamespace(cfg=SimpleNamespace(disturbance=None), plant_p=None)
+    out = SimpleNamespace(steps=10, layout=lay, setup=setup)
     rec = SimpleNamespace(gamma=np.ones(4), late_step=[1], pkt_step=[1, 2])
     f = {"wall_s": 1.0, "datagrams": 30, "accepted": 20, "rejected": {"crc": 2, "stale": 1},
          "latency_median_us": 100.0, "latency_p99_us": 500.0, "master_busy_us_per_step": 2.0,
@@ -384,3 +417,6 @@ def test_bench_network_summary_prints_no_dict_repr():
     assert "{" not in text and "'" not in text
     assert "rejected crc 2, stale 1" in text and "CPU: master 0.125 s, node0 0.250 s" in text
     assert "rejected none" in run.summary(run.Options(), out, {**f, "rejected": {}}, rec)
+    setup.cfg.disturbance, setup.plant_p = SimpleNamespace(kind="random_walk"), np.ones(2)
+    text = run.summary(run.Options(), out, f, rec)
+    assert "seed 0, disturbance random_walk, plant parameters as [model_error] draws them, 10 steps" in text

@@ -113,14 +113,6 @@ class Scenario:
         shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
 
-    def without_disturbance(self, command: str) -> None:
-        """The commands whose C programs do not carry disturbance states yet (the library does:
-        codegen build --disturbance, verify, simulate's compiled loop)."""
-        if self.disturbance is not None:
-            raise ScenarioError(f"{self.where('disturbance')}: disturbance states are in the reference and the "
-                                "generated library (codegen verify, codegen simulate), not yet in the programs "
-                                f"{command} runs")
-
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
         m = flat.m

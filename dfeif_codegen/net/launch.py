@@ -86,7 +86,6 @@ def make_config(o: Options) -> ex.Config:
     from dfeif_codegen.experiment import plan, scenario
 
     sc = scenario.load(o.scenario)
-    sc.without_disturbance("codegen network")
     sc.check_model(ex._flat(o.model))
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
@@ -194,13 +193,15 @@ class _Commands:
 
     def node(self, i: int, restart: int = 0) -> list:
         s, work = self.s, self.work
-        conf = _reals(work / f"node{i}.cfg", s.x_hat0, s.P0, s.R[i], s.q)
+        f = s.filter_start()
+        conf = _reals(work / f"node{i}.cfg", f["node_x0"][0], f["node_P0"][0], s.R[i], f["q"])
         return [self.progs.node, "-i", i, "-l", f"{HOST}:{self.ports[3 + i]}", "-p", f"{HOST}:{self.ports[0]}",
                 "-c", conf, "-o", work / f"node{i}.{restart}.log", *self._tail(restart)]
 
     def master(self, restart: int = 0) -> list:
         s, work = self.s, self.work
-        conf = _reals(work / "master.cfg", s.x_hat0, s.P0, s.q, s.gains)
+        f = s.filter_start()
+        conf = _reals(work / "master.cfg", f["master_x0"], f["master_P0"], f["q"], s.gains)
         return [self.progs.master, "-l", f"{HOST}:{self.ports[1]}", "-p", f"{HOST}:{self.ports[0]}", "-c", conf,
                 "-o", work / f"master.{restart}.log", *self._tail(restart), *(["-r"] if restart else [])]
 
@@ -272,7 +273,7 @@ def _drive(o: Options, cmds: _Commands, procs: dict, plant: _Proc, deadline: flo
 def _logs(s: session.Setup, work: Path, restarts: dict) -> tuple[list, dict, list, dict]:
     """The nodes' and master's logs (the last incarnation's, and the first's as "first"), the
     relay's events and the plant's arrays."""
-    n, m, M = s.flat.n, s.flat.m, s.nodes
+    n, m, M = s.filter_n, s.flat.m, s.nodes
     nodes = [session.parse_node_log(work / f"node{i}.{restarts.get(f'node{i}', 0)}.log", n) for i in range(M)]
     for i in range(M):
         nodes[i]["first"] = session.parse_node_log(work / f"node{i}.0.log", n)
@@ -305,7 +306,7 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
     cfg = make_config(o)
     s = session.setup(cfg)
     md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts,
-                             cfg.predictor)
+                             cfg.predictor, cfg.disturbance)
     progs = programs.build_programs(md, work / "programs")
     lay = wire.Layout.of_folder(md.path)
     ports = free_ports(3 + s.nodes)

@@ -35,7 +35,7 @@ def main(argv: list[str]) -> int:
     lay = wire.Layout(**cfg["layout"])
     key = bytes.fromhex(cfg["key"]) if cfg.get("key") else None
     K, M, m = cfg["steps"], s.nodes, s.flat.m
-    plant = ex._plant(run_cfg.model, s.ts, run_cfg.substeps)
+    plant = ex._plant(run_cfg.model, s.ts, run_cfg.substeps, s.plant_key)   # the scenario's model error
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.bind((HOST, cfg["plant_port"]))
     relay = (HOST, cfg["relay_port"])
@@ -51,7 +51,7 @@ def main(argv: list[str]) -> int:
         if k in faults:
             print(f"pause {k}", flush=True)
             sys.stdin.readline()
-        zeta[k] = s.flat.phi_num(x)
+        zeta[k] = s.flat.phi_num(x, s.plant_p)   # the truth: the plant's own flat outputs
         out = []
         for i in range(M):
             frames[i, k] = s.cams[i].measure(x, s.noise[i][k])

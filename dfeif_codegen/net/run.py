@@ -33,15 +33,15 @@ def compare(out: Outcome) -> tuple[list, ex.Recording]:
            "x": np.full((K, n), np.nan), "P": np.full((K, n, n), np.nan),
            "u": np.full((K, s.flat.m), np.nan), "v": np.full((K, s.flat.m), np.nan)}
     applied = {}
-    for i, log in enumerate(out.nodes):
+    for i, log in enumerate(out.nodes):   # the canonical state: the disturbance states act through it
         for k, (late, x, P) in log["first"]["steps"].items():
             if k < K:
-                got["node_x"][i, k], got["node_P"][i, k] = x, P
+                got["node_x"][i, k], got["node_P"][i, k] = x[:n], P[:n, :n]
                 applied.update({(k, i, src): a for src, a in late})
     for k, row in out.master["first"]["steps"].items():
         if k < K:
-            for name in ("x", "P", "u", "v"):
-                got[name][k] = row[name]
+            got["x"][k], got["P"][k] = row["x"][:n], row["P"][:n, :n]
+            got["u"][k], got["v"][k] = row["u"], row["v"]
     got["late_applied"] = np.array([applied.get((int(k), int(i), int(k - lag)), -1)
                                     for k, i, lag in zip(rec.late_step, rec.late_node, rec.late_lag)]) == 1
     return verify.compare_run(got, rec, out.opts.precision), rec
@@ -137,9 +137,12 @@ def pairs(values: dict, fmt: str) -> str:
 
 def summary(o: Options, out: Outcome, f: dict, rec) -> str:
     """The run's summary as printed by `codegen network`."""
+    dist = out.setup.cfg.disturbance
+    extra = ("" if dist is None else f", disturbance {dist.kind}") + \
+        ("" if out.setup.plant_p is None else ", plant parameters as [model_error] draws them")
     return "\n".join([
         f"codegen network: {o.model}, {o.precision}, {o.nodes} nodes as separate processes on {HOST}, "
-        f"scenario {o.scenario} row {o.row} seed {o.seed}, {out.steps} steps in {f['wall_s']:.1f} s",
+        f"scenario {o.scenario} row {o.row} seed {o.seed}{extra}, {out.steps} steps in {f['wall_s']:.1f} s",
         f"wire: packet {out.layout.size(out.layout.packet_reals)} B, command "
         f"{out.layout.size(out.layout.command_reals)} B{' + SipHash-2-4 tag' if o.key else ''}; "
         f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {pairs(f['rejected'], '{}') or 'none'}",

@@ -33,10 +33,32 @@ class Setup:
     gains: np.ndarray
     R: np.ndarray
     net: Network
+    plant_p: np.ndarray | None = None   # the plant's parameters (the scenario's model error); None: the model's
 
     @property
     def nodes(self) -> int:
         return len(self.cams)
+
+    @property
+    def plant_key(self) -> tuple | None:
+        return None if self.plant_p is None else tuple(self.plant_p.tolist())
+
+    def filter_start(self) -> dict[str, np.ndarray]:
+        """x0, P0 and q as the programs' filters take them: with the scenario's disturbance
+        states, extended as the reference's FilterBank extends them (driver_io.filter_start)."""
+        from types import SimpleNamespace
+
+        from dfeif_codegen.check import driver_io
+
+        dist = self.cfg.disturbance
+        return driver_io.filter_start(SimpleNamespace(
+            m=self.flat.m, q=self.q, node_x0=[self.x_hat0], node_P0=[self.P0], master_x0=self.x_hat0,
+            master_P0=self.P0, disturbance="" if dist is None else dist.to_json()))
+
+    @property
+    def filter_n(self) -> int:
+        """The filters' state dimension (the canonical state, then the disturbance states)."""
+        return len(self.filter_start()["master_x0"])
 
 
 def setup(cfg: ex.Config) -> Setup:
@@ -57,8 +79,9 @@ def setup(cfg: ex.Config) -> Setup:
     zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
     q = ex._per_chain(cfg.q, m)
     gains = FlatController(flat, poles=ex._per_chain(cfg.poles, m)).gains
-    return Setup(cfg, flat, ts, K, cams, noise, ref, flat.phi_inv_num(zeta0), x_hat0, P0, q, gains,
-                 np.array([c.R for c in cams]), net)
+    plant_p = cfg.plant_error.values(flat.model, cfg.seed)   # as closed_loop.prepare draws it
+    return Setup(cfg, flat, ts, K, cams, noise, ref, flat.phi_inv_num(zeta0, plant_p), x_hat0, P0, q, gains,
+                 np.array([c.R for c in cams]), net, plant_p)
 
 
 def read_lines(path: Path) -> list[list[str]]:
@@ -139,7 +162,8 @@ def recording(s: Setup, relay_log: list[dict], frames: np.ndarray, K: int) -> ex
         late_lag=np.array([r[2] for r in late_rows], dtype=int),
         late_z=np.array([r[3] for r in late_rows]).reshape(-1, m),
         pkt_step=pk, pkt_node=pn, pkt_src=sources[pk, pn],
-        late_applied=empty, node_x=empty, node_P=empty, x=empty, P=empty, u=empty, v=empty, heads=tuple(flat.heads))
+        late_applied=empty, node_x=empty, node_P=empty, x=empty, P=empty, u=empty, v=empty, heads=tuple(flat.heads),
+        disturbance="" if s.cfg.disturbance is None else s.cfg.disturbance.to_json())
 
 
 def write_json(path: Path, data) -> None:

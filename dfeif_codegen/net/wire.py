@@ -52,6 +52,8 @@ class Layout:
     precision: str
     model_hash: str
     scheduled: bool = False     # commands carry σ after u (`--predictor scheduled`)
+    flags: int | None = None    # the reference's flags per tick (n + m of the canonical state);
+                                # None: n + m, n the filters' (without disturbance states)
 
     @classmethod
     def of_folder(cls, folder) -> "Layout":
@@ -60,10 +62,10 @@ class Layout:
         manifest = json.loads((folder / "manifest.json").read_text())
         name = manifest["model"]
         header = (folder / f"{name}.h").read_text()
-        dims = {k: int(v) for k, v in re.findall(rf"#define {name.upper()}_(NX|NY) (\d+)", header)}
+        dims = {k: int(v) for k, v in re.findall(rf"#define {name.upper()}_(NX|NY|NFLAGS) (\d+)", header)}
         options = manifest["options"]
         return cls(dims["NX"], dims["NY"], options["precision"], manifest["model_hash"],
-                   options.get("predictor") == "scheduled")
+                   options.get("predictor") == "scheduled", dims["NFLAGS"])
 
     @property
     def dtype(self):
@@ -79,7 +81,7 @@ class Layout:
 
     @property
     def tick_reals(self) -> int:
-        return 1 + self.n + self.m       # frames to expect, then the reference flags
+        return 1 + (self.n + self.m if self.flags is None else self.flags)   # end flag, then the reference's
 
     def size(self, count: int) -> int:
         return HEADER.size + self.dtype.itemsize * count + 12
