@@ -80,8 +80,8 @@ def test_float_run_equals_reference(runs):
 
 
 def test_disturbance_states_and_model_error_run_equal_reference(runs, tmp_path_factory):
-    """A scenario with disturbance states (an integrated random walk: two per chain) and a plant
-    whose J and R are off the model's: the programs carry the filters' five states (their frames
+    """A scenario with disturbance states (an integrated random walk: two per chain), a plant
+    whose J and R are off the model's and a see-saw reference: the programs carry the filters' five states (their frames
     sized for them, the clock's ticks for the reference's four flags), end on the plant's end
     tick, and equal the reference on the logged arrivals. The plant is the scenario's: its flat
     outputs are the in-process closed loop's on the same draws (the same commands: 1e-8 relative
@@ -93,7 +93,8 @@ def test_disturbance_states_and_model_error_run_equal_reference(runs, tmp_path_f
     from dfeif_codegen.experiment import model_error, scenario
 
     path = tmp_path_factory.mktemp("scenario") / "dist.toml"
-    path.write_text(Path(scenario.__file__).with_name("scenarios").joinpath("paper.toml").read_text()
+    paper = Path(scenario.__file__).with_name("scenarios").joinpath("paper.toml").read_text()
+    path.write_text(paper.replace('references = ["sinusoid", "seesaw"]', 'references = ["seesaw"]')
                     + '\n[disturbance]\nkind = "integrated_random_walk"\nq = 1e5\n'
                     + '\n[model_error]\nrelative = { J = 0.2, R = -0.15 }\n')
     out = runs("disturbance", scenario=str(path), duration=1.0)
@@ -103,6 +104,7 @@ def test_disturbance_states_and_model_error_run_equal_reference(runs, tmp_path_f
     assert out.layout.n == 5 and out.layout.tick_reals == 1 + 4
     assert all(len(x) == 5 and P.shape == (5, 5) for _, x, P in out.nodes[0]["steps"].values())
     cfg = launch.make_config(out.opts)
+    assert cfg.reference == "seesaw"   # the scenario's reference (it ran a sinusoid whatever the scenario said)
     zeta = out.plant["zeta"]
     own = ex.run(cfg).zeta[:len(zeta)]
     exact = ex.run(dataclasses.replace(cfg, plant_error=model_error.NONE)).zeta[:len(zeta)]
@@ -407,7 +409,7 @@ def test_bench_network_summary_prints_no_dict_repr():
     from types import SimpleNamespace
 
     lay = SimpleNamespace(size=lambda k: 8 * k, packet_reals=3, command_reals=1)
-    setup = SimpleNamespace(cfg=SimpleNamespace(disturbance=None), plant_p=None)
+    setup = SimpleNamespace(cfg=SimpleNamespace(disturbance=None, reference="sinusoid"), plant_p=None)
     out = SimpleNamespace(steps=10, layout=lay, setup=setup)
     rec = SimpleNamespace(gamma=np.ones(4), late_step=[1], pkt_step=[1, 2])
     f = {"wall_s": 1.0, "datagrams": 30, "accepted": 20, "rejected": {"crc": 2, "stale": 1},
@@ -419,4 +421,5 @@ def test_bench_network_summary_prints_no_dict_repr():
     assert "rejected none" in run.summary(run.Options(), out, {**f, "rejected": {}}, rec)
     setup.cfg.disturbance, setup.plant_p = SimpleNamespace(kind="random_walk"), np.ones(2)
     text = run.summary(run.Options(), out, f, rec)
-    assert "seed 0, disturbance random_walk, plant parameters as [model_error] draws them, 10 steps" in text
+    assert "(sinusoid) row 2 seed 0, disturbance random_walk, plant parameters as [model_error] draws them, 10 steps" \
+        in text

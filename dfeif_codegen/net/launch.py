@@ -52,7 +52,7 @@ class Options:
     fusion: str = "difference"
     nodes: int = 2
     max_lag: int = 32
-    reference: str = "sinusoid"
+    reference: str | None = None      # None: the scenario's first (as verify runs it)
     duration: float | None = 5.0
     key: str | None = None            # 32 hex digits: keyed tags on every frame
     flip_rate: float = 0.0            # bit error rate on node -> master packets
@@ -89,8 +89,8 @@ def make_config(o: Options) -> ex.Config:
     sc.check_model(ex._flat(o.model))
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
-    cfg = plan.make_config(sc, o.model, o.nodes, o.max_lag, o.reference, sc.grid[o.row], o.oosm, o.fusion, o.seed,
-                           o.predictor)
+    cfg = plan.make_config(sc, o.model, o.nodes, o.max_lag, o.reference or sc.references[0], sc.grid[o.row],
+                           o.oosm, o.fusion, o.seed, o.predictor)
     if o.duration is not None:
         cfg = dataclasses.replace(cfg, duration=o.duration, metrics_from=min(cfg.metrics_from, o.duration / 2))
     return cfg

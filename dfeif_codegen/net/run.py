@@ -142,7 +142,8 @@ def summary(o: Options, out: Outcome, f: dict, rec) -> str:
         ("" if out.setup.plant_p is None else ", plant parameters as [model_error] draws them")
     return "\n".join([
         f"codegen network: {o.model}, {o.precision}, {o.nodes} nodes as separate processes on {HOST}, "
-        f"scenario {o.scenario} row {o.row} seed {o.seed}{extra}, {out.steps} steps in {f['wall_s']:.1f} s",
+        f"scenario {o.scenario} ({out.setup.cfg.reference}) row {o.row} seed {o.seed}{extra}, {out.steps} steps in "
+        f"{f['wall_s']:.1f} s",
         f"wire: packet {out.layout.size(out.layout.packet_reals)} B, command "
         f"{out.layout.size(out.layout.command_reals)} B{' + SipHash-2-4 tag' if o.key else ''}; "
         f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {pairs(f['rejected'], '{}') or 'none'}",
