@@ -203,7 +203,10 @@ def generated() -> dict:
         {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--predictor held"])
     c["verify disturbance with the Brunovsky predictor"] = (
         "scenario field", ["verify", *S, "--predictor", "brunovsky"],
-        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["--disturbance", "--predictor held"])
+        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["s.toml:", "[disturbance]", "--predictor held"])
+    c["network disturbance with retrodiction (its default predictor: Brunovsky)"] = (
+        "scenario field", ["network", *S, "--oosm", "retrodict"],
+        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["s.toml:", "[disturbance]", "--predictor held"])
     # --- parameter offsets of the comparison's `offsets` filter ---------------------------------
     for label, table, words in [("unknown parameter", 'params = ["R", "Rx"]', ["offsets.params", "Rx"]),
                                 ("zero std", 'params = ["R"]\nstd = 0', ["offsets.std", "> 0"]),
@@ -223,10 +226,6 @@ def generated() -> dict:
         ["--oosm retrodict", "--predictor brunovsky", "scheduled"])
     c["build tau without gauss_markov"] = ("option: out of range", ["build", "--tau", "0.5"], {},
                                            ["--tau", "gauss_markov"])
-    for cmd in ("network",):
-        c[f"{cmd} with disturbance states"] = (
-            "scenario field", [cmd, *S], {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'},
-            ["disturbance", f"codegen {cmd}", "codegen simulate"])
     c |= _opt("option: not a choice", "scenario", "--disturbance", ["walk", ""])
     c |= _opt("option: out of range", "scenario", "--tau", ["0", "-1", "nan"], extra=("--disturbance", "gauss_markov"))
     for v in ("0", "nan"):     # auto takes a tau for its Gauss-Markov candidates: the same check

@@ -329,7 +329,8 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     driver_io.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
-    if sc.disturbance is not None:    # the C carries the scenario's disturbance states: held only
+    sc.check_predictor(predictor, oosm)
+    if sc.disturbance is not None:    # the C carries the scenario's disturbance states
         Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor, disturbance=sc.disturbance.kind,
                 tau=sc.disturbance.tau)
     sc.check_model(derivation.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)

@@ -198,10 +198,7 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
             predictors.check(predictors.for_method(predictor, oosm_of), oosm_of)
         except ValueError as exc:
             raise ScenarioError(str(exc) if oosm else f"{sc.where('oosm')}: {exc}") from None
-        try:
-            predictors.check(predictors.for_method(predictor, oosm_of), oosm_of, sc.disturbance)
-        except ValueError as exc:
-            raise ScenarioError(f"{sc.where('disturbance')}: {exc}") from None
+        sc.check_predictor(predictor, oosm_of)
     rows = [scenario_mod.Row([_pick(r.d, i) for i in range(nodes)], r.p, r.p_drop) for r in sc.grid]
     p = Plan(sc, flat, model, nodes, max_lag, runs, seed, refs, configs, kinds, rows, {}, set(), predictor)
     _list_runs(p)

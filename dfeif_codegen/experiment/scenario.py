@@ -113,6 +113,16 @@ class Scenario:
         shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
 
+    def check_predictor(self, predictor: str, oosm: str) -> None:
+        """The scenario's disturbance states need a predictor that carries them: the error names
+        the [disturbance] table (the commands that take a scenario have no --disturbance)."""
+        from dfeif_codegen.reference import predictor as predictors
+
+        try:
+            predictors.check(predictors.for_method(predictor, oosm), oosm, self.disturbance)
+        except ValueError as exc:
+            raise ScenarioError(f"{self.where('disturbance')}: {exc}") from None
+
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
         m = flat.m

@@ -86,6 +86,7 @@ def make_config(o: Options) -> ex.Config:
     from dfeif_codegen.experiment import plan, scenario
 
     sc = scenario.load(o.scenario)
+    sc.check_predictor(o.predictor, o.oosm)
     sc.check_model(ex._flat(o.model))
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
