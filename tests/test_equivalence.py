@@ -250,7 +250,8 @@ def test_a_recordings_beginning_replays_as_the_whole_runs_beginning(store):
     """Recording.head(k), what a target too small for the whole run is checked on: the reference
     replayed on it gives, bit for bit, the first k steps of the whole recording (the filters are
     causal), with only the late frames and packets that arrived within them; and the driver's
-    heap for it (driver_io.driver_bytes) is what its scenario.bin carries plus its outputs."""
+    heap for it (driver_io.driver_bytes) is what its scenario.bin carries plus one chunk of
+    outputs (driver.c.j2 streams them)."""
     import tempfile
 
     rec = store.recording(ILL_CONDITIONED)
@@ -266,8 +267,11 @@ def test_a_recordings_beginning_replays_as_the_whole_runs_beginning(store):
     model = store.library(ILL_CONDITIONED, "double").model
     with tempfile.TemporaryDirectory() as tmp:
         size = driver_io.write_scenario(head, model, Path(tmp) / "s.bin").stat().st_size
-    outputs = sum(a.nbytes for a in driver_io.output_arrays(head, model.dtype).values())
-    assert driver_io.driver_bytes(head, model) == size - 4 * (9 + 1) + outputs   # less the header and flag
+    # and one chunk of outputs: per step the nodes' x and P, the master's, u and v (reals), then
+    # one int32 per late frame for the whole run
+    M, n, m, real = head.nodes, driver_io.filter_size(head), head.m, np.dtype(model.dtype).itemsize
+    chunk = driver_io.CHUNK * real * (M * n + M * n * n + n + n * n + 2 * m)
+    assert driver_io.driver_bytes(head, model) == size - 4 * (9 + 1) + chunk + 4 * len(head.late_step)
 
 
 def test_double_twin_is_the_reference_with_other_roundings():
@@ -351,6 +355,25 @@ def test_sanitizers(store, tmp_path):
     model = store.library(case, "double").model
     rec = store.recording(case)
     _, got = harness.run_program(model, rec, tmp_path, sanitize=True)
+    verify.check(verify.compare_run(got, rec, "double"))
+
+
+def test_the_stand_alone_driver_streams_its_outputs(store, tmp_path):
+    """The program a target runs (scenario.bin in, results.bin out) holds the run's inputs and one
+    chunk of outputs, not the whole run's: under a data limit (ulimit -d, heap and anonymous maps)
+    of what driver_io.driver_bytes says it needs plus 1 MiB for the C runtime (measured: it needs
+    about 250 KiB besides), below the 2 MB the arm's 2000 steps of outputs take, it runs the whole
+    recording, equal to the reference. Before, it allocated the outputs whole and a board's RAM
+    bounded the steps verify could check."""
+    case = DIAGONAL[5]     # the arm, replay, difference rule, every delay of the hardest row
+    model, rec = store.library(case, "double").model, store.recording(case)
+    limit = driver_io.driver_bytes(rec, model) + 2 ** 20
+    whole = sum(a.nbytes for a in driver_io.output_arrays(rec, model.dtype).values())
+    assert whole > limit
+    exe = harness.program(model, tmp_path / "program")
+    status, got = harness.run_compiled_program(exe, model, rec, tmp_path,
+                                               wrapper=["sh", "-c", f'ulimit -d {limit // 1024} && exec "$0"'])
+    assert status["status"] == 0 and status["failed_step"] == -1
     verify.check(verify.compare_run(got, rec, "double"))
 
 

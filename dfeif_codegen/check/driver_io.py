@@ -18,7 +18,7 @@ from dfeif_codegen.symbolic.disturbance import Disturbance, augment
 if TYPE_CHECKING:
     from dfeif_codegen.check.harness import ModelDir
 
-OUTPUTS = ("node_x", "node_P", "x", "P", "u", "v", "late_applied")
+CHUNK = 128     # steps of outputs the stand-alone driver holds at once (driver.c.j2)
 
 
 INPUTS = ("recorded", "own")
@@ -114,11 +114,14 @@ def write_scenario(rec, model: ModelDir, path: Path, inputs: str = "recorded") -
 
 
 def driver_bytes(rec, model: ModelDir, inputs: str = "recorded") -> int:
-    """The heap the stand-alone driver allocates for `rec`: it holds every input and every output
-    of the run at once (driver.c.j2), which a target's RAM must hold besides the program."""
+    """The heap the stand-alone driver allocates for `rec`: every input of the run, and its
+    outputs one chunk of CHUNK steps at a time (driver.c.j2), which a target's RAM must hold
+    besides the program."""
     arrays = scenario_arrays(rec, model.dtype)
     names = _FILE_ORDER + (("v_in",) if recorded_inputs(inputs) else ())
-    return sum(arrays[k].nbytes for k in names) + sum(a.nbytes for a in output_arrays(rec, model.dtype).values())
+    one = output_arrays(rec.head(1), model.dtype)     # one step's outputs (and no late frame)
+    chunk = CHUNK * sum(a.nbytes for k, a in one.items() if k != "late_applied")
+    return sum(arrays[k].nbytes for k in names) + chunk + 4 * len(rec.late_step)
 
 
 def recorded_inputs(inputs: str) -> bool:
@@ -132,18 +135,26 @@ def recorded_inputs(inputs: str) -> bool:
 
 
 def read_results(rec, model: ModelDir, path: Path) -> tuple[dict, dict]:
-    """results.bin -> ({status, failed_step, failed_call, stack_bytes}, outputs)."""
+    """results.bin -> ({status, failed_step, failed_call, stack_bytes}, outputs): the outputs
+    chunk by chunk (driver.c.j2), put back in the recording's layout; steps a failed run did not
+    reach stay 0."""
     data = Path(path).read_bytes()
-    head = np.frombuffer(data[:16], dtype="<i4")
-    status = dict(zip(("status", "failed_step", "failed_call", "stack_bytes"), map(int, head)))
-    out, at = output_arrays(rec, model.dtype), 16
-    for name in OUTPUTS:
-        nbytes = out[name].nbytes
-        out[name] = np.frombuffer(data[at:at + nbytes], dtype=out[name].dtype.newbyteorder("<")) \
-            .reshape(out[name].shape).copy()
-        at += nbytes
-    if at != len(data):
-        raise SetupError(f"{path}: {len(data)} bytes, expected {at}")
+    tail = np.frombuffer(data[-24:], dtype="<i4") if len(data) >= 24 else np.array([0, 0, 0, 0, 0, -1])
+    status = dict(zip(("status", "failed_step", "failed_call", "stack_bytes"), map(int, tail[:4])))
+    chunk, written = int(tail[4]), int(tail[5])
+    out = output_arrays(rec, model.dtype)
+    per_step = sum(a.nbytes for k, a in output_arrays(rec.head(1), model.dtype).items() if k != "late_applied")
+    expected = written * per_step + out["late_applied"].nbytes + 24
+    if chunk <= 0 or not 0 <= written <= rec.ref.shape[0] or len(data) != expected:
+        raise SetupError(f"{path}: {len(data)} bytes, not the results of {rec.ref.shape[0]} steps "
+                         f"(chunk {chunk}, {written} written: {expected} bytes)")
+    real, at = np.dtype(model.dtype).newbyteorder("<"), 0
+    for first in range(0, written, chunk):
+        steps = slice(first, min(first + chunk, written))
+        for part in (out["node_x"][:, steps], out["node_P"][:, steps], *(out[k][steps] for k in ("x", "P", "u", "v"))):
+            part[...] = np.frombuffer(data, dtype=real, count=part.size, offset=at).reshape(part.shape)
+            at += part.nbytes
+    out["late_applied"][...] = np.frombuffer(data, dtype="<i4", count=len(out["late_applied"]), offset=at)
     return status, canonical(out, rec.n)
 
 

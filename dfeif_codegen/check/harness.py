@@ -21,8 +21,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from dfeif_codegen.check.driver_io import (canonical, failure, filter_size, output_arrays, read_results, recorded_inputs, scenario_arrays,
-                                          write_scenario)
+from dfeif_codegen.check.driver_io import (CHUNK, canonical, failure, filter_size, output_arrays, read_results,
+                                          recorded_inputs, scenario_arrays, write_scenario)
 from dfeif_codegen.errors import MismatchError, SetupError
 
 HOST_CFLAGS = ["-O2", "-Wall", "-Wextra", "-g"]
@@ -163,7 +163,7 @@ def render_driver(model: ModelDir, out_dir: Path) -> Path:
 
     env = render.environment(model.precision)
     text = env.get_template("harness/driver.c.j2").render(
-        p=model.name, P=model.name.upper(),
+        p=model.name, P=model.name.upper(), chunk=CHUNK,
         banner=render.banner("harness/driver.c.j2", model.name, __version__))
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{model.name}_harness.c"

@@ -250,9 +250,10 @@ def build_app(model, work: Path, opt: str = "-O2") -> App:
 
 
 def fitting(rec, model, inputs: str = "recorded"):
-    """(rec, or its longest beginning whose inputs and outputs the driver can hold in the target's
-    RAM; the steps kept): a long recording of a larger state (10,000 steps of a five-state
-    filter: 4.4 MB) would otherwise leave the program without memory and without results."""
+    """(rec, or its longest beginning whose inputs the driver can hold in the target's RAM with
+    one chunk of outputs; the steps kept): the driver streams its outputs (driver.c.j2), but
+    reads the whole scenario first, so a very long one (about 48,000 steps of the motor in
+    float) would otherwise leave the program without memory and without results."""
     from dfeif_codegen.check import driver_io
 
     steps = rec.ref.shape[0]

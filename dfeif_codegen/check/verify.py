@@ -366,7 +366,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         rec, K = targets.fitting(rec, built, inputs) if target == "cortex-m4f" else (rec, whole)
         about = (f"scenario: {sc.name}, {ref}, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "
                  f"{K} steps, {len(rec.late_step)} late measurements ({int(np.sum(rec.late_applied))} applied)"
-                 + (f"; the first {K} of its {whole} steps: the emulated board's RAM holds the run that far"
+                 + (f"; the first {K} of its {whole} steps: the emulated board's RAM holds its inputs that far"
                     if K < whole else ""))
         say(about)
         compiled = stages.compile(built, target, sanitize, work)    # compile -> run -> compare, once each

@@ -21,7 +21,7 @@ from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.experiment import model_error
 from dfeif_codegen.experiment import trajectory_file
 from dfeif_codegen.experiment.trajectory import KINDS
-from dfeif_codegen.reference import offsets as offset_states
+from dfeif_codegen.reference import offsets as offset_states, predictor as predictors
 from dfeif_codegen.symbolic import disturbance as disturbances
 
 BUILTIN = ("paper", "unicycle", "pvtol")
@@ -116,8 +116,6 @@ class Scenario:
     def check_predictor(self, predictor: str, oosm: str) -> None:
         """The scenario's disturbance states need a predictor that carries them: the error names
         the [disturbance] table (the commands that take a scenario have no --disturbance)."""
-        from dfeif_codegen.reference import predictor as predictors
-
         try:
             predictors.check(predictors.for_method(predictor, oosm), oosm, self.disturbance)
         except ValueError as exc:
