@@ -111,6 +111,31 @@ def test_disturbance_states_and_model_error_run_equal_reference(runs, tmp_path_f
     scale = np.abs(own).max(axis=0)
     assert np.all(np.abs(zeta - own) <= 1e-8 * scale)
     assert np.max(np.abs(exact - own) / scale) > 1e-4
+    assert run.figures(out)["loop"] is None     # the loop held, as simulate's watch judges it
+
+
+def test_a_loop_that_diverges_is_said_so(runs, tmp_path_factory):
+    """The comparison judges the C against the reference on the loop the processes closed, not
+    the loop: a plant far off the model (J -90%, k_e +90%, L +95%) whose master NEES runs away
+    still passes it, and the summary says what simulate's divergence watch says of that loop,
+    word for word as the in-process engine's watch raises it on the same draws."""
+    from pathlib import Path
+
+    from dfeif_codegen.experiment import closed_loop as ex
+    from dfeif_codegen.experiment import scenario
+    from dfeif_codegen.experiment.divergence import Diverged
+
+    path = tmp_path_factory.mktemp("scenario") / "far.toml"
+    path.write_text(Path(scenario.__file__).with_name("scenarios").joinpath("paper.toml").read_text()
+                    + "\n[model_error]\nrelative = { J = -0.9, k_e = 0.9, L = 0.95 }\n")
+    out = runs("diverging", scenario=str(path), duration=2.0)
+    errors, _ = run.compare(out)
+    assert all(e.ok for e in errors), verify.table(errors)
+    with pytest.raises(Diverged) as caught:
+        ex.run(launch.make_config(out.opts))
+    verdict = run.figures(out)["loop"]
+    assert verdict == str(caught.value) and "master NEES" in verdict
+    assert f"the loop: {verdict}" in run.summary(out.opts, out, run.figures(out), run.compare(out)[1])
 
 
 def test_bit_flips_rejected_counted_and_rest_equal_reference(runs):

@@ -5,7 +5,7 @@ step k and the master's tick (with the reference flags), wait for the master's c
 k (its u drives the plant; with no command in `command_timeout` the last u is held: the master
 is down), integrate over one period. Prints "step k" after each step, and at a fault step named
 in the config waits for a line on stdin first, so that the launcher kills and restarts processes
-at exact steps. Saves frames, commands and timings to an .npz at the end.
+at exact steps. Saves its states, frames, commands and timings to an .npz at the end.
 
 Run: python -m dfeif_codegen.net.plant CONFIG.json (written by net/run.py).
 """
@@ -45,6 +45,7 @@ def main(argv: list[str]) -> int:
     u_log, v_log = np.zeros((K, m)), np.zeros((K, m))
     got = np.zeros(K, dtype=bool)
     zeta = np.zeros((K, s.flat.n))
+    x_log = np.zeros((K + 1, len(s.x_phys0)))    # the plant's state before each step, and after the last
     t_send, t_recv = np.zeros(K), np.zeros(K)
     x, u, seq = s.x_phys0, np.zeros(m), 0
     for k in range(K):
@@ -52,6 +53,7 @@ def main(argv: list[str]) -> int:
             print(f"pause {k}", flush=True)
             sys.stdin.readline()
         zeta[k] = s.flat.phi_num(x, s.plant_p)   # the truth: the plant's own flat outputs
+        x_log[k] = x
         out = []
         for i in range(M):
             frames[i, k] = s.cams[i].measure(x, s.noise[i][k])
@@ -85,6 +87,7 @@ def main(argv: list[str]) -> int:
                 got[k] = True
         u_log[k] = u
         x = plant.step(x, u)
+        x_log[k + 1] = x
         if not np.all(np.isfinite(x)):
             print(f"plant: diverged at step {k}", file=sys.stderr)
             K = k + 1
@@ -94,8 +97,8 @@ def main(argv: list[str]) -> int:
     for node in [*range(M), wire.MASTER_ID]:
         sock.sendto(wire.encode(lay, wire.KIND_TICK, node, K, seq, end, key), relay)
         seq += 1
-    np.savez(cfg["out"], frames=frames[:, :K], u=u_log[:K], v=v_log[:K], got=got[:K], t_send=t_send[:K],
-             t_recv=t_recv[:K], zeta=zeta[:K])
+    np.savez(cfg["out"], x=x_log[:K + 1], frames=frames[:, :K], u=u_log[:K], v=v_log[:K], got=got[:K],
+             t_send=t_send[:K], t_recv=t_recv[:K], zeta=zeta[:K])
     print("done", flush=True)
     return 0
 

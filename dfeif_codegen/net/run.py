@@ -47,6 +47,30 @@ def compare(out: Outcome) -> tuple[list, ex.Recording]:
     return verify.compare_run(got, rec, out.opts.precision), rec
 
 
+def loop_verdict(out: Outcome) -> str | None:
+    """What `simulate`'s divergence watch says of the loop the processes closed (None: it held):
+    the comparison judges the C against the reference on that loop, not the loop itself. Without
+    the master's estimate at every step (a restart) the NEES criterion is left out."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from dfeif_codegen.experiment.divergence import Diverged, check_divergence
+
+    s, K, n = out.setup, out.steps, out.setup.flat.n
+    logged = {**out.master["first"]["steps"], **out.master["steps"]}
+    x, P = np.full((K, n), np.nan), np.full((K, n, n), np.nan)
+    for k, row in logged.items():
+        if k < K:
+            x[k], P[k] = row["x"][:n], row["P"][:n, :n]
+    cfg = s.cfg if np.all(np.isfinite(x)) else replace(s.cfg, watch_nees=False)
+    watched = SimpleNamespace(K=K, cfg=cfg, flat=s.flat, ref=s.ref[:K], t=np.arange(K) * s.ts)
+    try:
+        check_divergence(watched, out.plant["x"], out.plant["zeta"], x, P)
+    except Diverged as exc:
+        return str(exc)
+    return None
+
+
 def figures(out: Outcome) -> dict:
     """Latency frame -> command (wall clock, no emulated delay: the relay delays in steps, not
     seconds), CPU per process, datagrams and rejections."""
@@ -63,6 +87,7 @@ def figures(out: Outcome) -> dict:
         "node_busy_us_per_step": [nd["counters"].get("H", {}).get("busy_us", 0) / max(out.steps, 1) for nd in out.nodes],
         "rejected": {k: int(v) for k, v in r.items() if v and k != "accepted"},
         "accepted": int(r.get("accepted", 0)),
+        "loop": loop_verdict(out),
     }
 
 
@@ -149,5 +174,7 @@ def summary(o: Options, out: Outcome, f: dict, rec) -> str:
         f"{f['datagrams']} datagrams; master accepted {f['accepted']}, rejected {pairs(f['rejected'], '{}') or 'none'}",
         f"logged arrivals: {int(rec.gamma.sum())} on-time frames, {len(rec.late_step)} late, "
         f"{len(rec.pkt_step)} packets fused",
+        "the loop: " + (f"{f['loop']} (simulate counts such a run failed; below, the C against the reference on it)"
+                        if f.get("loop") else "held (the divergence watch of simulate: tracking, domain, master NEES)"),
         f"frame -> command latency: median {f['latency_median_us']:.0f} us, p99 {f['latency_p99_us']:.0f} us "
         f"(master busy {f['master_busy_us_per_step']:.1f} us/step); CPU: {pairs(f['cpu_s'], '{:.3f} s') or 'not measured'}"])
