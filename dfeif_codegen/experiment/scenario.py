@@ -113,7 +113,7 @@ class Scenario:
         shown = re.sub(r"#(\d+)", lambda g: f"[{int(g.group(1)) + 1}]", key)
         return f"{self.source}:{line}: {shown}" if line else f"{self.source}: {shown}"
 
-    def check_predictor(self, predictor: str, oosm: str) -> None:
+    def check_predictor(self, predictor: str | None, oosm: str) -> None:
         """The scenario's disturbance states need a predictor that carries them: the error names
         the [disturbance] table (the commands that take a scenario have no --disturbance)."""
         try:

@@ -53,6 +53,7 @@ def loop_verdict(out: Outcome) -> str | None:
     the master's estimate at every step (a restart) the NEES criterion is left out."""
     from dataclasses import replace
     from types import SimpleNamespace
+    from typing import Any
 
     from dfeif_codegen.experiment.divergence import Diverged, check_divergence
 
@@ -63,7 +64,7 @@ def loop_verdict(out: Outcome) -> str | None:
         if k < K:
             x[k], P[k] = row["x"][:n], row["P"][:n, :n]
     cfg = s.cfg if np.all(np.isfinite(x)) else replace(s.cfg, watch_nees=False)
-    watched = SimpleNamespace(K=K, cfg=cfg, flat=s.flat, ref=s.ref[:K], t=np.arange(K) * s.ts)
+    watched: Any = SimpleNamespace(K=K, cfg=cfg, flat=s.flat, ref=s.ref[:K], t=np.arange(K) * s.ts)  # a Setup's fields
     try:
         check_divergence(watched, out.plant["x"], out.plant["zeta"], x, P)
     except Diverged as exc:
