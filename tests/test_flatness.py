@@ -140,3 +140,54 @@ def test_names_sympy_would_read_as_constants_are_the_users(tmp_path):
     zeta = np.array([0.3, -0.2])
     assert flat.F_num(zeta)[0] == pytest.approx(-10.0 * 0.3, rel=1e-15)
     assert flat.G_num(zeta)[0, 0] == 1.0
+
+
+def test_coulomb_friction_sign_is_the_models_everywhere(tmp_path):
+    """sign(v) in the dynamics (Coulomb friction): sympy's simplify and solve write it as a
+    Piecewise (sign(v) = v/|v| off 0), which the toolkit once could neither print nor evaluate
+    (the build stopped, and Φ⁻¹ was refused as "not determined by the flat outputs"). Checked
+    against the closed forms: f̄ = (k/(J L))(u-side terms aside) at points on both sides of v = 0
+    and at v = 0 itself, and Φ⁻¹(Φ(x)) = x there, in double and in the float32 walk."""
+    path = tmp_path / "coulomb.toml"
+    path.write_text('[model]\nname = "coulomb"\nts = 0.01\n'
+                    + "".join(f'[[states]]\nname = "{s}"\nmin = -3.0\nmax = 3.0\n' for s in ("x", "v", "I"))
+                    + '[[inputs]]\nname = "u"\n'
+                    + "".join(f'[[parameters]]\nname = "{p}"\nvalue = {val}\n'
+                              for p, val in (("c", 0.4), ("k", 2.0), ("J", 0.5), ("R", 1.0), ("L", 0.1)))
+                    + '[dynamics.f]\nx = "v"\nv = "(k*I - c*sign(v))/J"\nI = "-R*I/L"\n'
+                    '[dynamics.g.u]\nI = "1/L"\n[[outputs]]\nname = "y"\nexpr = "x"\n')
+    flat = flatness.derive(model.load(str(path)))
+    for x in ([0.2, 0.7, -0.3], [-1.0, -0.4, 1.1], [0.5, 0.0, 0.8]):
+        v, current = x[1], x[2]
+        accel = (2.0 * current - 0.4 * np.sign(v)) / 0.5
+        zeta = np.array([x[0], v, accel])
+        assert np.allclose(flat.phi_num(np.array(x)), zeta, rtol=1e-14, atol=1e-15)
+        assert np.allclose(flat.phi_inv_num(zeta), x, rtol=1e-13, atol=1e-14)
+        # d accel / dt = (k/J) I' = (k/J)(-R I / L + u / L), the sign's derivative 0 off v = 0
+        assert flat.F_num(zeta)[0] == pytest.approx(2.0 / 0.5 * (-current / 0.1), rel=1e-13)
+        assert flat.G_num(zeta)[0, 0] == pytest.approx(2.0 / 0.5 / 0.1, rel=1e-13)
+    from dfeif_codegen.symbolic import numeric
+    s = sp.Symbol("s")
+    piece = sp.Piecewise((0, sp.Eq(s, 0)), (s / sp.Abs(s), True))
+    values = np.array([-2.0, 0.0, 3.0], dtype=np.float32)
+    with np.errstate(all="ignore"):   # np.where computes s/|s| at 0 too, then drops it
+        assert list(numeric.to_casadi(piece, {s: values}, ops=numeric.Float32)) == [-1.0, 0.0, 1.0]
+
+
+def test_a_reference_stepping_over_a_singular_set_is_named(tmp_path):
+    """G = cos θ vanishes at θ = π/2. A reference sampled at 1.50, 1.53, ... never lands within
+    1e-6 of it (|cos| ≥ 0.011 at every sample) but crosses it between two samples: the row
+    after the crossing (where cos θ first turns negative) is the one named, and a reference that
+    stays on one side passes."""
+    path = tmp_path / "vanish.toml"
+    path.write_text('[model]\nname = "vanish"\nts = 0.01\n[[states]]\nname = "th"\nmin = -2.0\nmax = 2.0\n'
+                    '[[states]]\nname = "w"\n[[inputs]]\nname = "u"\n[dynamics.f]\nth = "w"\nw = "-sin(th)"\n'
+                    '[dynamics.g.u]\nw = "cos(th)"\n[[outputs]]\nname = "y"\nexpr = "th"\n')
+    flat = flatness.derive(model.load(str(path)))
+    theta = 1.50 + 0.03 * np.arange(6)
+    rows = np.column_stack([theta, np.zeros_like(theta)])
+    assert np.all(np.abs(np.cos(theta)) > 0.01)
+    k, what = flat.undefined_at(rows)
+    assert k == int(np.argmax(np.cos(theta) < 0)) == 3
+    assert "changes sign" in what
+    assert flat.undefined_at(rows[:3]) is None

@@ -130,7 +130,9 @@ class FlatSystem:
         """First row where Phi^-1 is undefined (not finite) or leaves the declared domain, saying so
         with the Phi^-1 entry responsible, or where the decoupling matrix is singular (|det G| below
         singular_rtol times its nominal value, where the C control refuses); None when every row
-        maps to a state in the domain with G invertible."""
+        maps to a state in the domain with G invertible. det G changing sign between two rows is
+        a singular set crossed between them, however small |det G| is on either side: the row
+        after the crossing is named."""
         zeta_rows = np.atleast_2d(np.asarray(zeta_rows, dtype=float))
         with np.errstate(all="ignore"):
             x = np.array([self.phi_inv_num(z) for z in zeta_rows])
@@ -143,10 +145,16 @@ class FlatSystem:
                 return k, (f"Phi^-1 is undefined: {var.name} = {self.phi_inv[i]} = {x[k, i]:.6g} "
                            f"(domain [{lo:g}, {hi:g}])")
         with np.errstate(all="ignore"):
-            det = np.array([abs(np.linalg.det(self.G_num(z))) for z in zeta_rows])
+            signed = np.array([np.linalg.det(self.G_num(z)) for z in zeta_rows])
+        det = np.abs(signed)
         bad = ~np.isfinite(det) | (det < singular_rtol * self.nominal_det())
-        if bad.any():
-            k = int(np.argmax(bad))
+        crossed = np.append(False, np.sign(signed[1:]) * np.sign(signed[:-1]) < 0)
+        if bad.any() or crossed.any():
+            k = int(np.argmax(bad | crossed))
+            if crossed[k] and not bad[k]:
+                return k, (f"the decoupling matrix is singular between this sample and the one before (det G "
+                           f"changes sign, {signed[k - 1]:.3g} to {signed[k]:.3g}; see the singular sets in "
+                           "`codegen inspect`)")
             return k, (f"the decoupling matrix is singular (|det G| = {det[k]:.3g}, below {singular_rtol:g} "
                        f"times its nominal {self.nominal_det():.3g}; see the singular sets in `codegen inspect`)")
         return None

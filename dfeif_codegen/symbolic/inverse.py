@@ -34,9 +34,12 @@ def _nodes_exceed(expr, cap: int) -> bool:
 def small_simplify(expr: sp.Expr, limit: int = 30) -> sp.Expr:
     """Simplify what is cheap to simplify; large expressions are left for CasADi's CSE. A tree of
     more than 40 nodes per allowed operation is large without counting its operations."""
-    if _nodes_exceed(expr, 40 * limit):
+    if _nodes_exceed(expr, 40 * limit) or sp.count_ops(expr) > limit:
         return expr
-    return sp.simplify(expr) if sp.count_ops(expr) <= limit else expr
+    out = sp.simplify(expr)
+    # simplify writes sign(x) as Piecewise((0, Eq(x, 0)), (x/Abs(x), True)): longer, and a
+    # division by |x| that reads as a singular set where the model has none
+    return expr if out.has(sp.Piecewise) and not expr.has(sp.Piecewise) else out
 
 
 BRANCH_POINTS = 48  # round-trip test points on the domain for every candidate branch of Phi^-1

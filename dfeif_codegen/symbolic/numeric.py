@@ -29,6 +29,8 @@ class _CasADi:
 
     unary = _UNARY
     atan2, power, sqrt, hypot, fmin, fmax = ca.atan2, ca.power, ca.sqrt, ca.hypot, ca.fmin, ca.fmax
+    relations = {sp.Eq: ca.eq, sp.Ne: ca.ne, sp.Lt: ca.lt, sp.Le: ca.le, sp.Gt: ca.gt, sp.Ge: ca.ge}
+    logic_and, logic_or, logic_not, if_else = ca.logic_and, ca.logic_or, ca.logic_not, ca.if_else
 
     @staticmethod
     def const(value: float):
@@ -43,6 +45,9 @@ class Float32:
              sp.atan: np.arctan, sp.sinh: np.sinh, sp.cosh: np.cosh, sp.tanh: np.tanh, sp.exp: np.exp,
              sp.log: np.log, sp.Abs: np.abs, sp.sign: np.sign}
     atan2, power, sqrt, hypot, fmin, fmax = np.arctan2, np.power, np.sqrt, np.hypot, np.fmin, np.fmax
+    relations = {sp.Eq: np.equal, sp.Ne: np.not_equal, sp.Lt: np.less, sp.Le: np.less_equal,
+                 sp.Gt: np.greater, sp.Ge: np.greater_equal}
+    logic_and, logic_or, logic_not, if_else = np.logical_and, np.logical_or, np.logical_not, np.where
 
     @staticmethod
     def const(value: float):
@@ -130,9 +135,39 @@ def to_casadi(expr: sp.Expr, table: dict, where: str = "expression", ops=_CasADi
             out = args[0]
             for a in args[1:]:
                 out = op(out, a)
+        elif isinstance(e, sp.Piecewise):
+            out = piecewise(e)
+        elif isinstance(e, sp.DiracDelta) or (isinstance(e, sp.Derivative) and isinstance(e.expr, sp.sign)):
+            out = ops.const(0.0)   # sign's derivative where it has one (a linearization's L0, a Jacobian)
         else:
             raise ModelError(f"{where}: cannot convert '{e.func.__name__}' in {e}")
         memo[e] = out
+        return out
+
+    def condition(c: sp.Basic):
+        if c == sp.true:
+            return ops.const(1.0)
+        if c == sp.false:
+            return ops.const(0.0)
+        if type(c) in ops.relations:
+            return ops.relations[type(c)](walk(c.lhs), walk(c.rhs))
+        if isinstance(c, (sp.And, sp.Or)):
+            both = ops.logic_and if isinstance(c, sp.And) else ops.logic_or
+            parts = [condition(a) for a in c.args]
+            out = parts[0]
+            for p in parts[1:]:
+                out = both(out, p)
+            return out
+        if isinstance(c, sp.Not):
+            return ops.logic_not(condition(c.args[0]))
+        raise ModelError(f"{where}: cannot convert the condition {c}")
+
+    def piecewise(e: sp.Piecewise):
+        """The first piece whose condition holds (sympy's reading); simplify writes sign(x) as
+        one. A point no condition covers is NaN, as sympy leaves it undefined."""
+        out = ops.const(math.nan)
+        for value, cond in reversed(e.args):
+            out = ops.if_else(condition(cond), walk(value), out)
         return out
 
     return walk(sp.sympify(expr))
