@@ -129,16 +129,26 @@ def test_sigint_between_the_renames_keeps_the_output(tmp_path):
 
 def test_stale_temp_folders_are_cleaned(tmp_path):
     """Temp folders of a build that was killed: .new removed; an .old whose output is missing
-    (killed between the renames by an older version) put back; a live build's left alone."""
+    (killed between the renames by an older version) put back; a live build's left alone; and
+    a user's folders that are only named like them (holding a file no build writes) kept whole,
+    whether or not the output is there."""
     dead = subprocess.Popen(["true"])
     dead.wait()
     build_mod.build(MODEL, tmp_path, compile_check=False)
     want = tree(tmp_path / MODEL)
+    names = set(want)
+    theirs = [tmp_path / f".{MODEL}.{dead.pid}.mybackup.old", tmp_path / f".{MODEL}.{dead.pid}.notes123.new"]
+    for folder in theirs:
+        folder.mkdir()
+        (folder / "precious.txt").write_text("the user's")
+    output.clean_stale(tmp_path, MODEL, names)     # output present: nothing of the user's goes
     os.rename(tmp_path / MODEL, tmp_path / f".{MODEL}.{dead.pid}.abc12345.old")
     (tmp_path / f".{MODEL}.{dead.pid}.xyz98765.new").mkdir()
-    (tmp_path / f".{MODEL}.{dead.pid}.xyz98765.new" / "half.c").write_text("int")
+    (tmp_path / f".{MODEL}.{dead.pid}.xyz98765.new" / f"{MODEL}_node.c").write_text("int")
     mine = tmp_path / f".{MODEL}.{os.getpid()}.live0000.new"
     mine.mkdir()
-    output.clean_stale(tmp_path, MODEL)
+    output.clean_stale(tmp_path, MODEL, names)
     assert tree(tmp_path / MODEL) == want
-    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == [mine.name]
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == sorted(
+        [mine.name] + [f.name for f in theirs])
+    assert all((f / "precious.txt").read_text() == "the user's" for f in theirs)

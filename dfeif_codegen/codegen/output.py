@@ -79,19 +79,32 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def clean_stale(out_root: Path, name: str) -> None:
-    """Temp folders `.NAME.PID.*.new|old` of builds whose process is gone (killed mid-write):
-    an old output whose replacement never arrived is put back, the rest removed."""
+def _ours(folder: Path, names: set[str]) -> bool:
+    """A temp folder a build wrote: regular files only, each one this build writes or its own
+    manifest lists, none edited since. A folder merely named like one (a user's backup) is not."""
+    if folder.is_symlink() or not folder.is_dir():
+        return False
+    entries = list(folder.iterdir())
+    allowed = names | _written_before(folder)
+    return all(p.is_file() and not p.is_symlink() and p.name in allowed for p in entries) \
+        and not _edited_since(folder)
+
+
+def clean_stale(out_root: Path, name: str, names: set[str]) -> None:
+    """Temp folders `.NAME.PID.*.new|old` of builds whose process is gone (killed mid-write) and
+    whose files are a build's (`_ours`; `names`: what this build writes): an old output whose
+    replacement never arrived is put back, the rest removed. Anything else is left alone."""
     if not out_root.is_dir():
         return
     target = out_root / name
     for p in sorted(out_root.glob(f".{name}.*.*")):
         parts = p.name[len(name) + 2:].split(".")
-        if len(parts) != 3 or parts[2] not in ("new", "old") or not parts[0].isdigit() or _alive(int(parts[0])):
+        if len(parts) != 3 or parts[2] not in ("new", "old") or not parts[0].isdigit() or _alive(int(parts[0])) \
+                or not _ours(p, names):
             continue
-        if parts[2] == "old" and not (target.exists() or target.is_symlink()):
+        if parts[2] == "old" and (p / "manifest.json").is_file() and not (target.exists() or target.is_symlink()):
             os.rename(p, target)
-        elif p.is_dir() and not p.is_symlink():
+        else:
             shutil.rmtree(p, ignore_errors=True)
 
 
@@ -152,7 +165,7 @@ def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool =
     try:
         out_root.mkdir(parents=True, exist_ok=True)
         target = out_root / name
-        clean_stale(out_root, name)
+        clean_stale(out_root, name, set(files))
         tmp = Path(tempfile.mkdtemp(prefix=f".{name}.{os.getpid()}.", suffix=".new", dir=out_root))
     except OSError as exc:
         raise BuildError(f"{out_root}: cannot write output ({exc.strerror})") from None
