@@ -45,11 +45,11 @@ def _model_arg(p: argparse.ArgumentParser) -> None:
                    help=f"built-in model name or path to a .toml model file (default {DEFAULT_MODEL})")
 
 
-def _filter_options(p: argparse.ArgumentParser, many: bool = False) -> None:
+def _filter_options(p: argparse.ArgumentParser, many: bool = False, nodes: int | None = None) -> None:
     """The build options of the estimator (repeatable where a command compares several)."""
     p.add_argument("--max-lag", type=int, default=32, metavar="N", help="late-measurement window (default 32)")
-    p.add_argument("--nodes", type=int, default=None if many else 2, metavar="M",
-                   help="camera nodes (default: " + ("the scenario's)" if many else "2)"))
+    p.add_argument("--nodes", type=int, default=nodes, metavar="M",
+                   help="camera nodes (default: " + (f"{nodes})" if nodes else "the scenario's)"))
     kind = dict(action="append") if many else dict(default=None)
     p.add_argument("--oosm", choices=["retrodict", "replay"], **kind,
                    help="late-measurement method" + (" (repeatable)" if many else " (default replay)"))
@@ -66,7 +66,7 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="generated", help="output folder (default generated)")
     p.add_argument("--precision", choices=["double", "float"], default="double",
                    help="the C's real type (default double)")
-    _filter_options(p)
+    _filter_options(p, nodes=2)
     p.add_argument("--ts", type=float, default=None, help="sampling period [s] (default: the model's)")
     p.add_argument("--disturbance", metavar="KIND", default=None,
                    help="random_walk, gauss_markov, integrated_random_walk or integrated_gauss_markov (d and its rate):"

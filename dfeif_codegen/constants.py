@@ -35,3 +35,7 @@ def ci_iterations(nodes: int) -> int:
     the worst case; most searches stop earlier (warm starts in two or three steps)."""
     del nodes
     return CI_ITERATIONS
+
+
+NODES_LIMIT = 16
+"""Camera nodes a module is built for, at most: a scenario's [[nodes]] and --nodes alike."""

@@ -1,9 +1,12 @@
 """The derived flatness transform against hand derivations (issue: models and flatness)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import sympy as sp
 
+from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic import flatness, model
 
 
@@ -191,3 +194,29 @@ def test_a_reference_stepping_over_a_singular_set_is_named(tmp_path):
     assert k == int(np.argmax(np.cos(theta) < 0)) == 3
     assert "changes sign" in what
     assert flat.undefined_at(rows[:3]) is None
+
+
+def test_a_recover_that_does_not_give_the_output_back_is_refused(tmp_path):
+    """The cameras observe pa = x1 and pb = a sin(x2) of the output y = x1 + a sin(x2). The
+    right recover (pa + pb) derives; one that drops a channel (pa) built and ran before, every
+    filter then fusing x1 for y and diverging. It is refused, naming the entry, at a sampled
+    state where the two differ by a sin(x2) ≠ 0."""
+    def written(recover: str) -> Path:
+        path = tmp_path / f"obs{len(recover)}.toml"
+        path.write_text('[model]\nname = "obs"\nts = 0.01\n'
+                        + "".join(f'[[states]]\nname = "{s}"\nmin = -2.0\nmax = 2.0\n' for s in ("x1", "x2", "x3"))
+                        + '[[inputs]]\nname = "u"\n[[parameters]]\nname = "a"\nvalue = 0.3\n'
+                        '[dynamics.f]\nx1 = "x2 - a*cos(x2)*x3"\nx2 = "x3"\nx3 = "-2*x3"\n[dynamics.g.u]\nx3 = "1"\n'
+                        '[[outputs]]\nname = "y"\nexpr = "x1 + a*sin(x2)"\n[measurement.observe]\npa = "x1"\n'
+                        f'pb = "a*sin(x2)"\n[measurement.noise]\npa = 0.001\npb = 0.001\n'
+                        f'[measurement.recover]\ny = "{recover}"\n')
+        return path
+    flat = flatness.derive(model.load(str(written("pa + pb"))))
+    assert flat.n == 3
+    with pytest.raises(ModelError) as err:
+        flatness.derive(model.load(str(written("pa"))))
+    text = str(err.value)
+    assert "measurement.recover.y" in text and "does not give the flat output y back" in text
+    x2 = float(text.split("x2 = ")[1].split(",")[0])
+    got, want = (float(v) for v in (text.split("it gives ")[1].split(",")[0], text.split("y = ")[-1]))
+    assert want - got == pytest.approx(0.3 * np.sin(x2), rel=1e-3, abs=1e-3)

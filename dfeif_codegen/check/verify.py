@@ -303,7 +303,7 @@ def errors_as_dicts(errors: list[SignalError]) -> list[dict]:
 
 def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str | None = None,
            sanitize: bool = False, scenario: str = "paper", inputs: str = "recorded", max_lag: int = 32,
-           nodes: int = 2, oosm: str = "replay", fusion: str = "difference", progress=None,
+           nodes: int | None = None, oosm: str = "replay", fusion: str = "difference", progress=None,
            max_seconds: float | None = None, max_memory: float | None = None,
            predictor: str | None = None) -> Verification:
     """Build into a temporary folder, record a scenario (default the paper one, its first delay
@@ -329,6 +329,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     driver_io.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
+    nodes = len(sc.noise_scale) if nodes is None else nodes   # the scenario's [[nodes]], as simulate's
     sc.check_predictor(predictor, oosm)
     if sc.disturbance is not None:    # the C carries the scenario's disturbance states
         Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor, disturbance=sc.disturbance.kind,

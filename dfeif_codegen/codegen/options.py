@@ -5,12 +5,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from dfeif_codegen.constants import NODES_LIMIT
 from dfeif_codegen.errors import CodegenError
 from dfeif_codegen.symbolic.disturbance import KINDS as DISTURBANCES, TAU_ONLY_TIMED, TIMED, Disturbance
 from dfeif_codegen.symbolic.sampling import PREDICTORS, for_method
 
 MAX_LAG_LIMIT = 4096
-NODES_LIMIT = 16
 OOSM_METHODS = ("replay", "retrodict")
 FUSION_RULES = ("difference", "paper", "ci")
 PRECISIONS = ("double", "float")

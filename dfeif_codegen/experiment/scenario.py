@@ -12,16 +12,16 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+from dfeif_codegen.constants import NODES_LIMIT
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.paths import parse_toml, read_text
 from dfeif_codegen.symbolic.model import _key_lines
 from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
-from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.experiment.network import Link
-from dfeif_codegen.experiment import model_error
-from dfeif_codegen.experiment import trajectory_file
+from dfeif_codegen.experiment import model_error, trajectory_file
 from dfeif_codegen.experiment.trajectory import KINDS
 from dfeif_codegen.reference import offsets as offset_states, predictor as predictors
+from dfeif_codegen.reference.fusion import RULES
 from dfeif_codegen.symbolic import disturbance as disturbances
 
 BUILTIN = ("paper", "unicycle", "pvtol")
@@ -147,9 +147,11 @@ class Scenario:
             fail("scenario.runs", f"{self.runs} runs: at most {MAX_RUNS} (each is a closed-loop simulation)")
         if self.harmonics > MAX_HARMONICS:
             fail("reference.harmonics", f"{self.harmonics}: at most {MAX_HARMONICS} harmonics of the reference")
-        if self.duration / ts > MAX_STEPS:
+        if not 2 <= self.duration / ts <= MAX_STEPS:
             fail("scenario.duration", f"{self.duration:g} s at Ts = {ts:g} s is {self.duration / ts:.3g} steps; "
-                                      f"at most {MAX_STEPS:g} per run")
+                                      f"at least 2 and at most {MAX_STEPS:g} per run")
+        if self.substeps > MAX_SUBSTEPS:
+            fail("scenario.substeps", f"{self.substeps}: at most {MAX_SUBSTEPS} plant integration steps per period")
         for key, values in (("filter.q", self.q), ("filter.q_brunovsky", self.q_brunovsky or self.q),
                             ("filter.q_ekf", self.q_ekf or self.q),
                             ("filter.q_scheduled", self.q_scheduled or self.q),
@@ -175,14 +177,14 @@ class Scenario:
         channels = len(meas.observe) if meas else m
         for i, std in enumerate(self.noise_std):
             if std is None and meas is None:
-                fail("nodes", f"node {i + 1}: model {flat.model.name} has no [measurement], so noise_std "
-                              f"(one per flat output) is required")
+                fail("nodes", f"node {i + 1}: needs noise_std, one per flat output ({flat.model.name} has no [measurement])")
             if std is not None and len(std) not in (1, channels):
                 fail("nodes", f"node {i + 1}: noise_std needs 1 or {channels} values (one per camera "
                               f"channel), got {len(std)}")
 
 
 MAX_STEPS = 1e6  # steps per run: the recording keeps every step's covariances in memory
+MAX_SUBSTEPS = 1000  # the plant's RK4 steps per period (1e9 ran for hours, beyond a Ctrl-C in the C engine)
 MAX_RUNS = 100_000  # seeds per row (a 100-seed table is the chapter's; 1e9 would never end)
 MAX_HARMONICS = 1000  # of the seesaw reference (each is a term of every step's reference)
 
@@ -283,10 +285,8 @@ def _read_head(r: _Reader, head: dict) -> None:
         r.fail("scenario.name", "must be a string")
     sc.description = str(head.get("description", ""))
     sc.duration = r.number(head, "scenario", "duration", sc.duration, positive=True, allow_zero=False)
-    if "ts" in head:
+    if "ts" in head:   # two periods at least: check_model
         sc.ts = r.number(head, "scenario", "ts", None, positive=True, allow_zero=False)
-        if sc.ts > sc.duration:
-            r.fail("scenario.ts", f"sampling period {sc.ts} s is longer than the run ({sc.duration} s)")
     sc.runs = r.number(head, "scenario", "runs", sc.runs, positive=True, allow_zero=False, integer=True)
     sc.substeps = r.number(head, "scenario", "substeps", sc.substeps, positive=True, allow_zero=False, integer=True)
     sc.metrics_from = r.number(head, "scenario", "metrics_from", sc.metrics_from, positive=True)
@@ -354,8 +354,8 @@ def _read_network(r: _Reader, data: dict) -> None:
     """[[nodes]], [uplink] and the delay rows [[grid]]."""
     sc = r.sc
     if "nodes" in data:
-        if not data["nodes"]:
-            r.fail("nodes", "needs at least one [[nodes]] entry")
+        if not 1 <= len(data["nodes"]) <= NODES_LIMIT:
+            r.fail("nodes", f"needs 1 to {NODES_LIMIT} [[nodes]] entries (a module's limit), got {len(data['nodes'])}")
         sc.noise_scale, sc.noise_std = [], []
         for i, node in enumerate(data["nodes"]):
             at = f"nodes#{i}"
@@ -374,7 +374,7 @@ def _read_network(r: _Reader, data: dict) -> None:
             if not ds or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in ds):
                 r.fail(f"{at}.d", f"must be a whole number of steps >= 0 or a list of them (one per node), got {d!r}")
             if len(ds) not in (1, len(sc.noise_scale)):
-                r.fail(f"{at}.d", f"needs 1 or {len(sc.noise_scale)} values (one per node), got {len(ds)}")
+                r.fail(f"{at}.d", f"needs 1 value or one per node ({len(sc.noise_scale)}), got {len(ds)}")
             row_ = Row(list(ds), r.number(row, at, "p", 0.0, positive=True),
                        r.number(row, at, "p_drop", 0.0, positive=True))
             for lk in row_.links(len(sc.noise_scale)):

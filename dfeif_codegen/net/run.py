@@ -118,7 +118,7 @@ MAX_DURATION = 600.0   # simulated seconds of one network run (60,000 steps at 1
 
 
 def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int = 2, seed: int = 0,
-            precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int = 2,
+            precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int | None = None,
             max_lag: int = 32, duration: float | None = 5.0, key: str | None = None, flip_rate: float = 0.0,
             keep: str | Path | None = None, max_seconds: float | None = None,
             max_memory: float | None = None, predictor: str | None = None) -> Network:
@@ -141,6 +141,9 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
     if keep:
         from dfeif_codegen.paths import writable_dir
         writable_dir(keep, "--keep")
+    if nodes is None:   # the scenario's [[nodes]], as simulate's
+        from dfeif_codegen.experiment import scenario as scenarios
+        nodes = len(scenarios.load(scenario).noise_scale)
     o = Options(model=model, scenario=scenario, row=row, seed=seed, precision=precision, oosm=oosm,
                 fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate,
                 predictor=predictor)

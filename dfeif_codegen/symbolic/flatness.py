@@ -11,7 +11,7 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from dfeif_codegen.symbolic import discretize, extension, numeric
+from dfeif_codegen.symbolic import discretize, extension, lie, numeric
 from dfeif_codegen.symbolic.inverse import small_simplify, solve_inverse
 from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic.lie import domain_samples, nominal_state  # noqa: F401  (re-exported)
@@ -198,12 +198,38 @@ def _say(model: Model, progress):
     return lambda text: progress(f"{text}; largest expression {model.where(worst)}")
 
 
+def _check_recover(model: Model) -> None:
+    """[measurement.recover] must give each flat output back from what the cameras observe:
+    recover(observe(x)) = h(x) at sampled states of the domain (modulo 2 pi for an angle), to
+    the inverse's round-trip tolerance. A wrong one builds and runs, and every filter then
+    fuses a measurement of something else and diverges with no hint why."""
+    meas = model.measurement
+    if meas is None:
+        return
+    seen = {sp.Symbol(k): e for k, e in meas.observe.items()}
+    sampler = lie.Sampler(model)
+    got = sampler.values([sp.sympify(meas.recover[o.name]).xreplace(seen) for o in model.outputs])
+    want = sampler.values([o.expr for o in model.outputs])
+    for j, out in enumerate(model.outputs):
+        diff = got[:, j] - want[:, j]
+        if out.angle:
+            diff = np.mod(diff + np.pi, 2 * np.pi) - np.pi
+        bad = np.isfinite(want[:, j]) & ~(np.abs(diff) <= 1e-7 * (1 + np.abs(want[:, j])))
+        if bad.any():
+            k = int(np.argmax(bad))
+            state = ", ".join(f"{v.name} = {sampler.rows[k, i]:.4g}" for i, v in enumerate(model.states))
+            raise ModelError(f"{model.where(f'measurement.recover.{out.name}')}: does not give the flat output "
+                             f"{out.name} back from the observed channels: at {state} it gives {got[k, j]:.6g}, "
+                             f"{out.name} = {want[k, j]:.6g}")
+
+
 def derive(model: Model, progress=None) -> FlatSystem:
     """Derive the canonical form, or say in one line why the model is not flat in this sense.
     A singular decoupling matrix is cured by a dynamic extension where one exists (see
     extension.py); the flat system is then that of the extended model. `progress(text)` is told
     each stage (the budget in dfeif_codegen.budget names it on a stop)."""
     say = _say(model, progress)
+    _check_recover(model)
     _check_denominators(model, {f"dynamics.f.{s.name}": e for s, e in zip(model.states, model.f)}
                         | {f"dynamics.g.{u.name}": sum(model.g.col(j)) for j, u in enumerate(model.inputs)})
     physical = model

@@ -76,6 +76,31 @@ def _hypot_args(e: sp.Pow):
     return None
 
 
+def _piecewise(e: sp.Piecewise, walk, ops, where: str):
+    """The first piece whose condition holds (sympy's reading; solve writes sign(x) in Phi^-1 as
+    one), `walk` converting the pieces. A point no condition covers is NaN, as sympy leaves it."""
+    def condition(c: sp.Basic):
+        if c in (sp.true, sp.false):
+            return ops.const(1.0 if c == sp.true else 0.0)
+        if type(c) in ops.relations:
+            return ops.relations[type(c)](walk(c.lhs), walk(c.rhs))
+        if isinstance(c, sp.Not):
+            return ops.logic_not(condition(c.args[0]))
+        if not isinstance(c, (sp.And, sp.Or)):
+            raise ModelError(f"{where}: cannot convert the condition {c}")
+        both = ops.logic_and if isinstance(c, sp.And) else ops.logic_or
+        parts = [condition(a) for a in c.args]
+        out = parts[0]
+        for p in parts[1:]:
+            out = both(out, p)
+        return out
+
+    out = ops.const(math.nan)
+    for value, cond in reversed(e.args):
+        out = ops.if_else(condition(cond), walk(value), out)
+    return out
+
+
 def to_casadi(expr: sp.Expr, table: dict, where: str = "expression", ops=_CasADi, trig=None):
     """Convert a sympy expression to a CasADi SX scalar by walking its tree (never by printing
     and evaluating); shared subtrees stay shared. `where` names the expression in errors. With
@@ -136,38 +161,12 @@ def to_casadi(expr: sp.Expr, table: dict, where: str = "expression", ops=_CasADi
             for a in args[1:]:
                 out = op(out, a)
         elif isinstance(e, sp.Piecewise):
-            out = piecewise(e)
+            out = _piecewise(e, walk, ops, where)
         elif isinstance(e, sp.DiracDelta) or (isinstance(e, sp.Derivative) and isinstance(e.expr, sp.sign)):
             out = ops.const(0.0)   # sign's derivative where it has one (a linearization's L0, a Jacobian)
         else:
             raise ModelError(f"{where}: cannot convert '{e.func.__name__}' in {e}")
         memo[e] = out
-        return out
-
-    def condition(c: sp.Basic):
-        if c == sp.true:
-            return ops.const(1.0)
-        if c == sp.false:
-            return ops.const(0.0)
-        if type(c) in ops.relations:
-            return ops.relations[type(c)](walk(c.lhs), walk(c.rhs))
-        if isinstance(c, (sp.And, sp.Or)):
-            both = ops.logic_and if isinstance(c, sp.And) else ops.logic_or
-            parts = [condition(a) for a in c.args]
-            out = parts[0]
-            for p in parts[1:]:
-                out = both(out, p)
-            return out
-        if isinstance(c, sp.Not):
-            return ops.logic_not(condition(c.args[0]))
-        raise ModelError(f"{where}: cannot convert the condition {c}")
-
-    def piecewise(e: sp.Piecewise):
-        """The first piece whose condition holds (sympy's reading); simplify writes sign(x) as
-        one. A point no condition covers is NaN, as sympy leaves it undefined."""
-        out = ops.const(math.nan)
-        for value, cond in reversed(e.args):
-            out = ops.if_else(condition(cond), walk(value), out)
         return out
 
     return walk(sp.sympify(expr))
