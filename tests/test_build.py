@@ -243,13 +243,20 @@ def test_a_hand_edited_file_is_not_replaced_without_force(tmp_path):
     node = tmp_path / "dc_motor_link" / "dc_motor_link_node.c"
     generated = node.read_bytes()
     node.write_bytes(generated.replace(b"\n", b"\r\n"))
+    assert cli_run("build", "--out", str(tmp_path), "--check").returncode == 0      # up to date, as checked out
     assert cli_run("build", "--out", str(tmp_path)).returncode == 0
     assert node.read_bytes() == generated
     node.write_bytes(generated + b"/* my fix */\n")
+    check = cli_run("build", "--out", str(tmp_path), "--check")
+    assert check.returncode == 1 and "dc_motor_link_node.c" in check.stderr
     result = cli_run("build", "--out", str(tmp_path))
     assert result.returncode == 2 and "dc_motor_link_node.c" in result.stderr and "changed since" in result.stderr
     assert result.stderr.count("\n") == 1 and node.read_bytes().endswith(b"/* my fix */\n")
     assert cli_run("build", "--out", str(tmp_path), "--force").returncode == 0
+    assert node.read_bytes() == generated
+    (tmp_path / "dc_motor_link" / "manifest.json").write_text("{")
+    result = cli_run("build", "--out", str(tmp_path))
+    assert result.returncode == 2 and "manifest.json" in result.stderr and "unreadable JSON" in result.stderr
     assert node.read_bytes() == generated
 
 

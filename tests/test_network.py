@@ -7,6 +7,7 @@ within bounded time, each with its own check."""
 from __future__ import annotations
 
 import dataclasses
+import subprocess
 
 import numpy as np
 import pytest
@@ -269,7 +270,8 @@ def test_cli_network_passes_and_rejects_bad_input(capsys, host_cc):
 
 def test_a_process_that_ended_early_is_named(tmp_path):
     """When a run does not finish, the message names each process that had already ended, how,
-    and the last line of its stderr (a killed node was 'did not finish in time', nothing more)."""
+    and the last line of its stderr (a killed node was 'did not finish in time', nothing more),
+    and where its logs are only when they outlive the run."""
     import signal
     import time
 
@@ -280,10 +282,29 @@ def test_a_process_that_ended_early_is_named(tmp_path):
     time.sleep(0.5)
     early = {p.name: p.ended() for p in (dead, killed, alive)}
     assert early == {"node1": 3, "node0": -9, "master": None}
-    msg = launch._who_ended(early, tmp_path)
+    msg = launch._who_ended(early, tmp_path, kept=True)
     assert "node1 ended early (exit 3: node 1: nothing received in time, exiting)" in msg
     assert "node0 ended early (killed by signal 9)" in msg and "master" not in msg
+    assert f"see {tmp_path}/*.err" in msg      # a kept folder; a temporary one is gone when the user reads this
+    assert "--keep DIR keeps the logs" in launch._who_ended(early, tmp_path, kept=False)
     for p in (dead, killed, alive):
+        p.reap(0)
+
+
+def test_a_program_that_fails_ends_the_run_before_its_deadline(tmp_path):
+    """A node that exits with an error (bad start-up values) while the plant waits for the
+    step's frames ends the drive at once, not at the deadline (60 s plus 0.2 s per step: 86 s
+    for a 1 s run, all spent waiting for a process that was gone)."""
+    import time
+
+    failed = launch._Proc("node0", ["sh", "-c", "echo 'node 0: bad start-up values' >&2; exit 2"], tmp_path)
+    plant = launch._Proc("plant", ["sleep", "120"], tmp_path, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    finished, restarts, retired = launch._drive(launch.Options(), None, {"node0": failed}, plant, t0 + 100)
+    assert not finished and restarts == {} and retired == []
+    assert time.monotonic() - t0 < 50        # half the deadline: the drive polls once a second
+    assert failed.ended() == 2
+    for p in (failed, plant):
         p.reap(0)
 
 

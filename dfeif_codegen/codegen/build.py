@@ -191,7 +191,8 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
           max_memory: float | None = None, predictor: str | None = None, disturbance: str | None = None,
           tau: float | None = None) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
-    compared byte for byte: the differing, missing ("missing: f") and extra ("extra: f") files;
+    compared byte for byte (line endings as written: a checkout's CRLF is not a change, as for
+    `build`): the differing, missing ("missing: f") and extra ("extra: f") files;
     empty if the folder is up to date. A folder that does not exist is a BuildError (exit 2),
     raised before the derivation. Nothing is written."""
     out_folder(out)
@@ -203,7 +204,8 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
                          f"{'' if str(out) == 'generated' else f' --out {out}'}`)")
     files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
     on_disk = {p.name for p in target.iterdir()}
-    stale = [f for f in files if f in on_disk and (target / f).read_bytes() != files[f].encode("utf-8")]
+    stale = [f for f in files if f in on_disk
+             and (target / f).read_bytes().replace(b"\r\n", b"\n") != files[f].encode("utf-8")]
     stale += [f"missing: {f}" for f in files if f not in on_disk]
     return stale + [f"extra: {f}" for f in sorted(on_disk - set(files))]
 

@@ -37,6 +37,9 @@ def check_target(out_root: Path, name: str, force: bool = False) -> None:
     if target.is_symlink() or not target.is_dir():
         raise BuildError(f"{target}: a file the toolkit did not write is in the way (use --force to replace it)")
     ours = _written_before(target)
+    if not ours and (target / "manifest.json").is_file():
+        raise BuildError(f"{target / 'manifest.json'}: not a manifest codegen build wrote (unreadable JSON), so "
+                         "nothing there is known to be the toolkit's; move the folder away or use --force")
     theirs = sorted(p.name for p in target.iterdir() if p.name not in ours or not p.is_file())
     if theirs:
         more = f" and {len(theirs) - 1} more" if len(theirs) > 1 else ""

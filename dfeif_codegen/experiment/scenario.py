@@ -18,6 +18,7 @@ from dfeif_codegen.paths import parse_toml, read_text
 from dfeif_codegen.symbolic.model import _key_lines
 from dfeif_codegen.experiment.closed_loop import BASELINES, OOSM
 from dfeif_codegen.experiment.network import Link
+from dfeif_codegen.experiment.scenario_fields import Reader
 from dfeif_codegen.experiment import model_error, trajectory_file
 from dfeif_codegen.experiment.trajectory import KINDS
 from dfeif_codegen.reference import offsets as offset_states, predictor as predictors
@@ -214,54 +215,7 @@ def load(spec: str) -> Scenario:
     return loads(read_text(path, spec, ScenarioError, "scenario"), spec)
 
 
-class _Reader:
-    """Typed reads of a scenario's fields, each failing in one line that names the field's line."""
-
-    def __init__(self, sc: Scenario):
-        self.sc = sc
-
-    def fail(self, key: str, message: str):
-        raise ScenarioError(f"{self.sc.where(key)}: {message}")
-
-    def number(self, table, section, key, default, positive=False, allow_zero=True, integer=False):
-        value = table.get(key, default)
-        ok = disturbances.finite_number(value) and (not integer or float(value).is_integer())
-        if ok and positive and (value < 0 or (value == 0 and not allow_zero)):
-            ok = False
-        if not ok:
-            kind = "an integer" if integer else "a finite number"
-            sign = " > 0" if positive and not allow_zero else (" >= 0" if positive else "")
-            self.fail(f"{section}.{key}", f"must be {kind}{sign}, got {value!r}")
-        return int(value) if integer else float(value)
-
-    def numbers(self, table, section, key, default, positive=True):
-        value = table.get(key, default)
-        items = value if isinstance(value, list) else [value]
-        if not items or not all(disturbances.finite_number(v) for v in items) \
-                or (positive and not all(v > 0 for v in items)):
-            self.fail(f"{section}.{key}", f"must be {'a positive' if positive else 'a'} finite number or a non-empty "
-                                          f"list of them, got {value!r}")
-        return [float(v) for v in items]
-
-    def names(self, table, section, key, default, allowed):
-        value = table.get(key, default)
-        if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
-            self.fail(f"{section}.{key}", f"must be a non-empty list of names from {', '.join(allowed)}")
-        for v in value:
-            if v not in allowed:
-                self.fail(f"{section}.{key}", f"'{v}' is not one of {', '.join(allowed)}")
-        return list(value)
-
-    def link(self, table, section) -> Link:
-        p = self.number(table, section, "p", 0.0, positive=True)
-        d = self.number(table, section, "d", 0, positive=True, integer=True)
-        lk = Link(p, d, self.number(table, section, "p_drop", 0.0, positive=True))
-        if lk.problem():
-            self.fail(section, lk.problem())
-        return lk
-
-
-def _check_keys(r: _Reader, data: dict) -> None:
+def _check_keys(r: Reader, data: dict) -> None:
     """Unknown sections and fields are errors (a typo is not silently a default)."""
     for section, value in data.items():
         if section not in _ALLOWED:
@@ -277,7 +231,7 @@ def _check_keys(r: _Reader, data: dict) -> None:
                            f"unknown field (expected one of {', '.join(sorted(_ALLOWED[section]))})")
 
 
-def _read_head(r: _Reader, head: dict) -> None:
+def _read_head(r: Reader, head: dict) -> None:
     """[scenario]: name, run length, sampling, seeds, what to compare."""
     sc = r.sc
     sc.name = head.get("name", sc.name)
@@ -299,7 +253,7 @@ def _read_head(r: _Reader, head: dict) -> None:
     sc.baselines = [] if value == [] else r.names(head, "scenario", "baselines", value, BASELINES)
 
 
-def _read_settings(r: _Reader, data: dict) -> None:
+def _read_settings(r: Reader, data: dict) -> None:
     """[filter], [control], [reference]."""
     sc = r.sc
     filt = data.get("filter", {})
@@ -310,7 +264,7 @@ def _read_settings(r: _Reader, data: dict) -> None:
         sc.q_ekf = r.numbers(filt, "filter", "q_ekf", [])
     if "q_scheduled" in filt:
         sc.q_scheduled = r.numbers(filt, "filter", "q_scheduled", [])
-    sc.p0_std = r.numbers(filt, "filter", "p0_std", sc.p0_std)
+    sc.p0_std = r.stds(filt, "filter", "p0_std", sc.p0_std)
     sc.initial_error = filt.get("initial_error", sc.initial_error)
     if not isinstance(sc.initial_error, bool):
         r.fail("filter.initial_error", "must be true or false")
@@ -329,7 +283,7 @@ def _read_settings(r: _Reader, data: dict) -> None:
     _read_trajectory(r, ref, "references" in data.get("scenario", {}))
 
 
-def _read_trajectory(r: _Reader, ref: dict, listed: bool) -> None:
+def _read_trajectory(r: Reader, ref: dict, listed: bool) -> None:
     """[reference] file (a CSV, relative to the scenario file) and smoothing; a scenario with a
     file runs the reference "trajectory" unless [scenario] references says otherwise."""
     sc = r.sc
@@ -350,7 +304,7 @@ def _read_trajectory(r: _Reader, ref: dict, listed: bool) -> None:
         r.fail("scenario.references", f"'{trajectory_file.KIND}' needs a [reference] file (a CSV of the flat outputs)")
 
 
-def _read_network(r: _Reader, data: dict) -> None:
+def _read_network(r: Reader, data: dict) -> None:
     """[[nodes]], [uplink] and the delay rows [[grid]]."""
     sc = r.sc
     if "nodes" in data:
@@ -359,8 +313,8 @@ def _read_network(r: _Reader, data: dict) -> None:
         sc.noise_scale, sc.noise_std = [], []
         for i, node in enumerate(data["nodes"]):
             at = f"nodes#{i}"
-            sc.noise_scale.append(r.number(node, at, "noise_scale", 1.0, positive=True, allow_zero=False))
-            sc.noise_std.append(r.numbers(node, at, "noise_std", None) if "noise_std" in node else None)
+            sc.noise_scale.append(r.std(node, at, "noise_scale", 1.0))
+            sc.noise_std.append(r.stds(node, at, "noise_std", None) if "noise_std" in node else None)
     if "uplink" in data:
         sc.uplink = r.link(data["uplink"], "uplink")
     if "grid" in data:
@@ -386,7 +340,7 @@ def _read_network(r: _Reader, data: dict) -> None:
 def loads(text: str, source: str = "<string>") -> Scenario:
     """A scenario from TOML text; every problem is a ScenarioError naming the field and its line."""
     data = parse_toml(text, source, ScenarioError)
-    r = _Reader(Scenario(name=Path(source).stem, source=source, _lines=_key_lines(text)))
+    r = Reader(Scenario(name=Path(source).stem, source=source, _lines=_key_lines(text)))
     _check_keys(r, data)
     _read_head(r, data.get("scenario", {}))
     _read_settings(r, data)

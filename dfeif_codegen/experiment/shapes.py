@@ -210,9 +210,13 @@ def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None
                 return shape
             except ArithmeticError as exc:
                 first = first or str(exc)
-    raise ScenarioError(f"{flat.model.source}: no {kind} reference around {list(base.offset)} stays where the "
-                        f"transform is defined and the inputs within their limits ({first}); give --amplitude, "
-                        "--offset, --period or --shape")
+    given = {"--amplitude": amplitude, "--offset": offset, "--period": period}
+    said = [flag for flag, value in given.items() if value is not None]
+    unsaid = [flag for flag, value in given.items() if value is None] + ["--shape"]
+    hint = (f"change {' or '.join(said)}, or " if said else "") + "give " + (
+        f"{', '.join(unsaid[:-1])} or {unsaid[-1]}" if len(unsaid) > 1 else unsaid[0])
+    raise ScenarioError(f"{flat.model.source}: no {kind} reference around ({', '.join(f'{v:g}' for v in base.offset)}) "
+                        f"stays where the transform is defined and the inputs within their limits ({first}); {hint}")
 
 
 def feedforward(flat, row, p) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

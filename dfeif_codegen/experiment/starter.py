@@ -301,9 +301,9 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
         'baselines = ["discard", "as-current"]',
         "",
         "[filter]",
-        f"q = {toml_list(q)}               # per chain: the one-step residual, scaled to NEES = n",
+        f"q = {toml_list(q)}               # per chain: the one-step residual, scaled toward NEES = n (above)",
         *([] if q_scheduled is None else [f"q_scheduled = {toml_list(q_scheduled)}   # simulate --filters scheduled: "
-                                          "its own q, scaled to NEES = n"]),
+                                          "its own q, scaled toward NEES = n"]),
         f"p0_std = {toml_list(p0_std)}   # per derivative order",
         "initial_error = true",
         "",

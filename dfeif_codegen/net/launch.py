@@ -243,7 +243,9 @@ def _drive(o: Options, cmds: _Commands, procs: dict, plant: _Proc, deadline: flo
     while not finished and time.monotonic() < deadline:
         try:
             line = lines.get(timeout=max(0.01, min(1.0, deadline - time.monotonic())))
-        except queue.Empty:
+        except queue.Empty:   # a program that failed (bad start-up values) ends the run now
+            if any(p.ended() not in (None, 0) for p in procs.values()):
+                break
             continue
         if not line:
             break
@@ -287,23 +289,25 @@ def _logs(s: session.Setup, work: Path, restarts: dict) -> tuple[list, dict, lis
     return nodes, master, relay, plant_data
 
 
-def _who_ended(early: dict, work: Path) -> str:
+def _who_ended(early: dict, work: Path, kept: bool) -> str:
     """The processes that ended with an error before the run did, by name with exit code or
     signal and the last line each wrote to stderr (a killed node, a master that gave up)."""
     dead = [(name, rc) for name, rc in early.items() if rc]
+    logs = f"see {work}/*.err" if kept else "--keep DIR keeps the logs"
     if not dead:
-        return f": no process ended with an error (see {work}/*.err)"
+        return f": no process ended with an error ({logs})"
     parts = []
     for name, rc in dead:
         err = sorted(work.glob(f"{name}*.err"))
         last = (err[-1].read_text().strip().splitlines() or [""])[-1] if err else ""
         how = f"killed by signal {-rc}" if rc < 0 else f"exit {rc}"
         parts.append(f"{name} ended early ({how}{': ' + last if last else ''})")
-    return ": " + "; ".join(parts) + f" (see {work}/*.err)"
+    return ": " + "; ".join(parts) + f" ({logs})"
 
 
-def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
-    """Build, start every process, run the scenario's first `duration` seconds, collect the logs."""
+def launch(o: Options, work: Path, deadline: float | None = None, kept: bool = True) -> Outcome:
+    """Build, start every process, run the scenario's first `duration` seconds, collect the logs
+    (`kept`: `work` outlives the call, so an error may point at its logs)."""
     work.mkdir(parents=True, exist_ok=True)
     cfg = make_config(o)
     s = session.setup(cfg)
@@ -329,7 +333,8 @@ def launch(o: Options, work: Path, deadline: float | None = None) -> Outcome:
         rcs[name] = pr.reap(10 if finished else 0)
     wall = time.monotonic() - t0
     if not finished:
-        raise SetupError("codegen network: the run did not finish in time" + _who_ended(early, work))
+        stop = "stopped early" if any(early.values()) else "did not finish in time"
+        raise SetupError(f"the run {stop}" + _who_ended(early, work, kept))
     nodes, master, relay, plant_data = _logs(s, work, restarts)
     cpu = {name: pr.cpu for name, pr in procs.items()}
     errs = {pr.name: Path(pr.err.name).read_text() for pr in [*procs.values(), *retired, plant]}

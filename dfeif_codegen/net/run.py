@@ -153,7 +153,7 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
     make_config(o)   # bad scenario or row: one line, before any build
     with tempfile.TemporaryDirectory(prefix="codegen-network-") as tmp:
         work = Path(keep) if keep else Path(tmp)
-        out = launch(o, work)
+        out = launch(o, work, kept=bool(keep))
         errors, rec = compare(out)
         f = figures(out)
     return Network(out, f, errors, summary(o, out, f, rec))

@@ -123,7 +123,7 @@ class FlatSystem:
             det = abs(float(np.linalg.det(self.G_num(zeta)))) if np.all(np.isfinite(zeta)) else float("nan")
         if not np.isfinite(det) or det == 0.0:
             raise ModelError(f"{self.model.where('states')}: the decoupling matrix G is singular or undefined at the "
-                             f"nominal state {list(nominal_state(self.model))}: declare a 'nominal' where it is not")
+                             f"nominal state ({', '.join(f'{v:g}' for v in nominal_state(self.model))}): declare a 'nominal' where it is not")
         return det
 
     def undefined_at(self, zeta_rows, singular_rtol: float = 1e-6) -> tuple[int, str] | None:

@@ -215,8 +215,8 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
 
     def pick(candidates: list[dict]) -> dict:
         closed = [{v: sp.sympify(e).subs(solved).subs(given) for v, e in c.items()} for c in candidates]
-        valid = [_round_trips(c, *trip) for c in closed]
-        valid = [ok & _float32_trips(c, *trip) if ok.all() else ok for c, ok in zip(closed, valid)]
+        exact = [_round_trips(c, *trip) for c in closed]
+        valid = [ok & _float32_trips(c, *trip) if ok.all() else ok for c, ok in zip(closed, exact)]
         everywhere = [c for c, ok in zip(candidates, valid) if ok.all()]
         somewhere = [c for c, ok in zip(candidates, valid) if ok.any()]
         names = ", ".join(sorted(str(v) for v in candidates[0])) if candidates else "?"
@@ -232,6 +232,10 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
             return everywhere[0]
         where_ = "its declared domain" if not free else "the test box [-1.3, 1.3]"
         at = model.where(f"states#{index[next(iter(candidates[0]))]}") if candidates else model.where("outputs")
+        if any(ok.all() for ok in exact):   # exact in double: single precision's rounding is the trouble
+            raise ModelError(f"{at}: Phi^-1 for {names} ({shown}) is exact in double precision but loses the "
+                             f"state in single precision somewhere on {where_}: give {names} in a "
+                             "better-conditioned form in [inverse]")
         raise ModelError(f"{at}: no branch of Phi^-1 for {names} ({shown}) is valid on all of "
                          f"{where_}: the flat outputs do not determine the state there")
 

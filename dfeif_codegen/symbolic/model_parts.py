@@ -25,7 +25,8 @@ unsigned void volatile while _Bool _Complex _Imaginary bool true false NULL main
 C_HEADERS = frozenset("""assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp
 signal stdalign stdarg stdatomic stdbool stddef stdint stdio stdlib stdnoreturn string tgmath threads
 time uchar wchar wctype arm_math cmsis example_main manifest unistd fcntl pthread sched strings poll termios
-dirent transport transport_udp common relay node_main master_main""".split())
+dirent transport transport_udp common relay node_main master_main features newlib ieeefp endian alloca
+malloc""".split())   # features ... malloc: the C library's own headers include them by these names
 # Words w for which a model named <a>_w would declare a name a model <a> declares too: <a>_w_t
 # where both w_t and t follow the prefix in generated names (ab_node_packet: ab's node_packet
 # and ab_node's packet). tests/test_model_errors.py derives them from fresh builds.

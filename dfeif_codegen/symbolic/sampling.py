@@ -328,7 +328,7 @@ def nominal_point(flat, x=None, u=None) -> tuple[np.ndarray, np.ndarray]:
     u = np.asarray(u, dtype=float).reshape(flat.m)
     if not (np.all(np.isfinite(zeta0)) and np.all(np.isfinite(u))):
         raise ModelError(f"{flat.model.where('states')}: the canonical model cannot be linearized at the nominal "
-                         f"state {list(x)}: declare a 'nominal' where Phi and G are defined and G is regular")
+                         f"state ({', '.join(f'{v:g}' for v in np.ravel(x))}): declare a 'nominal' where Phi and G are defined and G is regular")
     return zeta0, u
 
 
