@@ -77,6 +77,7 @@ def generated() -> dict:
             ("ts 0", SMALL + "ts = 0.0\n", ["scenario.ts"]),
             ("one step", SMALL.replace("1.0", "0.015", 1).replace("0.2", "0.0"), ["scenario.duration", "1.5 steps"]),
             ("ts above duration", SMALL + "ts = 2.0\n", ["scenario.duration", "0.5 steps", "at least 2"]),
+            ("period 1e-300", SMALL + "[reference]\nperiod = 1e-300\n", ["reference.period", "two sampling periods"]),
             ("substeps 1e9", SMALL + "substeps = 1000000000\n", ["scenario.substeps", "at most 1000"]),
             ("metrics_from 2", SMALL.replace("metrics_from = 0.2", "metrics_from = 2.0"), ["metrics_from"]),
             ("references typo", SMALL.replace('"seesaw"', '"seasaw"'), ["seasaw"]),

@@ -153,6 +153,8 @@ class Scenario:
                                       f"at least 2 and at most {MAX_STEPS:g} per run")
         if self.substeps > MAX_SUBSTEPS:
             fail("scenario.substeps", f"{self.substeps}: at most {MAX_SUBSTEPS} plant integration steps per period")
+        if self.period < 2 * ts:   # sampled below Nyquist; 1e-300 overflowed the reference's derivatives
+            fail("reference.period", f"{self.period:g} s is shorter than two sampling periods ({2 * ts:g} s)")
         for key, values in (("filter.q", self.q), ("filter.q_brunovsky", self.q_brunovsky or self.q),
                             ("filter.q_ekf", self.q_ekf or self.q),
                             ("filter.q_scheduled", self.q_scheduled or self.q),
