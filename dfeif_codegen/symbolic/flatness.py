@@ -229,11 +229,11 @@ def derive(model: Model, progress=None) -> FlatSystem:
     extension.py); the flat system is then that of the extended model. `progress(text)` is told
     each stage (the budget in dfeif_codegen.budget names it on a stop)."""
     say = _say(model, progress)
-    _check_recover(model)
     _check_denominators(model, {f"dynamics.f.{s.name}": e for s, e in zip(model.states, model.f)}
                         | {f"dynamics.g.{u.name}": sum(model.g.col(j)) for j, u in enumerate(model.inputs)})
     physical = model
     model, ext, io = extension.extend(physical, say)
+    _check_recover(physical)   # after the relative degrees: an output that is not flat says that first
     x = model.x
     chains, zeta, offset = [], [], 0
     for out, degree in zip(model.outputs, io.degrees):
