@@ -3,9 +3,14 @@ read fails in one line that names the field and its line in the file."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment.network import Link
 from dfeif_codegen.symbolic import disturbance as disturbances
+
+if TYPE_CHECKING:
+    from dfeif_codegen.experiment.scenario import Scenario
 
 STD_SPAN = (1e-100, 1e100)   # a scenario's standard deviations (Reader.stds)
 
@@ -41,14 +46,16 @@ class Reader:
 
     def std(self, table, section, key, default) -> float:
         """One standard deviation (or scale of them), as `stds`."""
-        return self.stds({key: self.number(table, section, key, default, positive=True, allow_zero=False)},
-                         section, key, None)[0]
+        value = self.number(table, section, key, default, positive=True, allow_zero=False)
+        return self._in_span([value], section, key, table)[0]
 
-    def stds(self, table, section, key, default):
+    def stds(self, table, section, key, default) -> list[float]:
         """Standard deviations (and their scales): positive, and within STD_SPAN, so that their
         squares, the covariances' inverses and the two multiplied stay normal doubles (a std of
         1e-300 made a singular covariance, 1e300 beside 1 a condition number of 1e600)."""
-        values = self.numbers(table, section, key, default)
+        return self._in_span(self.numbers(table, section, key, default), section, key, table)
+
+    def _in_span(self, values: list[float], section, key, table) -> list[float]:
         lo, hi = STD_SPAN
         if not all(lo <= v <= hi for v in values):
             self.fail(f"{section}.{key}", f"standard deviations must be within [{lo:g}, {hi:g}], got {table.get(key)!r}")

@@ -117,8 +117,8 @@ def _tokenize(t: str, fail: Callable[[int, str], NoReturn]) -> list[_Tok]:
 class _Parser:
     """One parse: tokenize everything first, then recursive descent with a depth counter."""
 
-    def __init__(self, text: str, names: Mapping[str, sympy.Expr], where: str):
-        self.text, self.names, self.where = text, names, where
+    def __init__(self, text: str, names: Mapping[str, sympy.Expr], where: str, misplaced: Mapping[str, str]):
+        self.text, self.names, self.where, self.misplaced = text, names, where, misplaced
         self.toks: list[_Tok] = []
         self.i = 0
         self.depth = 0
@@ -246,7 +246,7 @@ class _Parser:
                 self.fail(tok.pos, f"function {tok.text!r} must be called with arguments")
             if keyword.iskeyword(tok.text):
                 self.unexpected(tok)
-            self.fail(tok.pos, f"undeclared name {tok.text!r}")
+            self.fail(tok.pos, self.misplaced.get(tok.text, f"undeclared name {tok.text!r}"))
         if tok.text != "(":
             self.unexpected(tok, operand=True)
         self.enter(tok)
@@ -290,8 +290,10 @@ class _Parser:
 
 
 def parse_expression(text: str, names: Mapping[str, sympy.Expr],
-                     where: str = "expression") -> sympy.Expr:
+                     where: str = "expression", misplaced: Mapping[str, str] | None = None) -> sympy.Expr:
     """Parse `text` into a sympy expression over `names` (plus pi and e), never evaluating it.
+    `misplaced`: names declared elsewhere but not usable here, each with what to say instead of
+    "undeclared name" (a model's inputs in a state function).
 
     Raises ModelError with one line ``"{where}: [line L, ]column C: problem"`` for bad input.
     """
@@ -299,6 +301,6 @@ def parse_expression(text: str, names: Mapping[str, sympy.Expr],
     if not isinstance(text, str):
         raise ModelError(f"{where}: column 1: expected a string, got {type(text).__name__}")
     try:
-        return _Parser(text, names, where).parse()
+        return _Parser(text, names, where, misplaced or {}).parse()
     except RecursionError:  # not expected (depth is bounded); kept so nothing else can leak
         raise ModelError(f"{where}: column 1: expression too deeply nested") from None

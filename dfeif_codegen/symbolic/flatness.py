@@ -11,8 +11,9 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
+from dfeif_codegen import angles
 from dfeif_codegen.symbolic import discretize, extension, lie, numeric
-from dfeif_codegen.symbolic.inverse import small_simplify, solve_inverse
+from dfeif_codegen.symbolic.inverse import ROUND_TRIP, small_simplify, solve_inverse
 from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic.lie import domain_samples, nominal_state  # noqa: F401  (re-exported)
 from dfeif_codegen.symbolic.model import Model
@@ -212,9 +213,8 @@ def _check_recover(model: Model) -> None:
     want = sampler.values([o.expr for o in model.outputs])
     for j, out in enumerate(model.outputs):
         diff = got[:, j] - want[:, j]
-        if out.angle:
-            diff = np.mod(diff + np.pi, 2 * np.pi) - np.pi
-        bad = np.isfinite(want[:, j]) & ~(np.abs(diff) <= 1e-7 * (1 + np.abs(want[:, j])))
+        diff = angles.wrap_np(diff) if out.angle else diff
+        bad = np.isfinite(want[:, j]) & ~(np.abs(diff) <= ROUND_TRIP * (1 + np.abs(want[:, j])))
         if bad.any():
             k = int(np.argmax(bad))
             state = ", ".join(f"{v.name} = {sampler.rows[k, i]:.4g}" for i, v in enumerate(model.states))

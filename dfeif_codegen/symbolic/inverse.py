@@ -43,7 +43,7 @@ def small_simplify(expr: sp.Expr, limit: int = 30) -> sp.Expr:
 
 
 BRANCH_POINTS = 48  # round-trip test points on the domain for every candidate branch of Phi^-1
-_ROUND_TRIP = 1e-7   # |Phi^-1(Phi(x)) - x| <= 1e-7 (1 + |x|): a few hundred ulps of the composition,
+ROUND_TRIP = 1e-7   # |Phi^-1(Phi(x)) - x| <= 1e-7 (1 + |x|): a few hundred ulps of the composition,
                      # far above double rounding and far below a wrong branch's O(|x|) error
 
 
@@ -67,7 +67,7 @@ def _round_trips(cand: dict, rows: np.ndarray, zeta_rows: np.ndarray, zeta: list
     for var, expr in cand.items():
         got = _evaluate(list(zeta), sp.sympify(expr).subs(params), zeta_rows)
         want = rows[:, index[var]]
-        ok &= np.isfinite(got) & (np.abs(got - want) <= _ROUND_TRIP * (1 + np.abs(want)))
+        ok &= np.isfinite(got) & (np.abs(got - want) <= ROUND_TRIP * (1 + np.abs(want)))
     return ok
 
 

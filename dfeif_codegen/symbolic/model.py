@@ -128,7 +128,7 @@ class _Doc:
         self.data = parse_toml(text, source, ModelError)
         self.source, self.lines = source, _key_lines(text)
         self.symbols: dict[str, sp.Expr] = {}
-        self.inputs: list[str] = []   # named in a state function: said so, not "undeclared"
+        self.misplaced: dict[str, str] = {}   # the inputs: named in a state function, said so, not "undeclared"
 
     def where(self, key: str) -> str:
         return _where(self.source, self.lines, key)
@@ -136,15 +136,8 @@ class _Doc:
     def parse(self, key: str, expr_text, names: dict | None = None) -> sp.Expr:
         if not isinstance(expr_text, (str, int, float)) or isinstance(expr_text, bool):
             raise ModelError(f"{self.where(key)}: expression must be a string")
-        try:
-            return parse_expression(str(expr_text), self.symbols if names is None else names, self.where(key))
-        except ModelError as exc:
-            used = [u for u in self.inputs if f"undeclared name {u!r}" in str(exc)]
-            if not used:
-                raise
-            raise ModelError(str(exc).replace(f"undeclared name {used[0]!r}", (
-                f"the input {used[0]!r} appears here, but an input enters only through [dynamics.g.{used[0]}] "
-                "(f, the outputs and the observations are functions of the state)"))) from None
+        return parse_expression(str(expr_text), self.symbols if names is None else names, self.where(key),
+                                self.misplaced)
 
 
 def _variables(doc: _Doc, key: str) -> list[Variable]:
@@ -291,7 +284,9 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
     states, inputs = _variables(doc, "states"), _variables(doc, "inputs")
     parameters = _parameters(doc)
     dynamics = _table(doc.data, "dynamics", source)
-    doc.inputs = [u.name for u in inputs]
+    doc.misplaced = {u.name: f"the input {u.name!r} appears here, but an input enters only through "
+                             f"[dynamics.g.{u.name}] (f, the outputs and the observations are functions of the state)"
+                     for u in inputs}
     _declare(doc, states, inputs, parameters, dynamics)
     f, g = _dynamics(doc, dynamics, [s.name for s in states], [u.name for u in inputs])
     outputs = _outputs(doc)
