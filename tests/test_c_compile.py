@@ -868,6 +868,31 @@ def test_float_update_keeps_a_precise_measurements_variance(built, tmp_path):
         np.linalg.cholesky(node.estimate()[1].astype(float))
 
 
+def test_float_master_keeps_its_prior_when_the_packets_bring_no_information(built, tmp_path):
+    """The difference rule's finish with no information gained (D = 0, dy = 0: every node still
+    waiting for its first measurement, or dropped): P = P_prior and x = c. The prior here is a
+    chain's nearly collinear one, its correlation matrix's condition number above 1e4: inverting it
+    and inverting back, as the finish did, lost cond * eps32 (a user model's float master was
+    1.7e-4 from the reference at its second step). In the prior's factor, P = L (I + 0)^-1 L' is
+    L L' with L = chol(P_prior): Cholesky's backward error and the product's rounding bound each
+    entry's error by 2 (n + 1) eps32 sqrt(P_ii P_jj) (|L||L'| <= sqrt(P_ii P_jj) entrywise by
+    Cauchy-Schwarz), on any IEEE machine. x = c + P 0 is c exactly."""
+    lib = shared_library(built("dc-float"), tmp_path)
+    n, eps32 = 3, float(np.finfo(np.float32).eps)
+    B = np.array([[1.0, 0.0, 0.0], [1.0, 0.03, 0.0], [1.0, 0.05, 0.02]]) * np.array([[0.02], [0.05], [1.0]])
+    Pc = (B @ B.T).astype(np.float32).astype(float)
+    sigma = np.sqrt(np.diag(Pc))
+    assert np.linalg.cond(Pc / np.outer(sigma, sigma)) > 1e4
+    c = np.array([0.3, -1.2, 5.0])
+    args = [Pc.ravel(), np.zeros(n * (n + 1) // 2), np.zeros(n), c]
+    outs = [np.zeros(n), np.zeros(n * n), np.zeros(2 * n)]
+    arrays = [np.ascontiguousarray(a, dtype=np.float32) for a in args + outs]
+    assert lib.dc_motor_link_kern_fuse_finish(*[a.ctypes.data_as(ctypes.c_void_p) for a in arrays]) == 0
+    x, P = arrays[4].astype(float), arrays[5].astype(float).reshape(n, n)
+    assert np.array_equal(x, c.astype(np.float32).astype(float))
+    assert np.max(np.abs(P - Pc) / np.outer(sigma, sigma)) <= 2 * (n + 1) * eps32
+
+
 def test_spd_inverse_once_equals_numpy():
     """The node's information inverse (one division per column, each distinct entry once) against
     numpy's inverse and Cholesky pivots, n = 2..10. Random SPD matrices with cond < 1e3 (checked):

@@ -13,7 +13,7 @@ import numpy as np
 
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.reference import predictor as predictors
-from dfeif_codegen.reference.linalg import spd_inv, wrap
+from dfeif_codegen.reference.linalg import cholesky, spd_inv, wrap
 from dfeif_codegen.reference.node import Packet
 
 RULES = ("paper", "difference", "ci")
@@ -117,10 +117,16 @@ class Master:
         if self.rule == "paper":
             Y, y = sum(Ys), sum(ys)
         elif self.rule == "difference":
-            Y, y = spd_inv(self.P_prior), np.zeros_like(c)
+            D, y = np.zeros_like(self.P_prior), np.zeros_like(c)
             for Yi, yi, (_, _, xp, Pp) in zip(Ys, ys, usable):
                 Y_pred = spd_inv(Pp)
-                Y, y = Y + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
+                D, y = D + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
+            # (P_prior^-1 + D)^-1 in the prior's factor P_prior = L L', without inverting it
+            # twice (the C's order, kernels/fusion.py fuse_finish_difference)
+            L = cholesky(self.P_prior)
+            self.P = L @ spd_inv(np.eye(len(c), dtype=c.dtype) + L.T @ D @ L) @ L.T
+            self.x = c + self.P @ y
+            return
         else:
             # from the last fuse's weights if it used every node used now: the nodes' covariances
             # move little between steps, so the search starts near its optimum (a start on a few

@@ -12,7 +12,7 @@ from __future__ import annotations
 import casadi as ca
 
 from dfeif_codegen.codegen.kernels.chains import Chains
-from dfeif_codegen.codegen.kernels.linalg import packed_rows, spd_inverse, sym, symmetric, unpacked_rows
+from dfeif_codegen.codegen.kernels.linalg import chol, packed_rows, spd_inverse, sym, symmetric, unpacked_rows
 
 
 def _info_of(x: ca.SX, P: ca.SX, c: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -58,14 +58,48 @@ def fuse_finish(s: Chains, name: str) -> ca.Function:
 
 
 def fuse_finish_difference(s: Chains, name: str) -> ca.Function:
-    """The difference rule's end: Y = P_prior^-1 + sum of gains (packed), y = 0 + sum of gains
-    (the prior's information about itself is 0); then x = c + P y, P = Y^-1."""
+    """The difference rule's end: the fused Y = P_prior^-1 + D (D the sum of the gains, packed),
+    y = 0 + the sum of their dy; then x = c + P y with P = Y^-1 in the prior's factor
+    P_prior = L L': P = L (I + L' D L)^-1 L'. The same P in exact arithmetic as inverting
+    P_prior^-1 + D, without inverting twice: where the packets bring little information
+    (D small, or 0 before the first measurement arrives) P is P_prior to the rounding of its
+    factor, where the double inversion lost cond(P_prior) * eps (a float master 1.7e-4 from the
+    reference at a user model's second step, docs/algorithms.md). Every sum is written out from
+    its first product, in the order `fusion_loops` repeats."""
     n = s.n
     Pc, dY, dy, c = sym("Pc", n, n), sym("dY", n * (n + 1) // 2), sym("dy", n), sym("c", n)
-    Yc, pivc = spd_inverse(Pc)
-    x, P, piv = _finish_of(symmetric(Yc) + unpacked_rows(dY, n), dy, c)
+    L, pivc = chol(Pc)
+    D = unpacked_rows(dY, n)
+    W = ca.SX(n, n)   # D L (L lower: the sum over rows a >= j)
+    for k in range(n):
+        for j in range(n):
+            W[k, j] = _sum([D[k, a] * L[a, j] for a in range(j, n)])
+    M = ca.SX(n, n)   # I + L' W, upper triangle mirrored
+    for i in range(n):
+        for j in range(i, n):
+            m = _sum([L[k, i] * W[k, j] for k in range(i, n)])
+            M[i, j] = M[j, i] = 1 + m if i == j else m
+    Mi, piv = spd_inverse(M)
+    Mi = symmetric(Mi)
+    V = ca.SX(n, n)   # L Mi
+    for i in range(n):
+        for b in range(n):
+            V[i, b] = _sum([L[i, a] * Mi[a, b] for a in range(i + 1)])
+    P = ca.SX(n, n)   # V L', upper triangle mirrored
+    for i in range(n):
+        for j in range(i, n):
+            P[i, j] = P[j, i] = _sum([V[i, b] * L[j, b] for b in range(j + 1)])
+    x = c + ca.mtimes(P, dy)
     return ca.Function(name, [Pc, dY, dy, c], [x, P, ca.vertcat(pivc, piv)], ["Pc", "dY", "dy", "c"],
                        ["x", "P", "piv"])
+
+
+def _sum(terms: list[ca.SX]) -> ca.SX:
+    """terms[0] + terms[1] + ..., left to right (the loops' order)."""
+    out = terms[0]
+    for t in terms[1:]:
+        out = out + t
+    return out
 
 
 def advance(s: Chains, name: str) -> ca.Function:

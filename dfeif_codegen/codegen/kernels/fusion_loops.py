@@ -28,10 +28,33 @@ def _at(n: int, row: str, col: str) -> str:
     return f"[({row} * {n}) + {col}]"
 
 
-def _inverse(n: int, S: str, piv: int, Y: str) -> list[str]:
+def _index(n: int, row: int | str, col: int | str) -> str:
+    """The index of entry (row, col) of an n x n array stored row by row, either a number or a
+    loop variable, with no operation without effect (MISRA 2.2)."""
+    if isinstance(row, int) and isinstance(col, int):
+        return str(row * n + col)
+    if isinstance(row, int):
+        return _plus(str(col), row * n)
+    return _plus(f"({row} * {n})", int(col)) if isinstance(col, int) else f"({row} * {n}) + {col}"
+
+
+def _cholesky(n: int, S: str, piv: int, L: str = "L") -> list[str]:
+    """S's Cholesky factor by rows into the work array L, its pivots into piv[piv + j], by
+    linalg.chol's operations: S read as CasADi stores it (column by column: entry (i, j) at
+    j n + i, the diagonal and below). One loop per column j of L (rows i >= j), its sum written
+    out."""
+    out: list[str] = []
+    for j in range(n):   # L's column j: row j (the pivot) and the rows below
+        sums = [f"s = s - ({L}[{_plus(f'(i * {n})', k)}] * {L}[{j * n + k}]);" for k in range(j)]
+        out += for_lines(f"i = {j}; i < {n}; i++", [f"s = {S}[{_plus('i', j * n)}];"] + sums + [
+            "if (i == " + f"{j}) {{", f"    piv[{piv + j}] = s;", f"    {L}[{j * n + j}] = sqrt(s);",
+            "} else {", f"    {L}[{_plus(f'(i * {n})', j)}] = s / {L}[{j * n + j}];", "}"])
+    return out
+
+
+def _inverse(n: int, S: str, piv: int, Y: str, L: str = "L") -> list[str]:
     """Y = S^-1 (both halves, n x n) and S's Cholesky pivots into piv[piv + j] by spd_inverse's
-    operations: S read as CasADi stores it (column by column: entry (i, j) at j n + i, the
-    diagonal and below), the factor L by rows into the work array L, then the strictly lower
+    operations: the factor (`_cholesky`) into the work array L, then the strictly lower
     part of L^-1 by columns into L's upper triangle (column j as row j), then the upper triangle
     of L^-T L^-1, mirrored. As CasADi simplifies the straight-line expressions: a product with
     a diagonal entry 1 / L_jj of L^-1 is a division by L_jj (except its square on Y's
@@ -40,21 +63,16 @@ def _inverse(n: int, S: str, piv: int, Y: str) -> list[str]:
     entries that share its length: column j of L (rows i >= j), diagonal d of L^-1 (entries
     (j + d, j), which need only diagonals before d) and column j of Y (rows i <= j), so O(n^2)
     code in all, with registers for the sums and no inner loop to count."""
-    out: list[str] = []
-    for j in range(n):   # L's column j: row j (the pivot) and the rows below
-        sums = [f"s = s - (L[{_plus(f'(i * {n})', k)}] * L[{j * n + k}]);" for k in range(j)]
-        out += for_lines(f"i = {j}; i < {n}; i++", [f"s = {S}[{_plus('i', j * n)}];"] + sums + [
-            "if (i == " + f"{j}) {{", f"    piv[{piv + j}] = s;", f"    L[{j * n + j}] = sqrt(s);",
-            "} else {", f"    L[{_plus(f'(i * {n})', j)}] = s / L[{j * n + j}];", "}"])
+    out = _cholesky(n, S, piv, L)
     for d in range(1, n):   # L^-1's entries (i, j), i = j + d, stored at (j, i)
-        sums = [f"s = s - (L[(i * {n}) + j + {m}] * L[(j * {n}) + j + {m}]);" for m in range(1, d)]
-        out += for_lines(f"j = 0; j < {n - d}; j++", [f"i = j + {d};", f"s = -(L[(i * {n}) + j] / L[(j * {n}) + j]);"]
-                         + sums + [f"L[(j * {n}) + i] = s / L[(i * {n}) + i];"])
+        sums = [f"s = s - ({L}[(i * {n}) + j + {m}] * {L}[(j * {n}) + j + {m}]);" for m in range(1, d)]
+        out += for_lines(f"j = 0; j < {n - d}; j++", [f"i = j + {d};", f"s = -({L}[(i * {n}) + j] / {L}[(j * {n}) + j]);"]
+                         + sums + [f"{L}[(j * {n}) + i] = s / {L}[(i * {n}) + i];"])
     for j in range(n):   # Y's column j, rows i <= j
-        sums = [f"s = s + (L[{_plus(f'(i * {n})', k)}] * L[{j * n + k}]);" for k in range(j + 1, n)]
+        sums = [f"s = s + ({L}[{_plus(f'(i * {n})', k)}] * {L}[{j * n + k}]);" for k in range(j + 1, n)]
         out += for_lines(f"i = 0; i <= {j}; i++", [
-            f"if (i == {j}) {{", f"    s = (casadi_real)1 / L[{j * n + j}];", "    s = s * s;", "} else {",
-            f"    s = L[{_plus(f'(i * {n})', j)}] / L[{j * n + j}];", "}"] + sums
+            f"if (i == {j}) {{", f"    s = (casadi_real)1 / {L}[{j * n + j}];", "    s = s * s;", "} else {",
+            f"    s = {L}[{_plus(f'(i * {n})', j)}] / {L}[{j * n + j}];", "}"] + sums
             + [f"{Y}[{_plus(f'(i * {n})', j)}] = s;", f"{Y}[{_plus('i', j * n)}] = s;"])
     return out
 
@@ -105,13 +123,32 @@ def fuse_finish_loop(n: int) -> Loop:
 
 
 def fuse_finish_difference_loop(n: int) -> Loop:
-    """fusion.fuse_finish_difference: P_c^-1 + dY into P (Y_c's upper entry plus dY's, both
-    halves), then `_finish`."""
-    body = (_inverse(n, "Pc", 0, "P")
-            + _packed_rows(n, [f"s = P{_at(n, 'i', 'j')} + dY[k];", f"P{_at(n, 'i', 'j')} = s;",
-                               f"P{_at(n, 'j', 'i')} = s;"])
-            + _finish(n, "dy", n))
-    return Loop([], _decls(n, ()), body)
+    """fusion.fuse_finish_difference: L = chol(P_c) by rows, D (the packed gains) unpacked into
+    the output P, W = D L, M = I + L' W into D (upper sums, mirrored), M^-1 into P (W its work
+    array), V = L M^-1 into D, P = V L' (upper sums, mirrored), x = c + P dy. Each sum over the
+    rows or columns L's triangle leaves, in the straight line's order, inside one loop over the
+    entries that share its length."""
+    at = lambda a, r, c: f"{a}[{_index(n, r, c)}]"  # noqa: E731
+    body = _cholesky(n, "Pc", 0) + _packed_rows(n, [f"{at('P', 'i', 'j')} = dY[k];", f"{at('P', 'j', 'i')} = dY[k];"])
+    for j in range(n):   # W's column j: D's row k times L's column j (rows a >= j)
+        sums = [f"s = s + ({at('P', 'k', a)} * L[{a * n + j}]);" for a in range(j + 1, n)]
+        body += for_lines(f"k = 0; k < {n}; k++", [f"s = {at('P', 'k', j)} * L[{j * n + j}];"] + sums
+                          + [f"{at('W', 'k', j)} = s;"])
+    for i in range(n):   # M's row i, columns j >= i: L's column i (rows k >= i) times W's column j
+        sums = [f"s = s + (L[{k * n + i}] * {at('W', k, 'j')});" for k in range(i + 1, n)]
+        body += for_lines(f"j = {i}; j < {n}; j++", [f"s = L[{i * n + i}] * {at('W', i, 'j')};"] + sums + [
+            f"if (j == {i}) {{", "    s = (casadi_real)1 + s;", "}", f"{at('D', i, 'j')} = s;",
+            f"{at('D', 'j', i)} = s;"])
+    body += _inverse(n, "D", n, "P", "W")
+    for i in range(n):   # V's row i: L's row i (columns a <= i) times M^-1's column b
+        sums = [f"s = s + (L[{i * n + a}] * {at('P', a, 'j')});" for a in range(1, i + 1)]
+        body += for_lines(f"j = 0; j < {n}; j++", [f"s = L[{i * n}] * P[j];"] + sums + [f"{at('D', i, 'j')} = s;"])
+    for j in range(n):   # P's column j, rows i <= j: V's row i times L's row j (columns b <= j)
+        sums = [f"s = s + ({at('D', 'i', b)} * L[{j * n + b}]);" for b in range(1, j + 1)]
+        body += for_lines(f"i = 0; i <= {j}; i++", [f"s = {at('D', 'i', 0)} * L[{j * n}];"] + sums + [
+            f"{at('P', 'i', j)} = s;", f"{at('P', j, 'i')} = s;"])
+    body += _times(n, "P", "dy", "x", "c[i] + ")
+    return Loop([], _decls(n, ("D", "W")), body)
 
 
 LOOPS = {"master_info": master_info_loop, "master_gain": master_gain_loop, "fuse_finish": fuse_finish_loop,
