@@ -207,7 +207,7 @@ def test_double_yardstick_on_a_stiff_model():
     radian per period of 1 ms) in double: the C's filters leave the reference by more than the
     1e-10 budget, and a second double implementation, the reference with every covariance product
     associated the other way (verify.double_twin_errors), leaves it as far (measured: the C's
-    worst filter signal 1.9x the twin's worst; verify's criterion 10x, verify.TWINS), where on
+    worst filter signal 1.9x the twin's worst; verify's criterion 10x, yardstick.TWINS), where on
     the motor that twin stays within 1e-13 (measured 1.3e-14): the problem amplifies any
     rounding, which `codegen verify` says instead of blaming the C. The same twin beside a C 1e-9
     off on the motor blames the C. Holds on any IEEE machine: both distances are roundings
@@ -244,6 +244,32 @@ def test_float_yardstick_after_a_mismatch_is_the_worst_of_five():
     assert rows == {s: f"{five[s]:.3e}" for s in five if s != "late_applied"}
     assert all(five[s] >= one[s] for s in one) and max(five[s] for s in five if "." in s) < 1e-4
     assert result.yardstick.endswith("the C's rounding is the likely cause")
+
+
+def test_the_yardstick_judges_each_failed_signal_against_its_own_kind():
+    """A float C whose master alone fails (master.P 2e-4, 10x the float32 reference's 2e-5) while
+    the float32 reference drifts far on a node's x (4e-4): before, the verdict compared the
+    largest error over every signal, so the node's drift called the scenario ill-conditioned and
+    hid the master. Judged kind by kind (the master's P against the master's P and the nodes' P
+    it fuses), the C is blamed; with the master's twin as far as the C (1e-4, within the factor
+    3) the scenario is, and so with the nodes' x drifting as far as the C's master x (a user's
+    flexible joint: twin nodes 5.0e-3, C master 8.7e-3); the nodes are one kind (node1's twin
+    drift covers node0's failure)."""
+    def errs(worst: dict[str, float], tol: float = 1e-4) -> list[verify.SignalError]:
+        return [verify.SignalError(k, v, 0, (0,), tol) for k, v in worst.items()]
+
+    base = {"node0.x": 5e-6, "node0.P": 1e-6, "node1.x": 5e-6, "node1.P": 1e-6, "master.x": 1e-5, "master.P": 1e-5,
+            "u": 1e-6}
+    c = errs({**base, "master.P": 2e-4})
+    assert verify.yardstick(c, errs({**base, "node0.x": 4e-4, "master.P": 2e-5}), "float").endswith(
+        "the C's rounding is the likely cause")
+    assert "ill-conditioned in single precision" in verify.yardstick(c, errs({**base, "master.P": 1e-4}), "float")
+    master_x = errs({**base, "master.x": 8.7e-3, "master.P": 1e-5})
+    assert "ill-conditioned" in verify.yardstick(master_x, errs({**base, "node0.x": 5e-3, "master.x": 2.7e-3}), "float")
+    assert verify.yardstick(master_x, errs({**base, "master.x": 2.7e-3}), "float").endswith("likely cause")
+    node = errs({**base, "node0.x": 2e-4, "master.P": 1e-5})
+    assert "ill-conditioned" in verify.yardstick(node, errs({**base, "node1.x": 1e-4, "master.P": 1e-5}), "float")
+    assert verify.yardstick(node, errs({**base, "master.P": 1e-5}), "float").endswith("likely cause")
 
 
 def test_a_recordings_beginning_replays_as_the_whole_runs_beginning(store):

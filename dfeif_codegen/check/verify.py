@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from dfeif_codegen.check.yardstick import yardstick
 from dfeif_codegen.errors import MismatchError, ScenarioError, SetupError
 
 TINY = np.finfo(float).tiny
@@ -178,53 +179,6 @@ def double_twin_errors(rec, recorded: bool) -> list[SignalError]:
 
     inputs = broadcast(rec) if recorded else None
     return compare_run(experiment.replay_recording(rec, inputs=inputs, right_first=True), rec, "double")
-
-
-@dataclass(frozen=True)
-class Twin:
-    """How `yardstick` speaks of a precision's second implementation, and how far from the C it
-    may land for the scenario to be called ill-conditioned (`factor`)."""
-
-    head: str         # the table's first line
-    column: str       # the twin's column
-    name: str         # the twin in a sentence
-    where: str        # the precision, in a sentence
-    advice: str       # what to do, or why, when the twin drifts as far
-    culprit: str      # what is likely wrong when it does not
-    factor: float
-
-
-# float: the float32 twin rounds in every operation, as the C does, so the two land alike (the C
-# 0.96x and 1.16x the twin on the arm's float master): within 3x. double: the twin changes one
-# product per step and the C rounds otherwise in every operation, so the C lands a few times
-# farther (1.6-2.4x on a stiff hydraulic model, with the twin's perturbation moved to P0 or the
-# measurements): within 10x; a wrong C is orders away (the motor's twin: 1.3e-14).
-TWINS = {"float": Twin("single-precision yardstick: distance from the float64 reference", "float32 reference",
-                       "the float32 reference", "single precision",
-                       "use double, replay, or a process noise suited to each chain", "the C's rounding", 3.0),
-         "double": Twin("double-precision yardstick: distance from the reference", "other roundings",
-                        "the reference with its covariance products associated the other way", "double precision",
-                        "a stiff model, or a mode fast against Ts, amplifies every rounding", "the C", 10.0)}
-
-
-def yardstick(errors: list[SignalError], twin: list[SignalError], precision: str) -> str:
-    """After a mismatch: the C's distance from the reference next to a second implementation's
-    (float: float32_reference_errors; double: double_twin_errors). If the second lands as far
-    (within TWINS' factor) on the filters' signals, the scenario is ill-conditioned at that
-    precision (typically a process noise far too large for a chain, which makes retrodiction
-    cancel; or a stiff model, whose canonical top derivative is a small difference of large
-    terms), not the C. u and v are shown, not judged: the float32 twin's controller computes in
-    double."""
-    t = TWINS[precision]
-    mine = {e.signal: e.worst for e in errors if e.signal != "late_applied"}
-    other = {e.signal: e.worst for e in twin if e.signal != "late_applied"}
-    lines = [t.head, f"signal        C           {t.column}"]
-    lines += [f"{s:12s}  {mine[s]:.3e}   {other[s]:.3e}" + ("   (not judged)" if "." not in s else "") for s in mine]
-    judged = [s for s in mine if "." in s]
-    ill = max(other[s] for s in judged) >= max(mine[s] for s in judged) / t.factor
-    lines.append(f"{t.name} drifts as far: the scenario is ill-conditioned in {t.where}, not the C ({t.advice})" if ill
-                 else f"{t.name} stays closer: {t.culprit} is the likely cause")
-    return "\n".join(lines)
 
 
 # --- recorded scenarios ---------------------------------------------------------------------------

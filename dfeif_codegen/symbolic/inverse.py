@@ -189,6 +189,14 @@ def _test_points(model: Model) -> np.ndarray:
     return np.vstack([rows, np.clip(near, lo, hi)])
 
 
+SHOWN_LIMIT = 160   # characters of Phi^-1 a message quotes: a cubic's closed form runs to thousands
+
+
+def _brief(text: str) -> str:
+    """`text`, cut to SHOWN_LIMIT characters (marked) so that a message stays one readable line."""
+    return text if len(text) <= SHOWN_LIMIT else text[:SHOWN_LIMIT - 4] + " ..."
+
+
 def _declared_at(model: Model, i: int) -> tuple[str, str]:
     """Where the user declared state i (`file:line: key`) and its name."""
     return model.state_declared_at(i), model.states[i].name
@@ -220,7 +228,7 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
         everywhere = [c for c, ok in zip(candidates, valid) if ok.all()]
         somewhere = [c for c, ok in zip(candidates, valid) if ok.any()]
         names = ", ".join(sorted(str(v) for v in candidates[0])) if candidates else "?"
-        shown = " | ".join(", ".join(f"{v} = {e}" for v, e in c.items()) for c in candidates)
+        shown = _brief(" | ".join(", ".join(f"{v} = {e}" for v, e in c.items()) for c in candidates))
         free = [str(v) for v in candidates[0] if not declared[v]] if candidates else []
         if free and len(somewhere) > 1:
             spots = [_declared_at(model, index[v]) for v in candidates[0] if not declared[v]]
