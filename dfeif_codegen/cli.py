@@ -143,7 +143,7 @@ def _simulate_arguments(p: argparse.ArgumentParser) -> None:
 
 def _network_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", default="paper", help="'paper' or a path to a scenario .toml (default paper)")
-    p.add_argument("--row", type=int, default=2, help="the scenario's delay row (default 2)")
+    p.add_argument("--row", type=int, help="the scenario's delay row from 0 (default 2, or a shorter grid's last)")
     p.add_argument("--seed", type=int, default=0, help="seed of noise, initial error and network (default 0)")
     p.add_argument("--precision", choices=["double", "float"], default="double",
                    help="the C's real type (default double)")
@@ -246,7 +246,7 @@ def build(args: argparse.Namespace) -> int:
         stale = build.check(args.model, args.out, **_build_options(args))
         if stale:
             raise StaleError(f"{args.out}: stale files for {args.model}: {', '.join(stale)} "
-                             f"(run `codegen build {args.model}{'' if args.out == 'generated' else ' --out ' + args.out}`)")
+                             f"({build.rebuild_advice(args.model, args.out, **_build_options(args))})")
         print(f"codegen build --check: {args.out} is up to date for {args.model}")
         return 0
     module = build.build(args.model, args.out, **_build_options(args), force=args.force,

@@ -57,6 +57,7 @@ def generated() -> dict:
     c |= _opt("option: not a choice", "simulate", "--oosm", ["x"], SF, S)
     c |= _opt("option: not a choice", "simulate", "--fusion", ["x"], SF, S)
     c |= _opt("option: not a number", "simulate", "--workers", INT_BAD, SF, S)
+    c |= _opt("option: not an address", "simulate", "--scheduler", ["nonsense"], SF, S, words=["--scheduler", "nonsense"])
     for flag in ("--json", "--csv", "--results"):
         c |= _opt("output path", "simulate", flag, ["{d}/nodir/x.out", "{d}/user", "/proc/x.out",
                                                     "{d}/user/notes.txt/x.out"], SF, S)
@@ -66,6 +67,12 @@ def generated() -> dict:
                                       ["--resume", "none.jsonl"])
     c["simulate --resume not records"] = ("input file", ["simulate", *S, "--resume", "{d}/in/r.jsonl"],
                                           {**SF, "r.jsonl": "hello\nworld\n"}, ["--resume", "line 1"])
+    # one line, not a record: it used to pass as a torn record, then be cut (no newline) or appended to
+    c["simulate --resume one line of text"] = ("input file", ["simulate", *S, "--resume", "{d}/in/r.jsonl"],
+                                               {**SF, "r.jsonl": "IMPORTANT DATA"}, ["--resume", "line 1"])
+    c["simulate --resume a --json file"] = ("input file", ["simulate", *S, "--resume", "{d}/in/r.json"],
+                                            {**SF, "r.json": '{"settings": {}, "tables": []}\n'},
+                                            ["--resume", "line 1"])
     c["simulate --resume folder"] = ("input file", ["simulate", *S, "--resume", "{d}/user"], SF, ["--resume"])
     for name, text, words in (
             ("runs 1e9", SMALL.replace("runs = 1", "runs = 1000000000"), ["scenario.runs", "at most"]),

@@ -279,6 +279,31 @@ def test_make_fragment_builds_the_example(fresh, tmp_path):
     assert subprocess.run([str(tmp_path / "app")], capture_output=True, timeout=60).returncode == 0
 
 
+@pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None, reason="make or cc missing")
+def test_make_fragments_object_rule_keeps_the_generated_folder_clean(tmp_path):
+    """The .mk's suggested rule, uncommented as it says, builds the library's objects with its
+    size flags into the user's OBJDIR: the generated folder gains no file, so the next build may
+    replace it (it refused when the old advice put the .o files beside the sources)."""
+    module = build.build("dc_motor_link", tmp_path / "gen")
+    lines = (module.path / "dc_motor_link.mk").read_text().splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.endswith("Uncommented, with OBJDIR set:")) + 1
+    end = next(i for i in range(start, len(lines)) if not lines[i].startswith("#     "))
+    rule = "\n".join(ln[len("#     "):] for ln in lines[start:end])
+    (tmp_path / "Makefile").write_text(
+        f"OBJDIR := obj\nCFLAGS := -std=c99 -O2\ninclude {module.path}/dc_motor_link.mk\n{rule}\n"
+        "app: $(DC_MOTOR_LINK_OBJS) $(DC_MOTOR_LINK_DIR)/example_main.c\n"
+        "\t$(CC) $(CFLAGS) $(DC_MOTOR_LINK_CFLAGS) $^ $(DC_MOTOR_LINK_LDLIBS) -o $@\n")
+    before = sorted(p.name for p in module.path.iterdir())
+    result = subprocess.run(["make", "app"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "-ffunction-sections -fdata-sections -fno-math-errno -c" in result.stdout
+    assert sorted(p.name for p in (tmp_path / "obj").iterdir()) == sorted(
+        f[:-2] + ".o" for f in module.files if f.endswith(".c") and f != "example_main.c")
+    assert sorted(p.name for p in module.path.iterdir()) == before
+    output.check_target(tmp_path / "gen", "dc_motor_link")          # raises on a file it did not write
+    assert subprocess.run([str(tmp_path / "app")], capture_output=True, timeout=60).returncode == 0
+
+
 @pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake missing")
 def test_cmake_builds_library_and_example(fresh, tmp_path):
     src = tmp_path / "src"
@@ -361,3 +386,31 @@ def test_replay_stack_is_the_compilers_and_warned_past_8_kib(tmp_path, host_cc):
     assert estimate[4096] > 8 * 1024 > Options(ts=0.01).replay_stack(3)
     assert retro[32] == retro[4096]
     assert Options(ts=0.01, max_lag=4096, oosm="retrodict", predictor="brunovsky").replay_stack(3) == 0
+
+
+def test_user_model_banner_names_the_model_file_and_its_options(tmp_path):
+    """A model file's build says to regenerate with the file's base name (the user's argument;
+    `codegen build free_cart` fails, no such built-in; a base name keeps the output
+    machine-independent) and every non-default option, a float one to all its digits."""
+    spec = tmp_path / "sub" / "cart_v1.toml"
+    spec.parent.mkdir()
+    shutil.copy(ROOT / "tests" / "data" / "free_cart.toml", spec)
+    module = build.build(str(spec), tmp_path / "out", max_lag=5, ts=0.0123456789, compile_check=False)
+    command = "`codegen build cart_v1.toml --max-lag 5 --ts 0.0123456789`"
+    header = (module.path / "free_cart.h").read_text()
+    assert header.splitlines()[1] == f" * regenerate with {command}. */"
+    manifest = json.loads((module.path / "manifest.json").read_text())
+    assert manifest["_generated"].endswith(f"regenerate with {command}.")
+
+
+def test_check_advice_carries_the_builds_options(tmp_path):
+    """`codegen build --check`'s advice for a stale float build (build.rebuild_advice) keeps
+    --precision float and --out; checked without it, it also says what the folder was built with."""
+    spec = tmp_path / "cart.toml"
+    shutil.copy(ROOT / "tests" / "data" / "free_cart.toml", spec)
+    out = tmp_path / "g2"
+    build.build(str(spec), out, precision="float", compile_check=False)
+    assert build.rebuild_advice(str(spec), out, precision="float") == \
+        f"run `codegen build {spec} --precision float --out {out}`"
+    assert build.rebuild_advice(str(spec), out) == (f"run `codegen build {spec} --out {out}`; it was built with "
+                                                    f"`codegen build {spec} --precision float --out {out}`")

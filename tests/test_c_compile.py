@@ -40,6 +40,9 @@ VARIANTS = {
     "dc-float-ci16": ("dc_motor_link", {"precision": "float", "fusion": "ci", "nodes": 16}),
     "dc-float-retro-ci3": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci", "nodes": 3}),
     "dc-float-paper": ("dc_motor_link", {"precision": "float", "fusion": "paper", "max_lag": 5}),
+    # the smallest late-measurement windows: the example's late frame must fit them
+    "dc-lag1": ("dc_motor_link", {"max_lag": 1}),
+    "dc-float-retro-lag2": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "max_lag": 2}),
     "dc-float-retro-ci": ("dc_motor_link", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     # the chapter's Brunovsky predictor with replay (the default is the held-input predictor)
     "dc-brunovsky": ("dc_motor_link", {"predictor": "brunovsky"}),
@@ -134,6 +137,18 @@ def test_example_runs(built, tmp_path, variant):
     run([cc, *WARN, "-O2", "-I", folder, *sources(folder, example=True), "-lm", "-o", exe])
     out = run([exe]).stdout
     assert "RMS error" in out and "late applied" in out
+
+
+@pytest.mark.parametrize("variant", ["dc-lag1", "dc-float-retro-lag2"])
+def test_example_runs_with_a_short_window(built, tmp_path, variant):
+    """--max-lag 1 or 2: the example's late frames (every 5th of node 1's, 60 in 300 steps)
+    arrive within the window and are all applied (a lag of 3 was refused: "error at step 3")."""
+    cc = tool("gcc")
+    folder = built(variant)
+    exe = tmp_path / "example"
+    run([cc, *WARN, "-O2", "-I", folder, *sources(folder, example=True), "-lm", "-o", exe])
+    out = run([exe]).stdout
+    assert "node 1: updates 240, drops 60, late applied 60, late rejected 0" in out, out
 
 
 def arm_objects(folder, out_dir, flags) -> list:

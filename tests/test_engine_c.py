@@ -214,6 +214,42 @@ def test_resume_continues_without_recomputing(host_cc, tmp_path, capsys, monkeyp
     assert sorted((c.seed, c.method, c.sensor[0].p) for c in calls) == [(0, "replay", 0.0), (0, "replay", 0.8)]
 
 
+def test_resume_reruns_the_runs_of_an_edited_model(host_cc, tmp_path, capsys):
+    """A run is its model's too: after the model file's k_e changes, --resume reuses none of the
+    earlier runs (their ids were made of the path alone, so the old numbers were reported as the
+    edited model's), and the tables are the edited model's, equal to a fresh sweep of it; resumed
+    again unchanged, every run is reused (figures aside)."""
+    from importlib import resources
+
+    motor = (resources.files("dfeif_codegen") / "models" / "dc_motor_link.toml").read_text()
+    model, results = tmp_path / "motor.toml", tmp_path / "r.jsonl"
+    model.write_text(motor)
+    before = _simulate(tmp_path, capsys, str(model), "--workers", "1", "--results", str(results))
+    assert motor.count("value = 0.5\n") == 1           # k_e, the back-emf constant
+    model.write_text(motor.replace("value = 0.5\n", "value = 0.55\n"))
+    edited = _simulate(tmp_path, capsys, str(model), "--workers", "1", "--resume", str(results))
+    assert edited["settings"]["runs_resumed"] == 0 and edited["tables"] != before["tables"]
+    fresh = _simulate(tmp_path, capsys, str(model), "--workers", "1")
+    assert edited["tables"] == fresh["tables"]
+    again = _simulate(tmp_path, capsys, str(model), "--workers", "1", "--resume", str(results))
+    assert again["settings"]["runs_resumed"] == 15 - 2 and again["tables"] == fresh["tables"]
+
+
+def test_json_of_a_single_run_is_strict_json(host_cc, tmp_path, capsys):
+    """One run has no 95% interval: its half-widths are written null, not NaN (which JSON does
+    not have; JavaScript's JSON.parse refused the document), and the means stay numbers."""
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    assert cli.main(["simulate", "--scenario", str(path), "--quiet", "--json", "-", "--runs", "1", "--workers", "1"]) == 0
+
+    def refuse(name):
+        raise AssertionError(f"{name} in the JSON")
+
+    doc = json.loads(capsys.readouterr().out, parse_constant=refuse)
+    rmse = doc["tables"][0]["rows"][0]["rmse_master"]
+    assert all(v is None for v in rmse["ci95"]) and all(v > 0 for v in rmse["mean"])
+
+
 def test_one_worker_records_each_run_before_the_next(host_cc, tmp_path, capsys, monkeypatch):
     """--workers 1 --results: each run's line is in the file (flushed) before the next run starts,
     so an interrupted one-process sweep keeps every run it finished (the file has k lines when

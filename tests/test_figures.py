@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from dfeif_codegen.experiment import closed_loop as ex
@@ -73,3 +75,29 @@ def test_legends_cover_no_data(tmp_path, monkeypatch):
                 inter_h = min(box.y1, area.y1) - max(box.y0, area.y0)
                 assert inter_w <= 1 or inter_h <= 1, "a legend covers a panel's plotting area"
         close(fig)
+
+
+def test_filters_figure_with_every_filters_runs_failed_draws_none(tmp_path):
+    """`simulate --filters ekf --plot DIR` where every EKF run failed (a plant 20% off): its table
+    has no means (KeyError), so there is nothing to compare; no figure is written, where a legend
+    of no series raised ValueError and the sweep's tables were lost (exit 3). With one filter
+    that ran, its figure is written."""
+    from types import SimpleNamespace
+
+    flat = ex._flat("dc_motor_link")
+
+    class Empty:
+        def mean(self, key):
+            raise KeyError(key)
+
+        ci95 = mean
+
+    ran = SimpleNamespace(mean=lambda key: np.ones((1, 3)), ci95=lambda key: np.zeros((1, 3)))
+    result = SimpleNamespace(settings={"filters": ["ekf"]}, rows=[SimpleNamespace(d=(0, 0), p=0.0)],
+                             tables=[SimpleNamespace(reference="sinusoid")],
+                             table=lambda ref, label, rule: Empty() if label == "ekf-replay" else ran)
+    assert figures.filters_figures(str(tmp_path), result, flat) == []
+    assert list(tmp_path.iterdir()) == []
+    result.settings["filters"] = ["ekf", "ukf"]
+    written = figures.filters_figures(str(tmp_path), result, flat)
+    assert written == [str(tmp_path / figures.comparison_name("sinusoid"))] and Path(written[0]).stat().st_size > 10_000

@@ -14,10 +14,11 @@ PACKAGE = Path(__file__).resolve().parents[1] / "dfeif_codegen"
 # classes, the shared numbers, the angle wrap the kernels and the reference share (angles.py),
 # the output-path checks (paths.py: symbolic/ checks a model file
 # path with it) and the time/memory budget of a child process (budget.py: the symbolic
-# derivation runs under it), and the package root, which imports nothing (its names load lazily
+# derivation runs under it), the strict JSON writer (json_text.py: simulate, verify and network
+# write it), and the package root, which imports nothing (its names load lazily
 # by name). The Python face of the commands (api.py, __main__.py) sits with the CLI.
 STAGES = [
-    {"__init__", "errors", "constants", "angles", "paths", "budget"},
+    {"__init__", "errors", "constants", "angles", "paths", "budget", "json_text"},
     {"symbolic"}, {"models"}, {"codegen"}, {"reference"}, {"experiment"}, {"check"}, {"net"},
     {"api", "reproduction", "cli", "__main__"},
 ]

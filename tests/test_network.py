@@ -268,6 +268,23 @@ def test_cli_network_passes_and_rejects_bad_input(capsys, host_cc):
     assert cli.main(["network", "--key", "abc"]) == 2
 
 
+def test_network_runs_a_two_row_scenario_on_its_last_row(tmp_path, capsys, host_cc):
+    """The default row is the paper grid's third (index 2, (8, 10, 0.8)); a scenario with two
+    rows has none there, and `network` with no --row refused it ("has rows 0..1"): it now runs
+    the last row, (4, 6, 0.8), and says so."""
+    from pathlib import Path
+
+    from dfeif_codegen.experiment import scenario
+
+    paper = Path(scenario.__file__).with_name("scenarios").joinpath("paper.toml").read_text()
+    grid = paper.index("[[grid]]")
+    path = tmp_path / "two_rows.toml"
+    path.write_text(paper[:grid] + "[[grid]]\nd = [0, 0]\np = 0.0\n[[grid]]\nd = [4, 6]\np = 0.8\n")
+    assert cli.main(["network", "--scenario", str(path), "--duration", "0.5"]) == 0
+    out = capsys.readouterr().out
+    assert "row 1 seed 0" in out and "PASS" in out
+
+
 def test_a_process_that_ended_early_is_named(tmp_path):
     """When a run does not finish, the message names each process that had already ended, how,
     and the last line of its stderr (a killed node was 'did not finish in time', nothing more),

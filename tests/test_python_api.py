@@ -298,3 +298,23 @@ def test_load_names_a_folder_that_is_not_a_module(tmp_path):
     with pytest.raises(SetupError, match="is not a folder written by `codegen build`"):
         dc.load(tmp_path)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda m: dc.simulate(m, runs=1), ["Model", "built-in name or a .toml path"]),
+    (lambda m: dc.verify(m), ["Model", "built-in name or a .toml path"]),
+    (lambda m: dc.scenario(m), ["Model", "built-in name or a .toml path"]),
+    (lambda m: dc.simulate(reference="circle"), ["--reference 'circle'", "sinusoid"]),
+    (lambda m: dc.simulate(runs="1"), ["--runs '1'", "whole number"]),
+    (lambda m: dc.simulate(runs=1.5), ["--runs 1.5", "whole number"]),
+    (lambda m: dc.simulate(filters=5), ["--filters 5", "ekf"]),
+    (lambda m: dc.load_model(5), ["int", "built-in name"]),
+])
+def test_api_arguments_of_the_wrong_kind_raise_the_documented_errors(call, words):
+    """The functions the commands share take what their options take; given a Model object (from
+    load_model or from_sympy), a string count or an unknown name, they raise a CodegenError
+    naming it, as the CLI's parser would, not a TypeError from deep inside (unhashable 'Model')."""
+    with pytest.raises(dc.CodegenError) as err:
+        call(dc.load_model("dc_motor_link"))
+    for word in words:
+        assert word in str(err.value)

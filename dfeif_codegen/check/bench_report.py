@@ -98,15 +98,33 @@ def _markdown(r: "BenchResult") -> str:
             if use.bytes > 16:
                 retro = s["stack_retro"].get(fn)
                 out.append(f"| `{fn}` | {use.bytes} | {retro.bytes if retro else '-'} |")
-        sf, sd = s["sizeof"]["float"], s["sizeof"]["double"]
-        out += ["", "| struct (Cortex-M4F layout, max lag 32, 2 nodes) | float [B] | double [B] | ratio |",
-                "|---|---:|---:|---:|"]
-        for kind in ("node", "master", "packet"):
-            out.append(f"| `{name}_{kind}` | {sf[kind]} | {sd[kind]} | {sd[kind] / sf[kind]:.2f} |")
-        out.append("")
+        out += struct_table(name, s["sizeof"]["float"], s["sizeof"]["double"])
         if "target" in s:
             out += bench_target.markdown(name, s["target"])
     return "\n".join(out)
+
+
+def c_prefix(spec: str) -> str:
+    """The C prefix of a benched model (its structs' names): a model file's [model] name, not the
+    argument `vanish.toml` the section is named by; the file's stem if it can no longer be read."""
+    from pathlib import Path
+
+    from dfeif_codegen.errors import CodegenError
+    from dfeif_codegen.symbolic import model
+    try:
+        return model.load(spec).name
+    except (CodegenError, OSError):
+        return Path(spec).stem
+
+
+def struct_table(spec: str, sf: dict, sd: dict) -> list[str]:
+    """sizeof the node, master and packet structs, float beside double (`spec`: the bench's model argument)."""
+    p = c_prefix(spec)
+    out = ["", "| struct (Cortex-M4F layout, max lag 32, 2 nodes) | float [B] | double [B] | ratio |",
+           "|---|---:|---:|---:|"]
+    out += [f"| `{p}_{kind}` | {sf[kind]} | {sd[kind]} | {sd[kind] / sf[kind]:.2f} |"
+            for kind in ("node", "master", "packet")]
+    return out + [""]
 
 
 def _scheduled_table(c: dict) -> list[str]:

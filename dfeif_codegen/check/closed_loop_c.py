@@ -135,6 +135,7 @@ def _toolkit_digest() -> bytes:
     return digest.digest()
 
 
+@derivation.by_model
 @lru_cache(maxsize=None)
 def compiled(key: tuple) -> Compiled:
     """compile_loop, once per process and key, and once per user (the cache of check/loader.py)

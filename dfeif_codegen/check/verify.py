@@ -16,12 +16,12 @@ A reference that is exactly zero with its scale zero must be matched exactly.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from dfeif_codegen import json_text
 from dfeif_codegen.check.yardstick import yardstick
 from dfeif_codegen.errors import MismatchError, ScenarioError, SetupError
 
@@ -246,7 +246,7 @@ class Verification:
                 "yardstick": self.yardstick}
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict())
+        return json_text.dumps(self.to_dict())
 
 
 def errors_as_dicts(errors: list[SignalError]) -> list[dict]:

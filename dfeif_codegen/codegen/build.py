@@ -9,6 +9,8 @@ committed generated/ can be checked against a fresh build.
 
 from __future__ import annotations
 
+import functools
+import json
 import math
 import os
 import re
@@ -22,6 +24,7 @@ import jinja2
 import numpy as np
 
 from dfeif_codegen import __version__, budget
+from dfeif_codegen.errors import CodegenError
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.symbolic.sampling import nominal_point
 from dfeif_codegen.codegen import kernels, layout, provenance, render
@@ -53,8 +56,9 @@ def _comment(text: str) -> str:
     return " ".join(str(text).replace("*/", "* /").replace("/*", "/ *").split())
 
 
-def context(flat, opts: Options) -> dict:
-    """Everything the templates need, computed once."""
+def context(flat, opts: Options, model_arg: str | None = None) -> dict:
+    """Everything the templates need, computed once. `model_arg`: the model as the banners'
+    regenerate command names it (model_argument; default the model's name, a built-in's)."""
     m = flat.model
     p = m.name
     ks = kernels.build(flat, opts, p)
@@ -79,7 +83,7 @@ def context(flat, opts: Options) -> dict:
                         for k in infos]
     names = render.file_names(p, list(ks.groups))
     return {
-        "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c,
+        "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c, "model_arg": model_arg or p,
         "description": _comment(m.description or p),
         "zeta_names": [_comment(z) for z in flat.zeta] + disturbances + [f"rate of {d}" for d in disturbances[:nd - flat.m]],
         # n: the filters' state (the canonical one, nz, then nd disturbance states); nq densities
@@ -157,15 +161,30 @@ def example_start(flat) -> list[float]:
     return [0.0] * flat.n
 
 
-def generate(m: model.Model, opts: Options, progress=None) -> dict[str, str]:
-    """Model and options -> {file: text}; nothing is written. `progress(text)` hears each stage."""
+def model_argument(spec: str | Path | model.Model, m: model.Model) -> str:
+    """How `codegen build` is told the model, for the command a generated file says regenerates
+    it: a built-in's name; a model file's base name (`twoin.toml`: machine-independent, so the
+    output stays deterministic); a Python Model's name (it has no file)."""
+    if isinstance(spec, model.Model) or str(spec) in model.builtin_names():
+        return m.name
+    return Path(spec).name
+
+
+def generate(m: model.Model, opts: Options, progress=None, model_arg: str | None = None) -> dict[str, str]:
+    """Model and options -> {file: text}; nothing is written. `progress(text)` hears each stage;
+    `model_arg`: the model as the files' regenerate command names it (model_argument)."""
     flat = flatness.derive(m, progress=progress)
     if progress:
         progress("CasADi kernels and C rendering")
     try:
-        return render.render(context(flat, opts))
+        return render.render(context(flat, opts, model_arg))
     except jinja2.TemplateError as exc:
         raise BuildError(f"template error: {type(exc).__name__}: {exc}") from None
+
+
+# the build options' keyword defaults, as check and build take them
+OPTION_DEFAULTS = dict(precision="double", max_lag=32, nodes=2, oosm="replay", fusion="difference", ts=None,
+                       singular_rtol=1e-6, predictor=None, disturbance=None, tau=None)
 
 
 def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
@@ -200,14 +219,40 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
                                  disturbance, tau)
     target = Path(out) / m.name
     if not target.is_dir():
-        raise BuildError(f"{target}: missing (run `codegen build {spec if isinstance(spec, (str, Path)) else m.name}"
-                         f"{'' if str(out) == 'generated' else f' --out {out}'}`)")
-    files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
+        raise BuildError(f"{target}: missing (run `{opts.command(_as_passed(spec, m), m.ts, str(out))}`)")
+    files = budget.bounded(functools.partial(generate, model_arg=model_argument(spec, m)), (m, opts),
+                           max_seconds, max_memory, f"deriving {m.source}")
     on_disk = {p.name for p in target.iterdir()}
     stale = [f for f in files if f in on_disk
              and (target / f).read_bytes().replace(b"\r\n", b"\n") != files[f].encode("utf-8")]
     stale += [f"missing: {f}" for f in files if f not in on_disk]
     return stale + [f"extra: {f}" for f in sorted(on_disk - set(files))]
+
+
+def _as_passed(spec: str | Path | model.Model, m: model.Model) -> str:
+    """The model as the user gave it (a path as typed: advice is run where they are)."""
+    return str(spec) if isinstance(spec, (str, Path)) else m.name
+
+
+def built_options(folder: Path) -> Options | None:
+    """The options folder/manifest.json says its build was made with; None if it says none."""
+    try:
+        return Options(**json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["options"])
+    except (OSError, ValueError, TypeError, KeyError, CodegenError):
+        return None
+
+
+def rebuild_advice(spec: str | Path | model.Model, out: str | Path = "generated", **options) -> str:
+    """What `codegen build --check` tells the user to run on a stale folder (`options`: check's
+    keywords): the build with the checked options, which makes the check pass, options and --out
+    included; and, when its manifest.json records other ones (a check that left out the build's
+    --precision float), the command the folder was built with."""
+    m, opts = _model_and_options(spec, **{**OPTION_DEFAULTS, **options})
+    text = f"run `{opts.command(_as_passed(spec, m), m.ts, str(out))}`"
+    made = built_options(Path(out) / m.name)
+    if made is not None and made != opts:
+        text += f"; it was built with `{made.command(_as_passed(spec, m), m.ts, str(out))}`"
+    return text
 
 
 def build(spec: str | Path | model.Model, out: str | Path = "generated", *, precision: str = "double",
@@ -232,7 +277,8 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor,
                                  disturbance, tau)
     check_target(Path(out), m.name, force)
-    files = budget.bounded(generate, (m, opts), max_seconds, max_memory, f"deriving {m.source}")
+    files = budget.bounded(functools.partial(generate, model_arg=model_argument(spec, m)), (m, opts),
+                           max_seconds, max_memory, f"deriving {m.source}")
     compiles = (lambda folder: compile_check_folder(folder, m.name)) if compile_check else None
     target = write_atomic(Path(out), m.name, files, force=force, check=compiles)
     nx = re.search(rf"^#define {m.name.upper()}_NX (\d+)$", files[f"{m.name}.h"], re.M)  # derived in a child

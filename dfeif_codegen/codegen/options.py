@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import shlex
 from dataclasses import dataclass
 
 from dfeif_codegen.constants import NODES_LIMIT
@@ -22,6 +23,13 @@ CHECK_EVERY = 4
 # typically 1-8 KiB (a CMSIS startup file's default is 1 KiB, an RTOS task's often less), and an
 # overflow there corrupts memory silently, only on a late measurement's replay.
 REPLAY_STACK_WARN = 8 * 1024
+
+
+def _number(value: float) -> str:
+    """A float option as short as it reads (`0.01`), but exact: `:g` alone keeps 6 digits, so a
+    banner's --ts 0.0123456789 would regenerate a build at --ts 0.0123457."""
+    text = f"{value:g}"
+    return text if float(text) == value else repr(value)
 
 
 class BuildError(CodegenError):
@@ -105,11 +113,18 @@ class Options:
         for name in ("precision", "max_lag", "nodes", "oosm", "fusion", "ts", "singular_rtol", "disturbance", "tau"):
             value = getattr(self, name)
             if value is not None and value != getattr(default, name):
-                out.append(f"--{name.replace('_', '-')} {value:g}" if isinstance(value, float)
-                           else f"--{name.replace('_', '-')} {value}")
+                out.append(f"--{name.replace('_', '-')} {_number(value) if isinstance(value, float) else value}")
         if self.predictor != for_method(None, self.oosm):
             out.append(f"--predictor {self.predictor}")
         return " ".join(out)
+
+    def command(self, model_arg: str, model_ts: float, out: str | None = None) -> str:
+        """`codegen build MODEL_ARG <flags> [--out OUT]`: the command that makes this build again
+        (`model_arg`: a built-in's name or a model file as passed; quoted for a POSIX shell)."""
+        words = ["codegen build", shlex.quote(model_arg), self.flags(model_ts)]
+        if out is not None and str(out) != "generated":
+            words.append(f"--out {shlex.quote(str(out))}")
+        return " ".join(w for w in words if w)
 
     @property
     def check_every(self) -> int:

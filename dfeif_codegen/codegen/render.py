@@ -60,10 +60,12 @@ def environment(precision: str = "double") -> jinja2.Environment:
     return env
 
 
-def banner(template: str, model: str, version: str, flags: str = "") -> str:
-    """`flags`: the build's non-default options, so that the command regenerates this build."""
+def banner(template: str, model: str, version: str, flags: str = "", command: str | None = None) -> str:
+    """`flags`: the build's non-default options, so that the command regenerates this build;
+    `command`: the whole command instead (a model file's name is not the model's)."""
+    command = command or f"codegen build {' '.join([model, flags]).strip()}"
     return (f"DO NOT EDIT: {model} module, generated from template {template} by dfeif-codegen "
-            f"{version}; regenerate with `codegen build {' '.join([model, flags]).strip()}`.")
+            f"{version}; regenerate with `{command}`.")
 
 
 def comment(text: str, continuation: str = " * ", width: int = 94) -> str:
@@ -92,18 +94,19 @@ def render(context: dict[str, Any]) -> dict[str, str]:
     env = environment(context["opts"].precision)
     p, version = context["p"], context["versions"]["dfeif-codegen"]
     opts = context["opts"]
-    flags = opts.flags(context["model_ts"])
+    # the model as `codegen build` takes it (build.model_argument): a file's name, not the model's
+    command = opts.command(context.get("model_arg", p), context["model_ts"])
     jobs = [(t.format(oosm=opts.oosm, fusion=opts.fusion), out.format(p=p), {}) for t, out in LIBRARY]
     for group, (code, doc) in context["kernel_code"].items():
         jobs.append((KERNELS[0], KERNELS[1].format(p=p, group=group), {"code": code, "group_doc": doc}))
     jobs += [(t, out.format(p=p), {}) for t, out in PROJECT]
     files: dict[str, str] = {}
     for template, out, extra in jobs:
-        ctx = {**context, "banner": banner(template, p, version, flags), **extra}
+        ctx = {**context, "banner": banner(template, p, version, command=command), **extra}
         text = env.get_template(template).render(ctx)
         files[out] = layout.lay_out(text) if out.endswith((".c", ".h")) else text
     hashes = [{"name": name, "bytes": len(text.encode()), "sha256": hashlib.sha256(text.encode()).hexdigest()}
               for name, text in files.items()]
-    ctx = {**context, "banner": banner(MANIFEST[0], p, version, flags), "file_hashes": hashes}
+    ctx = {**context, "banner": banner(MANIFEST[0], p, version, command=command), "file_hashes": hashes}
     files[MANIFEST[1]] = env.get_template(MANIFEST[0]).render(ctx)
     return files

@@ -23,7 +23,7 @@ import numpy as np
 
 from dfeif_codegen.symbolic import flatness
 from dfeif_codegen.reference.control import FlatController
-from dfeif_codegen.experiment.derivation import _flat
+from dfeif_codegen.experiment.derivation import _flat, by_model
 from dfeif_codegen.experiment.divergence import DivergenceWatch
 from dfeif_codegen.experiment.metrics import _errors, _per_chain, metrics, state_of_flags, tracking_bound, tracking_errors
 from dfeif_codegen.experiment.model_error import NONE as EXACT_MODEL, ParamError
@@ -166,12 +166,14 @@ def replay_recording(rec: Recording, dtype=np.float64, inputs=None, right_first:
 
 # --- the closed loop ------------------------------------------------------------------------------
 
+@by_model
 @lru_cache(maxsize=64)
 def _plant(spec: str, ts: float, substeps: int, params: tuple | None = None) -> Plant:
     """The plant, with the model's parameters or (model error) the given vector."""
     return Plant(_flat(spec).model, ts, substeps, _flat(spec).extension, params)
 
 
+@by_model
 @lru_cache(maxsize=None)
 def _camera(spec: str, scale: float, std) -> Camera:
     return Camera(_flat(spec).model, std=std, scale=scale)
@@ -185,6 +187,7 @@ def initial_covariance(flat, p0_std) -> np.ndarray:
     return np.diag(np.concatenate([std[:r] for r in flat.degrees]) ** 2)
 
 
+@by_model
 @lru_cache(maxsize=64)
 def _reference_table(spec, kind, amplitude, period, offset, harmonics, ts, K, phase=(0.0,),
                      cycles=(1,), trajectory=None) -> np.ndarray:

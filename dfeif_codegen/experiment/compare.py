@@ -31,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment import divergence
+from dfeif_codegen.experiment import derivation, divergence
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.ekf import EKF
 from dfeif_codegen.reference.offsets import OffsetFilter, OffsetModel
@@ -96,6 +96,7 @@ class DerivativeFree(EKF):
         return self.model.step_sx(x, u), Phi @ P @ Phi.T + ca.DM(self.model.Qd)
 
 
+@derivation.by_model
 @lru_cache(maxsize=None)
 def filter_of(spec: str, ts: float, q: tuple, substeps: int, kind: str, compiled: bool = False,
               predictor: str = predictors.DEFAULT, disturbance=None, offsets=None):

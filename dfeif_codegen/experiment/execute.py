@@ -106,7 +106,9 @@ def execute(p: Plan, engine: sweep.Engine, need_series: bool, workers, scheduler
     if resume and results_file and Path(resume) != Path(results_file):
         raise ScenarioError("--resume FILE continues FILE: give --results the same file or leave it out")
     previous = sweep.read_records(resume) if resume else {}
-    ids = {sweep.run_id(cfg, engine.name, kind): (cfg, kind, keys) for (cfg, kind), keys in p.wanted.items()}
+    digests = {spec: sweep.model_digest(spec) for spec in {cfg.model for cfg, _ in p.wanted}}
+    ids = {sweep.run_id(cfg, engine.name, kind, digests[cfg.model]): (cfg, kind, keys)
+           for (cfg, kind), keys in p.wanted.items()}
     todo, reused = _todo(p, ids, previous, need_series)
     workers = sweep.default_workers(workers, len(todo))
     client = sweep.connect(scheduler)

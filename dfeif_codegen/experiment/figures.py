@@ -266,6 +266,8 @@ def filters_figures(directory: str, result, flat) -> list[str]:
                 series[k] = (table.mean("rmse_master"), table.ci95("rmse_master"))
             except KeyError:            # every run of this filter failed: nothing to draw
                 continue
+        if not series:                  # every filter's: no figure (a legend of none raised)
+            continue
         path = Path(directory) / comparison_name(ref)
         comparison_figure(path, f"{flat.model.name}: master RMSE per filter, same recordings ({ref})", flat,
                           labels, series)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from dfeif_codegen.errors import ScenarioError, SetupError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.experiment.trajectory import KINDS
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.symbolic.flatness import FlatSystem
 
@@ -130,6 +131,8 @@ def check_figures(plot_dir: str, p: Plan) -> None:
 
 def _filters_of(filters) -> list[str]:
     """The filters asked for besides the derivative-free closed loop (always run)."""
+    if filters is not None and not isinstance(filters, (str, list, tuple)):
+        raise ScenarioError(f"--filters {filters!r}: a name or a list of names ({', '.join(FILTERS)})")
     filters = [filters] if isinstance(filters, str) else (filters or ["df"])
     names = [f.strip() for item in filters for f in str(item).split(",") if f.strip()]
     bad = [f for f in names if f not in FILTERS]
@@ -173,6 +176,12 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
     (experiment/model_error.from_option's text) replaces the scenario's [model_error]."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
         raise ScenarioError(f"--seed {seed!r}: a whole number from 0 to 2^32 - 1")
+    for flag, value in (("--runs", runs), ("--nodes", nodes), ("--max-lag", max_lag)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
+            raise ScenarioError(f"{flag} {value!r}: a whole number")
+    for ref in reference or []:
+        if ref not in (*KINDS, ex.TRAJECTORY):
+            raise ScenarioError(f"--reference {ref!r}: choose from {', '.join((*KINDS, ex.TRAJECTORY))}")
     kinds = _filters_of(filters)
     sc = scenario_mod.load(scenario)
     flat = ex._flat(model)   # the derivation every run of this process (and its workers) uses

@@ -8,12 +8,11 @@ are functions of the result alone: a notebook gets the same numbers the command 
 from __future__ import annotations
 
 import io
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from dfeif_codegen import paths
+from dfeif_codegen import json_text, paths
 from dfeif_codegen.experiment import closed_loop as ex
 
 
@@ -93,7 +92,7 @@ class SimulationResult:
             "failures": self.failures, "figures": self.figures, "paired": self.paired})
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict())
+        return json_text.dumps(self.to_dict())
 
     @staticmethod
     def is_json(path) -> bool:

@@ -6,8 +6,9 @@ filesystem with the caller, so the shared libraries go as bytes (scattered once 
 or handed to each local process when it starts) and each worker loads them from a private file.
 
 Per-run records (JSON lines, one per finished run, appended and flushed as runs finish) let an
-interrupted sweep continue (`--resume`): a run is identified by a hash of its engine and its
-whole configuration, so a finished run is never recomputed and a changed setting is never reused.
+interrupted sweep continue (`--resume`): a run is identified by a hash of its engine, its whole
+configuration and its model file's text, so a finished run is never recomputed and a changed
+setting or model is never reused.
 Results do not depend on where or in which order the runs ran: each run is a pure function of its
 configuration, and the caller orders them by seed before averaging.
 
@@ -69,9 +70,24 @@ class ReferenceEngine:
 REFERENCE = ReferenceEngine()
 
 
-def run_id(cfg: ex.Config, engine: str, kind: str = "df") -> str:
-    """`kind`: the filter judged on the run's recording (experiment/compare.py), "df" for the run's own."""
-    key = (engine, cfg) if kind == "df" else (engine, cfg, kind)
+def model_digest(spec: str) -> str:
+    """A digest of the model file's text (a built-in's packaged one): a run of an edited model (a
+    parameter, a g entry, a noise) is another run, though its spec, the path, is the same."""
+    text = derivation.MODEL_TEXT.get(spec)
+    if text is None:
+        from dfeif_codegen.symbolic import model as model_mod
+        if spec in model_mod.builtin_names():
+            from importlib import resources
+            text = (resources.files("dfeif_codegen") / "models" / f"{spec}.toml").read_text(encoding="utf-8")
+        else:
+            text = Path(spec).read_text(encoding="utf-8")
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def run_id(cfg: ex.Config, engine: str, kind: str = "df", model: str = "") -> str:
+    """`kind`: the filter judged on the run's recording (experiment/compare.py), "df" for the run's
+    own; `model`: the model's `model_digest`."""
+    key = (engine, cfg, model) if kind == "df" else (engine, cfg, kind, model)
     if cfg.plant_error.active:          # out of Config's repr, so error-free runs keep their ids
         key = (*key, cfg.plant_error)
     if cfg.disturbance is not None:     # likewise
@@ -141,7 +157,7 @@ def connect(scheduler: str | None):
         raise SetupError("--scheduler needs dask.distributed: pip install 'dfeif-codegen[cluster]'") from None
     try:
         return Client(scheduler, timeout=30)
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:   # ValueError: not an address (no port)
         raise SetupError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
 
 
@@ -234,18 +250,23 @@ def read_records(path) -> dict[str, dict]:
     if not p.is_file():
         raise ScenarioError(f"--resume {path}: no such file")
     try:
-        lines = p.read_text(encoding="utf-8").splitlines()
+        text = p.read_text(encoding="utf-8")
+        lines = text.splitlines()
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"--resume {path}: not a --results file (not UTF-8 text, byte {exc.start})") from None
     except OSError as exc:
         raise ScenarioError(f"--resume {path}: cannot read it ({exc.strerror})") from None
+    torn = not text.endswith("\n")    # an interrupted run's last record, cut short
     for number, line in enumerate(lines, 1):
         try:
             rec = json.loads(line)
+        except ValueError:
+            rec = None
+        if isinstance(rec, dict) and RECORD_KEYS <= set(rec):
             records[rec["id"]] = rec
-        except (json.JSONDecodeError, KeyError, TypeError):
-            if number != len(lines):
-                raise ScenarioError(f"--resume {path}: line {number} is not a run record") from None
+        elif not (rec is None and torn and number == len(lines) and line.startswith(RECORD_START)):
+            # not a cut record: another file, which --resume would append to or cut
+            raise ScenarioError(f"--resume {path}: line {number} is not a run record")
     return records
 
 
@@ -275,6 +296,7 @@ class Records:
 
 CSV_HEAD = ("reference", "method", "fusion", "row", "seed", "error")   # --csv's first columns
 RECORD_START = '{"id": '   # how a --results line begins (Records.write)
+RECORD_KEYS = {"id", "engine", "runs", "metrics"}
 
 
 def is_csv(path: Path) -> bool:
@@ -292,7 +314,7 @@ def is_records(path: Path) -> bool:
         rec = json.loads(line)
     except ValueError:
         return line.startswith(RECORD_START) and path.stat().st_size == len(line.encode())
-    return isinstance(rec, dict) and {"id", "engine", "runs", "metrics"} <= set(rec)
+    return isinstance(rec, dict) and RECORD_KEYS <= set(rec)
 
 
 def write_csv(path, rows: list[tuple], n: int, nodes: int) -> None:

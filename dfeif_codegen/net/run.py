@@ -6,12 +6,12 @@ in double).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from dfeif_codegen import json_text
 from dfeif_codegen.check import harness, verify
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
@@ -110,21 +110,23 @@ class Network:
 
     def to_json(self) -> str:
         """The figures and the comparison (the logs themselves stay in `outcome`)."""
-        return json.dumps({"summary": self.summary, "ok": self.ok, "figures": self.figures,
+        return json_text.dumps({"summary": self.summary, "ok": self.ok, "figures": self.figures,
                            "errors": verify.errors_as_dicts(self.errors)})
 
 
+DEFAULT_ROW = 2         # the paper grid's (8, 10, 0.8)
 MAX_DURATION = 600.0   # simulated seconds of one network run (60,000 steps at 10 ms)
 
 
-def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int = 2, seed: int = 0,
+def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int | None = None, seed: int = 0,
             precision: str = "double", oosm: str = "replay", fusion: str = "difference", nodes: int | None = None,
             max_lag: int = 32, duration: float | None = 5.0, key: str | None = None, flip_rate: float = 0.0,
             keep: str | Path | None = None, max_seconds: float | None = None,
             max_memory: float | None = None, predictor: str | None = None) -> Network:
     """One run of the estimator as separate processes, compared with the reference replaying the
     logged arrivals. Bad options raise (one line) before anything is built; `keep` (an empty or
-    new folder) keeps the programs and logs."""
+    new folder) keeps the programs and logs. `row`: the scenario's delay row, from 0 (None: 2,
+    the paper grid's (8, 10, 0.8), or a shorter grid's last)."""
     import tempfile
 
     harness.host_compiler()
@@ -141,9 +143,11 @@ def network(model: str = "dc_motor_link", *, scenario: str = "paper", row: int =
     if keep:
         from dfeif_codegen.paths import writable_dir
         writable_dir(keep, "--keep")
-    if nodes is None:   # the scenario's [[nodes]], as simulate's
+    if nodes is None or row is None:   # the scenario's [[nodes]], as simulate's; its row 2 or last
         from dfeif_codegen.experiment import scenario as scenarios
-        nodes = len(scenarios.load(scenario).noise_scale)
+        sc = scenarios.load(scenario)
+        nodes = len(sc.noise_scale) if nodes is None else nodes
+        row = min(DEFAULT_ROW, len(sc.grid) - 1) if row is None else row
     o = Options(model=model, scenario=scenario, row=row, seed=seed, precision=precision, oosm=oosm,
                 fusion=fusion, nodes=nodes, max_lag=max_lag, duration=duration, key=key, flip_rate=flip_rate,
                 predictor=predictor)

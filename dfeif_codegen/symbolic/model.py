@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 from importlib import resources
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Mapping, Sequence
 
 import sympy as sp
@@ -305,6 +305,8 @@ def builtin_names() -> list[str]:
 
 def load(spec: str) -> Model:
     """A built-in model by name, or a path to a `.toml` model file."""
+    if not isinstance(spec, (str, PurePath)):
+        raise ModelError(f"{type(spec).__name__}: a model is a built-in name or the path of a .toml file")
     if spec in builtin_names():
         resource = resources.files("dfeif_codegen") / "models" / f"{spec}.toml"
         return loads_toml(resource.read_text(encoding="utf-8"), f"{spec}.toml")

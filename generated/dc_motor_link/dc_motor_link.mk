@@ -3,7 +3,8 @@
 #
 # Makefile fragment for the dc_motor_link library:
 #     include path/to/dc_motor_link.mk
-# then add $(DC_MOTOR_LINK_SRCS) to your sources and $(DC_MOTOR_LINK_CFLAGS) to CFLAGS.
+# then compile $(DC_MOTOR_LINK_SRCS) with $(DC_MOTOR_LINK_CFLAGS)
+# into your build's own folder (below).
 # Set DC_MOTOR_LINK_DIR (sources) or DC_MOTOR_LINK_INC (header folder) before including
 # to override where they are found.
 ifndef DC_MOTOR_LINK_DIR
@@ -19,8 +20,15 @@ DC_MOTOR_LINK_SRCS := \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_kernels_fusion.c \
 	$(DC_MOTOR_LINK_DIR)/dc_motor_link_kernels_control.c
 DC_MOTOR_LINK_CFLAGS := -I$(DC_MOTOR_LINK_INC)
-# The flags the published code sizes were measured with (BENCHMARKS.md), for the library's
-# objects (with GCC or Clang; link with -Wl,--gc-sections), e.g.
-#     $(patsubst %.c,%.o,$(DC_MOTOR_LINK_SRCS)): CFLAGS += $(DC_MOTOR_LINK_LIB_CFLAGS)
+# DC_MOTOR_LINK_LIB_CFLAGS: the flags the published code sizes were measured with
+# (BENCHMARKS.md), for the library's objects (with GCC or Clang; link with
+# -Wl,--gc-sections). Put the objects in a folder of your build (OBJDIR), not beside the
+# sources: codegen build refuses to replace this folder while it holds files it did not
+# write. Uncommented, with OBJDIR set:
+#     DC_MOTOR_LINK_OBJS := \
+#         $(patsubst $(DC_MOTOR_LINK_DIR)/%.c,$(OBJDIR)/%.o,$(DC_MOTOR_LINK_SRCS))
+#     $(DC_MOTOR_LINK_OBJS): $(OBJDIR)/%.o: $(DC_MOTOR_LINK_DIR)/%.c ; mkdir -p $(@D) && \
+#         $(CC) $(CFLAGS) $(DC_MOTOR_LINK_CFLAGS) $(DC_MOTOR_LINK_LIB_CFLAGS) -c $< -o $@
+# then link $(DC_MOTOR_LINK_OBJS) with $(DC_MOTOR_LINK_LDLIBS).
 DC_MOTOR_LINK_LIB_CFLAGS := -ffunction-sections -fdata-sections -fno-math-errno
 DC_MOTOR_LINK_LDLIBS := -lm

@@ -15,7 +15,7 @@
 #define NX DC_MOTOR_LINK_NX
 #define NY DC_MOTOR_LINK_NY
 #define STEPS 300
-#define LATE 3
+#define LATE 3 /* at most DC_MOTOR_LINK_NMAX: node_update_delayed refuses older frames */
 
 typedef dc_motor_link_real real;
 #define SIN sin

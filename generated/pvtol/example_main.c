@@ -15,7 +15,7 @@
 #define NX PVTOL_NX
 #define NY PVTOL_NY
 #define STEPS 300
-#define LATE 3
+#define LATE 3 /* at most PVTOL_NMAX: node_update_delayed refuses older frames */
 
 typedef pvtol_real real;
 #define SIN sin

@@ -3,7 +3,8 @@
 #
 # Makefile fragment for the pvtol library:
 #     include path/to/pvtol.mk
-# then add $(PVTOL_SRCS) to your sources and $(PVTOL_CFLAGS) to CFLAGS.
+# then compile $(PVTOL_SRCS) with $(PVTOL_CFLAGS)
+# into your build's own folder (below).
 # Set PVTOL_DIR (sources) or PVTOL_INC (header folder) before including
 # to override where they are found.
 ifndef PVTOL_DIR
@@ -19,8 +20,15 @@ PVTOL_SRCS := \
 	$(PVTOL_DIR)/pvtol_kernels_fusion.c \
 	$(PVTOL_DIR)/pvtol_kernels_control.c
 PVTOL_CFLAGS := -I$(PVTOL_INC)
-# The flags the published code sizes were measured with (BENCHMARKS.md), for the library's
-# objects (with GCC or Clang; link with -Wl,--gc-sections), e.g.
-#     $(patsubst %.c,%.o,$(PVTOL_SRCS)): CFLAGS += $(PVTOL_LIB_CFLAGS)
+# PVTOL_LIB_CFLAGS: the flags the published code sizes were measured with
+# (BENCHMARKS.md), for the library's objects (with GCC or Clang; link with
+# -Wl,--gc-sections). Put the objects in a folder of your build (OBJDIR), not beside the
+# sources: codegen build refuses to replace this folder while it holds files it did not
+# write. Uncommented, with OBJDIR set:
+#     PVTOL_OBJS := \
+#         $(patsubst $(PVTOL_DIR)/%.c,$(OBJDIR)/%.o,$(PVTOL_SRCS))
+#     $(PVTOL_OBJS): $(OBJDIR)/%.o: $(PVTOL_DIR)/%.c ; mkdir -p $(@D) && \
+#         $(CC) $(CFLAGS) $(PVTOL_CFLAGS) $(PVTOL_LIB_CFLAGS) -c $< -o $@
+# then link $(PVTOL_OBJS) with $(PVTOL_LDLIBS).
 PVTOL_LIB_CFLAGS := -ffunction-sections -fdata-sections -fno-math-errno
 PVTOL_LDLIBS := -lm

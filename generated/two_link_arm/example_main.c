@@ -15,7 +15,7 @@
 #define NX TWO_LINK_ARM_NX
 #define NY TWO_LINK_ARM_NY
 #define STEPS 300
-#define LATE 3
+#define LATE 3 /* at most TWO_LINK_ARM_NMAX: node_update_delayed refuses older frames */
 
 typedef two_link_arm_real real;
 #define SIN sin

@@ -15,7 +15,7 @@
 #define NX UNICYCLE_NX
 #define NY UNICYCLE_NY
 #define STEPS 300
-#define LATE 3
+#define LATE 3 /* at most UNICYCLE_NMAX: node_update_delayed refuses older frames */
 
 typedef unicycle_real real;
 #define SIN sin

@@ -3,7 +3,8 @@
 #
 # Makefile fragment for the unicycle library:
 #     include path/to/unicycle.mk
-# then add $(UNICYCLE_SRCS) to your sources and $(UNICYCLE_CFLAGS) to CFLAGS.
+# then compile $(UNICYCLE_SRCS) with $(UNICYCLE_CFLAGS)
+# into your build's own folder (below).
 # Set UNICYCLE_DIR (sources) or UNICYCLE_INC (header folder) before including
 # to override where they are found.
 ifndef UNICYCLE_DIR
@@ -19,8 +20,15 @@ UNICYCLE_SRCS := \
 	$(UNICYCLE_DIR)/unicycle_kernels_fusion.c \
 	$(UNICYCLE_DIR)/unicycle_kernels_control.c
 UNICYCLE_CFLAGS := -I$(UNICYCLE_INC)
-# The flags the published code sizes were measured with (BENCHMARKS.md), for the library's
-# objects (with GCC or Clang; link with -Wl,--gc-sections), e.g.
-#     $(patsubst %.c,%.o,$(UNICYCLE_SRCS)): CFLAGS += $(UNICYCLE_LIB_CFLAGS)
+# UNICYCLE_LIB_CFLAGS: the flags the published code sizes were measured with
+# (BENCHMARKS.md), for the library's objects (with GCC or Clang; link with
+# -Wl,--gc-sections). Put the objects in a folder of your build (OBJDIR), not beside the
+# sources: codegen build refuses to replace this folder while it holds files it did not
+# write. Uncommented, with OBJDIR set:
+#     UNICYCLE_OBJS := \
+#         $(patsubst $(UNICYCLE_DIR)/%.c,$(OBJDIR)/%.o,$(UNICYCLE_SRCS))
+#     $(UNICYCLE_OBJS): $(OBJDIR)/%.o: $(UNICYCLE_DIR)/%.c ; mkdir -p $(@D) && \
+#         $(CC) $(CFLAGS) $(UNICYCLE_CFLAGS) $(UNICYCLE_LIB_CFLAGS) -c $< -o $@
+# then link $(UNICYCLE_OBJS) with $(UNICYCLE_LDLIBS).
 UNICYCLE_LIB_CFLAGS := -ffunction-sections -fdata-sections -fno-math-errno
 UNICYCLE_LDLIBS := -lm
