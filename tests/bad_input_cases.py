@@ -47,6 +47,8 @@ def generated() -> dict:
     c |= _opt("option: out of range", "simulate", "--runs", ["-1", "1000000000"], SF, S)
     c |= _opt("option: not a number", "simulate", "--seed", INT_BAD, SF, S)
     c |= _opt("option: out of range", "simulate", "--seed", ["-1", "4294967296"], SF, S)
+    c["simulate --seed past the top"] = ("option: out of range", ["simulate", *S, "--seed", "4294967295", "--runs", "2"],
+                                         SF, ["--seed 4294967295", "--runs 2", "4294967296"])
     c |= _opt("option: not a number", "simulate", "--nodes", INT_BAD, SF, S)
     c |= _opt("option: out of range", "simulate", "--nodes", ["0", "-1"], SF, S)
     c |= _opt("option: not a number", "simulate", "--max-lag", INT_BAD, SF, S)

@@ -197,6 +197,8 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
         raise ScenarioError(f"--filters offsets: {sc.source} has no [offsets] table (the parameters whose "
                             f"offsets the filter estimates, e.g. params = [\"R\", \"m\"], std = 0.2)")
     nodes, runs = _counts(sc, nodes, max_lag, runs)
+    if seed + runs > 2 ** 32:   # the seeds are seed .. seed + runs - 1, each a 32-bit seed
+        raise ScenarioError(f"--seed {seed} --runs {runs}: the last seed, {seed + runs - 1}, is above 2^32 - 1")
     refs = list(reference or sc.references)
     if ex.TRAJECTORY in refs and sc.trajectory is None:
         raise ScenarioError(f"--reference {ex.TRAJECTORY}: {sc.source} has no [reference] file (a CSV of the flat outputs)")
