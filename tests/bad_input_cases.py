@@ -176,6 +176,10 @@ def generated() -> dict:
             ("missing", None, ["t.csv"])):
         files = {"s.toml": traj} if csv is None else {"s.toml": traj, "t.csv": csv}
         c[f"trajectory {name}"] = ("trajectory file", ["simulate", *S], files, ["s.toml", "reference.file", *words])
+    # a shape asked of a file-only scenario ran at the default amplitude 1, diverging, without a word
+    c["simulate --reference sinusoid on a file-only scenario"] = (
+        "trajectory file", ["simulate", *S, "--reference", "sinusoid"], {"s.toml": traj, "t.csv": "t,theta\n" + rows},
+        ["--reference sinusoid", "s.toml", "file only", "amplitude"])
     c["scenario --trajectory missing"] = ("trajectory file", ["scenario", "--trajectory", "{d}/in/none.csv"], {},
                                           ["none.csv"])
     c |= _opt("option: out of range", "scenario", "--smoothing", ["-1", "nan"], {"t.csv": "t,theta\n" + rows},

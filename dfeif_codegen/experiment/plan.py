@@ -202,6 +202,10 @@ def plan(model: str, scenario: str, runs, seed: int, nodes, max_lag: int, oosm, 
     refs = list(reference or sc.references)
     if ex.TRAJECTORY in refs and sc.trajectory is None:
         raise ScenarioError(f"--reference {ex.TRAJECTORY}: {sc.source} has no [reference] file (a CSV of the flat outputs)")
+    for ref in refs:   # a shape the file does not size would run at the default amplitude, 1
+        if ref in KINDS and ref not in sc.references and sc.trajectory is not None and not sc.amplitude_given:
+            raise ScenarioError(f"--reference {ref}: {sc.source} gives its reference as a file only; a {ref} "
+                                "needs [reference] amplitude (and period) for the model's outputs")
     configs = list(dict.fromkeys(configurations(list(oosm or sc.oosm), list(fusion or sc.fusion), sc.baselines)))
     for method, _ in configs:
         oosm_of = method if method in ex.OOSM else "replay"

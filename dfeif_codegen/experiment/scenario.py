@@ -81,6 +81,7 @@ class Scenario:
     initial_error: bool = True
     poles: list[float] = field(default_factory=lambda: [10.0])
     amplitude: list[float] = field(default_factory=lambda: [1.0])
+    amplitude_given: bool = False   # [reference] amplitude written in the file (not the default)
     period: float = 5.0
     offset: list[float] = field(default_factory=lambda: [0.0])
     harmonics: int = 4
@@ -273,6 +274,7 @@ def _read_settings(r: Reader, data: dict) -> None:
     sc.poles = r.numbers(data.get("control", {}), "control", "poles", sc.poles)
     ref = data.get("reference", {})
     sc.amplitude = r.numbers(ref, "reference", "amplitude", sc.amplitude, positive=False)
+    sc.amplitude_given = "amplitude" in ref
     sc.offset = r.numbers(ref, "reference", "offset", sc.offset, positive=False)
     sc.period = r.number(ref, "reference", "period", sc.period, positive=True, allow_zero=False)
     sc.harmonics = r.number(ref, "reference", "harmonics", sc.harmonics, positive=True, allow_zero=False, integer=True)
