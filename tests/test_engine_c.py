@@ -473,3 +473,15 @@ def test_a_worker_needs_none_of_the_callers_files(host_cc, tmp_path):
     assert isinstance(theirs, dict) and mine.keys() == theirs.keys()
     for key in mine:
         np.testing.assert_array_equal(theirs[key], mine[key], err_msg=key)
+
+
+def test_table_vi_names_the_predictor_df_ran_with(host_cc, tmp_path, capsys):
+    """With --predictor brunovsky, "df" in Tables VI and VII is the chapter's filter, not the
+    held one: Table VI's heading says which (it did not, and df / brunovsky read 1.000)."""
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    for predictor, expected in ((None, "held"), ("brunovsky", "brunovsky")):
+        extra = [] if predictor is None else ["--predictor", predictor]
+        assert cli.main(["simulate", "--scenario", str(path), "--quiet", "--runs", "1", "--workers", "1",
+                         "--filters", "df,ekf", *extra]) == 0
+        assert f"Table VI: derivative-free (df, the {expected} predictor)" in capsys.readouterr().out

@@ -247,7 +247,9 @@ def print_filters(out, r: SimulationResult) -> None:
     """Table VI: the derivative-free filter, the EKF and the UKF on the same recordings."""
     runs = r.settings["runs"]
     labels = [(f"{k}-replay", "difference") for k in r.settings["filters"]]
-    print("Table VI: derivative-free (df) against EKF and UKF on the same recordings (replay + difference; "
+    predictor = str(r.settings.get("predictor", "held")).split(" ")[0]   # df is the closed loop's filter
+    print(f"Table VI: derivative-free (df, the {predictor} predictor) against EKF and UKF on the same "
+          "recordings (replay + difference; "
           "master x1 RMSE, time-averaged NEES, failed or diverged runs, CPU us per step of the filter loop, "
           "mean ± 95% CI)", file=out)
     for ref in dict.fromkeys(t.reference for t in r.tables):
