@@ -257,7 +257,9 @@ def filters_figures(directory: str, result, flat) -> list[str]:
     """`simulate --filters ... --plot DIR`: per reference, the master RMSE per state and delay row
     of each filter on the same recordings (replay + difference), with 95% intervals."""
     written = []
-    labels = [row_text(" ".join(str(d) for d in row.d) + f" {row.p:g}") for row in result.rows]
+    # the axis is labelled "delay row (d1, d2, p)": the ticks carry the numbers only (six rows of
+    # "(d1, d2, p) = (...)" overlapped in a half-width panel)
+    labels = ["(" + ", ".join([*(str(d) for d in row.d), f"{row.p:g}"]) + ")" for row in result.rows]
     for ref in dict.fromkeys(t.reference for t in result.tables):
         series = {}
         for k in result.settings["filters"]:
