@@ -76,11 +76,8 @@ def model_digest(spec: str) -> str:
     text = derivation.MODEL_TEXT.get(spec)
     if text is None:
         from dfeif_codegen.symbolic import model as model_mod
-        if spec in model_mod.builtin_names():
-            from importlib import resources
-            text = (resources.files("dfeif_codegen") / "models" / f"{spec}.toml").read_text(encoding="utf-8")
-        else:
-            text = Path(spec).read_text(encoding="utf-8")
+        is_builtin = spec in model_mod.builtin_names()
+        text = model_mod.builtin_text(spec) if is_builtin else Path(spec).read_text(encoding="utf-8")
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 

@@ -303,13 +303,17 @@ def builtin_names() -> list[str]:
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
+def builtin_text(name: str) -> str:
+    """A built-in model's TOML text, as packaged."""
+    return (resources.files("dfeif_codegen") / "models" / f"{name}.toml").read_text(encoding="utf-8")
+
+
 def load(spec: str) -> Model:
     """A built-in model by name, or a path to a `.toml` model file."""
     if not isinstance(spec, (str, PurePath)):
         raise ModelError(f"{type(spec).__name__}: a model is a built-in name or the path of a .toml file")
     if spec in builtin_names():
-        resource = resources.files("dfeif_codegen") / "models" / f"{spec}.toml"
-        return loads_toml(resource.read_text(encoding="utf-8"), f"{spec}.toml")
+        return loads_toml(builtin_text(spec), f"{spec}.toml")
     path = Path(spec)
     if path.suffix == ".toml" or path.exists():
         return load_toml(path)

@@ -23,9 +23,9 @@ def _plus(expr: str, k: int) -> str:
     return f"{expr} + {k}" if k else expr
 
 
-def _at(n: int, row: str, col: str) -> str:
-    """Entry (row, col) of an n x n array stored row by row."""
-    return f"[({row} * {n}) + {col}]"
+def _at(n: int, row: int | str, col: int | str) -> str:
+    """Entry (row, col) of an n x n array stored row by row, as a subscript (`_index`)."""
+    return f"[{_index(n, row, col)}]"
 
 
 def _index(n: int, row: int | str, col: int | str) -> str:
@@ -128,7 +128,7 @@ def fuse_finish_difference_loop(n: int) -> Loop:
     array), V = L M^-1 into D, P = V L' (upper sums, mirrored), x = c + P dy. Each sum over the
     rows or columns L's triangle leaves, in the straight line's order, inside one loop over the
     entries that share its length."""
-    at = lambda a, r, c: f"{a}[{_index(n, r, c)}]"  # noqa: E731
+    at = lambda a, r, c: a + _at(n, r, c)  # noqa: E731
     body = _cholesky(n, "Pc", 0) + _packed_rows(n, [f"{at('P', 'i', 'j')} = dY[k];", f"{at('P', 'j', 'i')} = dY[k];"])
     for j in range(n):   # W's column j: D's row k times L's column j (rows a >= j)
         sums = [f"s = s + ({at('P', 'k', a)} * L[{a * n + j}]);" for a in range(j + 1, n)]
