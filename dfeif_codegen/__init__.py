@@ -55,6 +55,7 @@ _API = {
     "SingularError": ("dfeif_codegen.check.loader", "SingularError"),
     "DuplicateError": ("dfeif_codegen.check.loader", "DuplicateError"),
     "SequenceError": ("dfeif_codegen.check.loader", "SequenceError"),
+    "OutlierError": ("dfeif_codegen.check.loader", "OutlierError"),
 }
 
 __all__ = ["__version__", *_API]
@@ -64,7 +65,7 @@ if TYPE_CHECKING:  # never run: the names above for type checkers, without loadi
     from dfeif_codegen.budget import BudgetError
     from dfeif_codegen.check.bench import bench
     from dfeif_codegen.check.loader import (ArgError, CError, DuplicateError, LagError, NonFiniteError,
-                                            SequenceError, SingularError, load)
+                                            OutlierError, SequenceError, SingularError, load)
     from dfeif_codegen.check.verify import verify
     from dfeif_codegen.codegen.build import build
     from dfeif_codegen.codegen.build import check as check_build

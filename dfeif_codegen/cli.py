@@ -73,6 +73,8 @@ def _build_arguments(p: argparse.ArgumentParser) -> None:
                         " disturbance states per chain after the canonical state; densities after the chains' q")
     p.add_argument("--tau", type=float, default=None, metavar="S",
                    help="the gauss_markov disturbance's (integrated_gauss_markov: its rate's) time constant [s]")
+    p.add_argument("--gate", type=float, default=None, metavar="SIGMAS", help="nodes refuse a measurement whose "
+                   "innovation is over SIGMAS standard deviations (Mahalanobis) out: ERR_OUTLIER (default: no gate)")
     p.add_argument("--check", action="store_true",
                    help="write nothing: exit 0 if DIR/<model> equals a fresh build, 1 (listing the files) if "
                         "stale, 2 if missing")
@@ -109,6 +111,7 @@ def _verify_arguments(p: argparse.ArgumentParser) -> None:
                    help="the filters predict with the recorded inputs v, which the recorded measurements "
                         "reflect (default), or with the v the C controller computes")
     _filter_options(p)
+    p.add_argument("--gate", type=float, default=None, metavar="SIGMAS", help="the innovation gate, as build's")
     _budget_options(p)
 
 
@@ -149,8 +152,7 @@ def _network_arguments(p: argparse.ArgumentParser) -> None:
                    help="the C's real type (default double)")
     p.add_argument("--duration", type=float, default=5.0, help="simulated seconds (default 5)")
     p.add_argument("--key", default=None, metavar="HEX", help="32 hex digits: tag every frame with SipHash-2-4")
-    p.add_argument("--flip-rate", type=float, default=0.0, metavar="R",
-                   help="bit error rate the relay applies to node -> master packets (default 0)")
+    p.add_argument("--flip-rate", type=float, default=0.0, metavar="R", help="bit error rate of node -> master packets")
     p.add_argument("--keep", metavar="DIR", help="keep programs and logs in DIR")
     p.add_argument("--bench", metavar="FILE", nargs="?", const="BENCHMARKS.md", default=None,
                    help="measure wire sizes, master throughput, latency and CPU; write the network section "
@@ -169,8 +171,7 @@ def _reproduce_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs", type=int, default=100, help="seeds per table (default 100)")
     p.add_argument("--out", default="reproduce", metavar="DIR",
                    help="tasks' results, experiment.json, experiment.md and figures (default ./reproduce)")
-    p.add_argument("--doc", metavar="FILE", help="also write the document here, its figures beside it "
-                   "(docs/experiment.md)")
+    p.add_argument("--doc", metavar="FILE", help="also write the document here, figures beside it (docs/experiment.md)")
     p.add_argument("--quick", action="store_true",
                    help="a subset: the motor's tables and figures, the filter comparison on two rows")
     p.add_argument("--quiet", action="store_true", help="no progress")
@@ -234,7 +235,7 @@ def parser() -> argparse.ArgumentParser:
 def _build_options(args: argparse.Namespace) -> dict:
     return dict(precision=args.precision, max_lag=args.max_lag, nodes=args.nodes, oosm=args.oosm or "replay",
                 fusion=args.fusion or "difference", ts=args.ts, singular_rtol=args.singular_rtol,
-                predictor=args.predictor, disturbance=args.disturbance, tau=args.tau)
+                predictor=args.predictor, disturbance=args.disturbance, tau=args.tau, gate=args.gate)
 
 
 def build(args: argparse.Namespace) -> int:
@@ -249,12 +250,12 @@ def build(args: argparse.Namespace) -> int:
                              f"({build.rebuild_advice(args.model, args.out, **_build_options(args))})")
         print(f"codegen build --check: {args.out} is up to date for {args.model}")
         return 0
-    module = build.build(args.model, args.out, **_build_options(args), force=args.force,
-                         **_budget(args))
+    module = build.build(args.model, args.out, **_build_options(args), force=args.force, **_budget(args))
     o = module.options
     print(f"codegen build: {module.name} -> {module.path}/ ({o.precision}, Ts {o.ts:g} s, NMAX {o.max_lag}, "
           f"{o.nodes} nodes, oosm {o.oosm}, fusion {o.fusion}, predictor {o.predictor}"
-          + (f", disturbance {o.disturbance}" if o.disturbance else "") + ")")
+          + (f", disturbance {o.disturbance}" if o.disturbance else "") + (f", gate {o.gate:g}" if o.gate else "")
+          + ")")
     width = max(len(f) for f in module.files)
     for fname in module.files:
         print(f"  {fname:<{width}}  {(module.path / fname).stat().st_size:>7} bytes")
@@ -284,7 +285,8 @@ def verify(args: argparse.Namespace) -> int:
     result = verify.verify(args.model, target=args.target, precision=args.precision, sanitize=args.sanitize,
                            scenario=args.scenario, inputs=args.inputs, max_lag=args.max_lag, nodes=args.nodes,
                            oosm=args.oosm or "replay", fusion=args.fusion or "difference",
-                           predictor=args.predictor, progress=lambda line: print(line, flush=True), **_budget(args))
+                           predictor=args.predictor, gate=args.gate, progress=lambda line: print(line, flush=True),
+                           **_budget(args))
     print(result.report())
     verify.check(result.errors)
     print("PASS")
@@ -322,13 +324,11 @@ def bench(args: argparse.Namespace) -> int:
     from dfeif_codegen.check import bench
 
     bench.check_out(args.out, args.model)
-    command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] \
-        else None
+    command = " ".join(["codegen", "bench", *map(shlex.quote, sys.argv[2:])]) if sys.argv[1:2] == ["bench"] else None
     result = bench.bench(args.model, repeat=args.repeat, command=command, quick=args.quick,
                          progress=lambda line: print(line, file=sys.stderr))
     out = Path(args.out)
-    text = result.report()
-    text = bench.keep_network_section(text, out.read_text() if out.exists() else "")
+    text = bench.keep_network_section(result.report(), out.read_text() if out.exists() else "")
     out.write_text(text)
     print(text)
     print(f"codegen bench: wrote {args.out}", file=sys.stderr)

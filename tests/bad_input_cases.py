@@ -31,6 +31,8 @@ def generated() -> dict:
     c |= _opt("option: out of range", "build", "--ts", ["0", "-0.01", "inf", "-inf"])
     c |= _opt("option: not a number", "build", "--singular-rtol", FLOAT_BAD)
     c |= _opt("option: out of range", "build", "--singular-rtol", ["-1", "nan", "inf", "1"])
+    c |= _opt("option: not a number", "build", "--gate", FLOAT_BAD)
+    c |= _opt("option: out of range", "build", "--gate", ["0", "-3", "nan", "inf"])
     c |= _opt("option: not a number", "build", "--max-seconds", FLOAT_BAD)
     c |= _opt("option: out of range", "build", "--max-seconds", ["-1", "nan", "inf"])
     c |= _opt("option: not a number", "build", "--max-memory", FLOAT_BAD)

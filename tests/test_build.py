@@ -77,7 +77,7 @@ def test_every_file_has_banner_and_manifest_hashes(fresh):
     assert manifest["model"] == "dc_motor_link" and len(manifest["model_hash"]) == 64
     assert manifest["options"] == {"ts": 0.01, "max_lag": 32, "nodes": 2, "oosm": "replay",
                                    "fusion": "difference", "precision": "double", "singular_rtol": 1e-6,
-                                   "predictor": "held", "disturbance": None, "tau": None}
+                                   "predictor": "held", "disturbance": None, "tau": None, "gate": None}
     assert "dependencies" not in manifest and manifest["tool"] == {"name": "dfeif-codegen", "version": "0.1.0"}
     assert set(manifest["files"]) == set(files) - {"manifest.json"}
     for fname, entry in manifest["files"].items():

@@ -57,6 +57,9 @@ VARIANTS = {
     "arm-float-scheduled-walk": ("two_link_arm", {"precision": "float", "predictor": "scheduled",
                                                   "disturbance": "random_walk"}),
     "arm-double": ("two_link_arm", {}),
+    # the innovation gate (--gate): on time, in the replay and in the retrodiction
+    "dc-gate": ("dc_motor_link", {"gate": 0.5}),
+    "arm-float-retro-gate": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "gate": 4.0}),
     "arm-float-retro-ci": ("two_link_arm", {"precision": "float", "oosm": "retrodict", "fusion": "ci"}),
     # no parameters: the parameter arrays still have an element (ISO C has no empty arrays)
     "free-double": (str(Path(__file__).parent / "data" / "free_cart.toml"), {}),
@@ -129,7 +132,7 @@ def test_strict_compile(built, tmp_path, cc, variant):
 
 
 @pytest.mark.parametrize("variant", ["dc-double", "dc-float", "dc-retro-ci", "arm-float-retro-ci",
-                                     "dc-float-disturbance"])
+                                     "dc-float-disturbance", "dc-gate"])
 def test_example_runs(built, tmp_path, variant):
     cc = tool("gcc")
     folder = built(variant)

@@ -23,7 +23,11 @@ OWNED = (".h", "_internal.h", "_kernels.h", "_node.c", "_master.c", "_wire.c", "
 # The documented built-in variants, and a user MIMO model (two inputs, one flat output an angle).
 VARIANTS = {**misra.VARIANTS, "user model mixed (2 inputs), float, ci": ("user:mixed", {"precision": "float",
                                                                                          "fusion": "ci"}),
-            "user model long_chain (7 states: looped kernels)": ("user:long_chain", {})}
+            "user model long_chain (7 states: looped kernels)": ("user:long_chain", {}),
+            # the innovation gate's code paths: on time and replay, on time and retrodiction
+            "dc_motor_link, gate": ("dc_motor_link", {"gate": 3.0}),
+            "dc_motor_link, float, retrodict, gate": ("dc_motor_link", {"precision": "float", "oosm": "retrodict",
+                                                                         "gate": 3.0})}
 
 
 @pytest.fixture(scope="module")

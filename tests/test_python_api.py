@@ -80,7 +80,7 @@ def test_readme_example_runs_as_written_and_matches_the_reference(in_tmp):
     assert rel(ns["x_node"], node.x) < RTOL and rel(ns["P_node"], node.P) < RTOL
     x_m, P_m = ns["master"].estimate()          # after predict: the master's prediction
     assert rel(x_m, master.x_prior) < RTOL and rel(P_m, master.P_prior) < RTOL
-    assert ns["node"].health() == {"updates": 2, "drops": 1, "late_applied": 1, "late_rejected": 0}
+    assert ns["node"].health() == {"updates": 2, "drops": 1, "late_applied": 1, "late_rejected": 0, "outliers": 0}
 
 
 def test_readme_simulate_example_returns_the_tables_as_data(in_tmp):

@@ -31,6 +31,7 @@ from dfeif_codegen.check import driver_io, harness, loader
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import derivation, divergence
 from dfeif_codegen.experiment.plant import Camera, Plant, _fixed, parametric_step
+from dfeif_codegen.reference.node import COUNTERS
 from dfeif_codegen.symbolic import numeric
 from dfeif_codegen.symbolic.disturbance import Disturbance
 
@@ -259,10 +260,10 @@ def run(cfg: ex.Config, code: Compiled | None = None) -> ex.Result:
             raise divergence.Diverged(f"diverged at t = {s.t[step]:.2f} s: {what} is not finite")
         raise CEngineError(driver_io.failure({"failed_step": step, "failed_call": call, "status": err}))
     counters = []
-    health = (ctypes.c_uint32 * 4)()
+    health = (ctypes.c_uint32 * len(COUNTERS))()   # the reference's counters, the C struct's order
     for i in range(M):
         getattr(lib, f"{p}_node_health")(ctypes.c_void_p(ctypes.addressof(state) + i * loop.node_size), health)
-        counters.append(dict(zip(("updates", "drops", "late_applied", "late_rejected"), map(int, health))))
+        counters.append(dict(zip(COUNTERS, map(int, health))))
     divergence.check_divergence(s, out["x_true"], out["zeta"], out["x"], out["P"])
     return ex.finish(s, out["x_true"], out["zeta"], out["frames"], out["node_x"], out["node_P"], out["x"],
                      out["P"], out["u"], out["v"], out["late_applied"].astype(bool), counters)

@@ -24,6 +24,7 @@ import numpy as np
 from dfeif_codegen.check.driver_io import (CHUNK, canonical, failure, filter_size, output_arrays, read_results,
                                           recorded_inputs, scenario_arrays, write_scenario)
 from dfeif_codegen.errors import MismatchError, SetupError
+from dfeif_codegen.reference.node import COUNTERS
 
 HOST_CFLAGS = ["-O2", "-Wall", "-Wextra", "-g"]
 SANITIZE_FLAGS = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"]
@@ -142,17 +143,17 @@ class ModelDir:
 
 def build_model(model: str, out: Path, precision: str = "double", oosm: str = "replay",
                 fusion: str = "difference", nodes: int = 2, max_lag: int = 32, ts: float | None = None,
-                predictor: str | None = None, disturbance=None) -> ModelDir:
+                predictor: str | None = None, disturbance=None, gate: float | None = None) -> ModelDir:
     """Build a model into `out` through the public build API and open what it wrote (`predictor`
     None: Brunovsky with retrodiction, else the default; `disturbance`: a Disturbance whose
-    states the C carries)."""
+    states the C carries; `gate`: the nodes' innovation gate)."""
     from dfeif_codegen.codegen.build import build
     from dfeif_codegen.reference import predictor as predictors
 
     module = build(model, out, precision=precision, oosm=oosm, fusion=fusion, nodes=nodes, max_lag=max_lag, ts=ts,
                    predictor=predictors.for_method(predictor, oosm),
                    disturbance=None if disturbance is None else disturbance.kind,
-                   tau=None if disturbance is None else disturbance.tau)
+                   tau=None if disturbance is None else disturbance.tau, gate=gate)
     return ModelDir.open(module.path)
 
 
@@ -227,10 +228,10 @@ class Harness:
 
     def counters(self, i: int) -> dict:
         """Node i's health counters (node[i] is the harness struct's first member)."""
-        health = (ctypes.c_uint32 * 4)()
+        health = (ctypes.c_uint32 * len(COUNTERS))()   # the reference's counters, the C struct's order
         node = ctypes.addressof(self.state) + i * self.library.sizeof("node")
         getattr(self.lib, f"{self.library.p}_node_health")(ctypes.c_void_p(node), health)
-        return dict(zip(("updates", "drops", "late_applied", "late_rejected"), map(int, health)))
+        return dict(zip(COUNTERS, map(int, health)))
     def run(self, inputs: str = "recorded") -> dict[str, np.ndarray]:
         a, rec = dict(self.arrays), self.rec
         if not recorded_inputs(inputs):

@@ -23,6 +23,7 @@ import numpy as np
 
 from dfeif_codegen.check import harness
 from dfeif_codegen.errors import SetupError
+from dfeif_codegen.reference.node import COUNTERS
 
 
 class CError(RuntimeError):
@@ -57,8 +58,13 @@ class SequenceError(CError):
     """ERR_SEQUENCE: calls out of protocol order (update twice, predict before update...)."""
 
 
+class OutlierError(CError):
+    """ERR_OUTLIER: the innovation gate (`--gate`) refused the measurement."""
+
+
 ERRORS = {"ERR_ARG": ArgError, "ERR_LAG": LagError, "ERR_NONFINITE": NonFiniteError,
-          "ERR_SINGULAR": SingularError, "ERR_DUPLICATE": DuplicateError, "ERR_SEQUENCE": SequenceError}
+          "ERR_SINGULAR": SingularError, "ERR_DUPLICATE": DuplicateError, "ERR_SEQUENCE": SequenceError,
+          "ERR_OUTLIER": OutlierError}
 
 DIMENSIONS = ("NX", "NZ", "NY", "NQ", "NU", "NP", "NFLAGS", "NMAX", "NNODES")
 
@@ -256,10 +262,10 @@ class Node(_Filter):
         return out
 
     def health(self) -> dict[str, int]:
-        """Counters: updates, drops, late_applied, late_rejected."""
-        h = (ctypes.c_uint32 * 4)()
+        """Counters: updates, drops, late_applied, late_rejected, outliers."""
+        h = (ctypes.c_uint32 * len(COUNTERS))()   # the reference's counters, the C struct's order
         self._library.call("node_health", self._state, h)
-        return dict(zip(("updates", "drops", "late_applied", "late_rejected"), map(int, h)))
+        return dict(zip(COUNTERS, map(int, h)))
 
 
 class Master(_Filter):

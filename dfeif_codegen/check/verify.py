@@ -191,11 +191,11 @@ def record(*args, **kw):
 def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", reference: str = "sinusoid",
                 row: int = 2, nodes: int = 2, max_lag: int = 32, seed: int = 0, duration: float | None = None,
                 uplink=None, sensor_drop: float | None = None, scenario_spec: str = "paper",
-                predictor: str | None = None):
+                predictor: str | None = None, gate: float | None = None):
     """One closed-loop run of a scenario (default the built-in paper one) with the Python reference
     (an experiment.Result). `row` indexes the scenario's delay grid; `uplink` (a network Link) makes
     node -> master packets late or lost; `sensor_drop` adds camera frame drops; `predictor` None:
-    held, brunovsky with retrodict."""
+    held, brunovsky with retrodict; `gate`: the nodes' innovation gate (None: none)."""
     import dataclasses
 
     from dfeif_codegen.experiment import plan, scenario
@@ -203,7 +203,7 @@ def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", re
 
     sc = scenario.load(scenario_spec)
     cfg = plan.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed, predictor)
-    changes: dict[str, Any] = {}
+    changes: dict[str, Any] = {"gate": gate or 0.0}
     if duration is not None:
         changes["duration"] = duration
         changes["metrics_from"] = min(cfg.metrics_from, duration / 2)
@@ -259,14 +259,14 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
            sanitize: bool = False, scenario: str = "paper", inputs: str = "recorded", max_lag: int = 32,
            nodes: int | None = None, oosm: str = "replay", fusion: str = "difference", progress=None,
            max_seconds: float | None = None, max_memory: float | None = None,
-           predictor: str | None = None) -> Verification:
+           predictor: str | None = None, gate: float | None = None) -> Verification:
     """Build into a temporary folder, record a scenario (default the paper one, its first delay
     row with late frames, its first reference (the paper's sinusoid), 20 s) with the reference, run the C on it (host: ctypes, or a
     program under ASan+UBSan with `sanitize`; cortex-m4f: QEMU) and compare. `progress(line)` is
     told the settings and the scenario as soon as they are known. The derivations (the
     reference's and the build's) run under `max_seconds` CPU seconds and `max_memory` GB. A
     mismatch is in the result (`ok`, `check(result.errors)` raises it); bad input and missing
-    tools raise before any work."""
+    tools raise before any work. `gate`: the build's and the reference's innovation gate."""
     import tempfile
     from pathlib import Path
 
@@ -278,7 +278,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
 
     say = progress or (lambda line: None)
     predictor = for_method(predictor, oosm)
-    Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor)   # bad combinations: exit 2 now
+    Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor, gate=gate)   # bad combinations: exit 2 now
     if target not in ("host", "cortex-m4f"):
         raise SetupError(f"--target must be host or cortex-m4f, got {target!r}")
     driver_io.recorded_inputs(inputs)
@@ -304,15 +304,16 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
         work = Path(tmp)
         # the C is built at the sampling period the scenario records at (its ts, else the model's)
         built = harness.build_model(model, work / "gen", precision, oosm, fusion, nodes, max_lag, ts=sc.ts or None,
-                                    predictor=predictor, disturbance=sc.disturbance)
-        dist = "" if sc.disturbance is None else f", disturbance {sc.disturbance.kind}"
+                                    predictor=predictor, disturbance=sc.disturbance, gate=gate)
+        dist = ("" if sc.disturbance is None else f", disturbance {sc.disturbance.kind}") + \
+            ("" if gate is None else f", gate {gate:g}")
         settings = (f"{built.name}, {precision}, oosm {oosm}, fusion {fusion}, predictor {predictor}{dist}, {nodes} nodes, "
                     f"max lag {max_lag}, "
                     f"target {target}, {inputs} inputs{' with ASan+UBSan' if sanitize else ''}")
         say(f"codegen verify: {settings}")
         try:
             rec = record(model, oosm, fusion, ref, row, nodes, max_lag, scenario_spec=scenario,
-                         predictor=predictor)
+                         predictor=predictor, gate=gate)
         except (ArithmeticError, np.linalg.LinAlgError) as exc:
             raise ScenarioError(f"{sc.source}: run {ref} row {row + 1} seed 0: the Python reference itself "
                                 f"failed ({type(exc).__name__}: {exc}), so there is nothing to compare the C "

@@ -184,15 +184,15 @@ def generate(m: model.Model, opts: Options, progress=None, model_arg: str | None
 
 # the build options' keyword defaults, as check and build take them
 OPTION_DEFAULTS = dict(precision="double", max_lag=32, nodes=2, oosm="replay", fusion="difference", ts=None,
-                       singular_rtol=1e-6, predictor=None, disturbance=None, tau=None)
+                       singular_rtol=1e-6, predictor=None, disturbance=None, tau=None, gate=None)
 
 
 def _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts,
-                       singular_rtol, predictor, disturbance=None, tau=None) -> tuple[model.Model, Options]:
+                       singular_rtol, predictor, disturbance=None, tau=None, gate=None) -> tuple[model.Model, Options]:
     m = spec if isinstance(spec, model.Model) else model.load(str(spec))
     return m, Options(ts=m.ts if ts is None else ts, max_lag=max_lag, nodes=nodes, oosm=oosm, fusion=fusion,
                       precision=precision, singular_rtol=singular_rtol, predictor=predictor,
-                      disturbance=disturbance, tau=tau)
+                      disturbance=disturbance, tau=tau, gate=gate)
 
 
 def out_folder(out: object) -> None:
@@ -208,7 +208,7 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
           max_lag: int = 32, nodes: int = 2, oosm: str = "replay", fusion: str = "difference",
           ts: float | None = None, singular_rtol: float = 1e-6, max_seconds: float | None = None,
           max_memory: float | None = None, predictor: str | None = None, disturbance: str | None = None,
-          tau: float | None = None) -> list[str]:
+          tau: float | None = None, gate: float | None = None) -> list[str]:
     """What `build` with these arguments would change in out/<model>, rendered in memory and
     compared byte for byte (line endings as written: a checkout's CRLF is not a change, as for
     `build`): the differing, missing ("missing: f") and extra ("extra: f") files;
@@ -216,7 +216,7 @@ def check(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     raised before the derivation. Nothing is written."""
     out_folder(out)
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor,
-                                 disturbance, tau)
+                                 disturbance, tau, gate)
     target = Path(out) / m.name
     if not target.is_dir():
         raise BuildError(f"{target}: missing (run `{opts.command(_as_passed(spec, m), m.ts, str(out))}`)")
@@ -260,7 +260,7 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
           ts: float | None = None, singular_rtol: float = 1e-6, force: bool = False,
           max_seconds: float | None = None, max_memory: float | None = None,
           compile_check: bool = True, predictor: str | None = None, disturbance: str | None = None,
-          tau: float | None = None) -> GeneratedModule:
+          tau: float | None = None, gate: float | None = None) -> GeneratedModule:
     """Generate the C module of a model (a built-in name, a .toml path or a Model) into out/<model>.
 
     Options and the output folder are checked before the derivation starts; the derivation runs
@@ -270,12 +270,13 @@ def build(spec: str | Path | model.Model, out: str | Path = "generated", *, prec
     toolkit did not write there. `predictor`: "held" (u held), "scheduled" (held, Φ(σ) at the
     master's broadcast flat outputs) or "brunovsky"; None: held, and brunovsky with retrodict (the only one it can use). `disturbance` ("random_walk",
     "gauss_markov" with its time constant `tau`, or "integrated_random_walk"): disturbance
-    states per chain (symbolic/disturbance.py)."""
+    states per chain (symbolic/disturbance.py). `gate`: the nodes refuse a measurement whose
+    innovation is more than that many standard deviations out (ERR_OUTLIER); None: no gate."""
     out_folder(out)
     from dfeif_codegen.paths import writable_dir
     writable_dir(out, "--out")
     m, opts = _model_and_options(spec, precision, max_lag, nodes, oosm, fusion, ts, singular_rtol, predictor,
-                                 disturbance, tau)
+                                 disturbance, tau, gate)
     check_target(Path(out), m.name, force)
     files = budget.bounded(functools.partial(generate, model_arg=model_argument(spec, m)), (m, opts),
                            max_seconds, max_memory, f"deriving {m.source}")

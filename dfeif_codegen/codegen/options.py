@@ -50,6 +50,7 @@ class Options:
     predictor: str | None = None  # u held, or (None) the default (held; brunovsky with retrodict)
     disturbance: str | None = None  # disturbance states per chain: one of symbolic/disturbance.KINDS
     tau: float | None = None        # the Gauss-Markov time constant [s]
+    gate: float | None = None       # innovation gate [standard deviations]; None: every measurement is used
 
     def __post_init__(self) -> None:
         ts = self.ts
@@ -59,6 +60,11 @@ class Options:
         if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < 1:
             raise BuildError(f"--singular-rtol must be a number in [0, 1), got {rtol!r}")
         object.__setattr__(self, "singular_rtol", float(rtol))
+        gate = self.gate
+        if gate is not None:
+            if isinstance(gate, bool) or not isinstance(gate, (int, float)) or not math.isfinite(gate) or gate <= 0:
+                raise BuildError(f"--gate must be a number of standard deviations > 0, got {gate!r}")
+            object.__setattr__(self, "gate", float(gate))
         object.__setattr__(self, "ts", float(ts))
         implicit = self.predictor is None
         object.__setattr__(self, "predictor", for_method(self.predictor, self.oosm))
@@ -110,7 +116,8 @@ class Options:
         """The `codegen build` options that differ from the defaults (the model's Ts among
         them): what a file's banner tells a user to regenerate it with."""
         default, out = Options(ts=model_ts), []
-        for name in ("precision", "max_lag", "nodes", "oosm", "fusion", "ts", "singular_rtol", "disturbance", "tau"):
+        for name in ("precision", "max_lag", "nodes", "oosm", "fusion", "ts", "singular_rtol", "disturbance", "tau",
+                     "gate"):
             value = getattr(self, name)
             if value is not None and value != getattr(default, name):
                 out.append(f"--{name.replace('_', '-')} {_number(value) if isinstance(value, float) else value}")

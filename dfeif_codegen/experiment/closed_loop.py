@@ -122,6 +122,8 @@ class Config:
     # what the comparison's "offsets" filter estimates (reference/offsets.py), None: no such
     # filter asked for; out of repr (sweep.run_id adds it for that filter's runs)
     offsets: Offsets | None = field(default=None, repr=False)
+    # the nodes' innovation gate [standard deviations] (the C's --gate; 0: none); out of repr as above
+    gate: float = field(default=0.0, repr=False)
 
 
 @dataclass
@@ -150,7 +152,7 @@ def replay_recording(rec: Recording, dtype=np.float64, inputs=None, right_first:
     flat = _flat(rec.model)
     bank = FilterBank(flat, rec.ts, rec.q, rec.R, rec.node_x0, rec.node_P0, rec.master_x0, rec.master_P0,
                       rec.gains, rec.max_lag, rec.oosm, rec.fusion, dtype, rec.predictor,
-                      Disturbance.from_json(rec.disturbance), right_first)
+                      Disturbance.from_json(rec.disturbance), right_first, gate=rec.gate or None)
     K = rec.ref.shape[0]
     out = _Outputs(rec.nodes, K, rec.n, rec.m)
     late_at = np.searchsorted(rec.late_step, np.arange(K + 1))
@@ -251,7 +253,7 @@ class Setup:
     def bank(self) -> "FilterBank":
         return FilterBank(self.flat, self.ts, self.q, self.R, self.node_x0, self.node_P0, self.x_hat0, self.P0,
                           self.gains, self.cfg.max_lag, self.oosm, self.cfg.fusion, predictor=self.cfg.predictor,
-                          disturbance=self.cfg.disturbance)
+                          disturbance=self.cfg.disturbance, gate=self.cfg.gate or None)
 
 
 def prepare(cfg: Config) -> Setup:
@@ -339,7 +341,8 @@ def finish(s: Setup, x_true, zeta, frames, node_x, node_P, x, P, u, v, applied, 
         late_z=frames[late_node, late_step - late_lag].reshape(-1, m),
         pkt_step=pk, pkt_node=pn, pkt_src=s.net.source.T[pk, pn],
         late_applied=applied, node_x=node_x, node_P=node_P, x=x, P=P, u=u, v=v,
-        disturbance="" if cfg.disturbance is None else cfg.disturbance.to_json(), heads=tuple(flat.heads))
+        disturbance="" if cfg.disturbance is None else cfg.disturbance.to_json(), heads=tuple(flat.heads),
+        gate=cfg.gate)
     result = Result(cfg, s.t, zeta, x_true, s.net.lag.copy(), rec, counters)
     result.metrics = metrics(result)
     return result

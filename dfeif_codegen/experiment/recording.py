@@ -67,6 +67,7 @@ class Recording:
     v: np.ndarray
     disturbance: str = ""
     heads: tuple = ()     # the flat outputs' entries of x (the scheduled predictor's σ = x[heads])
+    gate: float = 0.0     # the nodes' innovation gate [standard deviations]; 0: none (the C's --gate)
 
     def save(self, path) -> None:
         np.savez(path, **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
@@ -95,6 +96,7 @@ class Recording:
         for name in ("n", "m", "nodes", "max_lag", "seed"):
             values[name] = int(values[name])
         values["ts"] = float(values["ts"])
+        values["gate"] = float(values.get("gate", 0.0))
         return cls(**values)
 
 
@@ -102,17 +104,19 @@ class FilterBank:
     """Nodes, master and controller, stepped exactly as the protocol says."""
 
     def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None, right_first: bool = False):
+                 dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None, right_first: bool = False,
+                 gate: float | None = None):
         """`disturbance`: the filters' states are extended by its states (their x0, P0 here
         are the canonical ones; the disturbances start at 0 with their initial spread); what
         `step` returns stays the canonical part, what the controller and the metrics read.
         `right_first`: every filter's covariance products associated the other way
-        (predictor.Brunovsky.right_first), the second double implementation."""
+        (predictor.Brunovsky.right_first), the second double implementation. `gate`: the
+        nodes' innovation gate (NodeFilter)."""
         m, self.n, self.m = flat.m, flat.n, flat.m
         node_x0, node_P0 = zip(*[augment(x, P, disturbance, m) for x, P in zip(node_x0, node_P0)])
         master_x0, master_P0 = augment(master_x0, master_P0, disturbance, m)
         self.nodes = [NodeFilter(flat, ts, q, R[i], node_x0[i], node_P0[i], max_lag=max_lag, oosm=oosm,
-                                 dtype=dtype, predictor=predictor, disturbance=disturbance)
+                                 dtype=dtype, predictor=predictor, disturbance=disturbance, gate=gate)
                       for i in range(len(R))]
         self.master = Master(flat, ts, q, master_x0, master_P0, len(R), rule=fusion, max_lag=max_lag,
                              predictor=predictor, disturbance=disturbance, dtype=dtype)

@@ -18,7 +18,7 @@ import numpy as np
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.linalg import SingularMatrixError, cholesky, spd_solve, wrap
 
-COUNTERS = ("updates", "drops", "late_applied", "late_rejected")
+COUNTERS = ("updates", "drops", "late_applied", "late_rejected", "outliers")
 
 
 @dataclass
@@ -75,19 +75,21 @@ class NodeFilter:
 
     def __init__(self, flat, ts: float, q, R, x0, P0, max_lag: int = 32, oosm: str = "replay",
                  dtype=np.float64, predictor: str = predictors.DEFAULT, disturbance=None,
-                 mid_run: bool = False):
+                 mid_run: bool = False, gate: float | None = None):
         """`dtype` is the precision of every stored value and operation: float64 for the
         reference; float32 gives a second single-precision implementation (numpy and LAPACK
         instead of the generated C), to tell the method's conditioning from the C's rounding
         (the held mean instruction by instruction in float32: numeric.SinglePrecision). `mid_run`: the node
         starts later than step 0 with the prior of step 0 (a restart; the C's node_mid_run):
-        late frames of steps before its first measurement are refused (`update_delayed`)."""
+        late frames of steps before its first measurement are refused (`update_delayed`).
+        `gate`: the innovation gate in standard deviations (the C's --gate; None: none)."""
         if oosm not in ("replay", "retrodict"):
             raise ValueError(f"oosm must be 'replay' or 'retrodict', not {oosm!r}")
         predictors.check(predictor, oosm, disturbance)
         if max_lag < 1:
             raise ValueError("max_lag must be at least 1")
         self.flat, self.ts, self.q, self.oosm, self.max_lag = flat, ts, q, oosm, max_lag
+        self.gate = None if gate is None else float(gate)
         self.dtype = np.dtype(dtype)
         self.predictor = predictors.make(predictor, flat, ts, q, self.dtype, disturbance)
         self.A, self.Q = self.predictor.Phi, self.predictor.Q
@@ -97,23 +99,23 @@ class NodeFilter:
         self.heads = np.array(flat.heads)
         self.angle = np.array([c.angle for c in flat.chains])
         self._head_block = np.ix_(self.heads, self.heads)   # hot path: index arrays made once
-        self.k = 0
-        self.x = np.array(x0, dtype=self.dtype)
-        self.P = np.array(P0, dtype=self.dtype)
+        self.k, self._updated = 0, False
+        self.x, self.P = np.array(x0, dtype=self.dtype), np.array(P0, dtype=self.dtype)
         self.x_pred, self.P_pred = self.x, self.P
         self.counters = dict.fromkeys(COUNTERS, 0)
-        self._ring: list[_Slot | None] = [None] * (max_lag + 1)
-        self._ring[0] = _Slot(self.x, self.P)
-        self._updated = False
+        self._ring: list[_Slot | None] = [_Slot(self.x, self.P)] + [None] * max_lag
         self.first: int | None = None if mid_run else 0   # the first step a late frame may be of
 
     # protocol ---------------------------------------------------------------------------------
-    def update(self, z, gamma: bool) -> None:
+    def update(self, z, gamma: bool) -> bool:
         """The on-time update of step k (`gamma` False: the measurement was dropped or is late;
-        `z` is then ignored and may be None)."""
+        `z` is then ignored and may be None). False if the innovation gate refused z: the step
+        then goes on without it, as the C's caller does after ERR_OUTLIER."""
         if self._updated:
             raise RuntimeError(f"update called twice at step {self.k}")
         slot = self._slot(self.k)
+        if gamma and self._outlier(slot.x_prior, slot.P_prior, self._z(z)):
+            gamma = False
         slot.gamma = bool(gamma)
         slot.z = self._z(z) if gamma else np.full(self.flat.m, np.nan, dtype=self.dtype)
         self.x, self.P = self._correct(slot)
@@ -121,6 +123,7 @@ class NodeFilter:
         if gamma and self.first is None:
             self.first = self.k
         self._updated = True
+        return bool(gamma)
 
     def update_delayed(self, z, lag: int) -> bool:
         """Apply the measurement taken at step k - lag. False (and counted) if it is outside the
@@ -140,14 +143,19 @@ class NodeFilter:
             return False
         slot = self._slot(self.k - lag)
         if self.oosm == "replay":
+            if self._outlier(slot.x_prior, slot.P_prior, self._z(z)):
+                return False
             slot.z, slot.gamma = self._z(z), True
             self._replay(self.k - lag)
         else:
             try:
-                self.x, self.P = self._retrodict(lag, self._z(z))
+                x, P, e, W = self._retrodict(lag, self._z(z))
             except SingularMatrixError:   # a stale history made W or P* indefinite: reject
                 self.counters["late_rejected"] += 1
                 return False
+            if self._refused(e, W):
+                return False
+            self.x, self.P = x, P
             slot.z, slot.gamma = self._z(z), True
         self.counters["late_applied"] += 1
         return True
@@ -174,6 +182,17 @@ class NodeFilter:
 
     def _z(self, z) -> np.ndarray:
         return np.atleast_1d(np.asarray(z, dtype=self.dtype)).reshape(self.flat.m)
+
+    def _outlier(self, x_prior, P_prior, z) -> bool:
+        """Whether the gate refuses z at a step with this prior (counted)."""
+        return self.gate is not None and self._refused(wrap(z - x_prior[self.heads], self.angle),
+                                                       P_prior[self._head_block] + self.R)
+
+    def _refused(self, e, S) -> bool:
+        """e' S^-1 e > gate^2, as the C tests it (a NaN passes: the update then fails on it), counted."""
+        out = self.gate is not None and float(e @ spd_solve(S, e)) > self.gate ** 2
+        self.counters["outliers"] += int(out)
+        return out
 
     def _propagate(self, x, P, v):
         return self.predictor.mean(x, v), self.predictor.covariance(P, v)
@@ -202,10 +221,11 @@ class NodeFilter:
                 nxt.x_prior, nxt.P_prior = self._propagate(x, P, slot.v)
         self.x, self.P = x, P
 
-    def _retrodict(self, N: int, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _retrodict(self, N: int, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Xia et al.'s one-shot update (docs/mathematics.md section 4) by the O(N) backward recursion
         of algorithms.md: the corrected (x, P). Only steps updated in sequence (nonzero K)
-        contribute a term. Raises SingularMatrixError if W or the corrected P is indefinite."""
+        contribute a term, and the innovation and its covariance W (the gate's test). Raises
+        SingularMatrixError if W or the corrected P is indefinite."""
         A, Q, h, n, k, dt = self.A, self.Q, self.heads, self.flat.n, self.k, self.dtype
         eye = np.eye(n, dtype=dt)
 
@@ -246,4 +266,5 @@ class NodeFilter:
         P_star = self.P - M @ W @ M.T
         P_star = (P_star + P_star.T) / 2          # rounding makes it asymmetric; see algorithms.md
         cholesky(P_star)                           # raises if P* lost definiteness
-        return self.x + M @ wrap(z - x_back[h], self.angle), P_star
+        e = wrap(z - x_back[h], self.angle)
+        return self.x + M @ e, P_star, e, W

@@ -151,6 +151,8 @@ typedef struct {
     uint32_t late_applied;
     /** late measurements refused: lag out of window or duplicate */
     uint32_t late_rejected;
+    /** measurements, on time or late, the innovation gate refused (0 without --gate) */
+    uint32_t outliers;
 } dc_motor_link_health;
 
 /** reals of a packed symmetric NX x NX matrix: its upper triangle, column by column */
@@ -279,7 +281,9 @@ int dc_motor_link_node_init(dc_motor_link_node* node, const dc_motor_link_real x
  * step it starts at): late frames of steps before its first measurement are then refused
  * (ERR_LAG). ERR_SEQUENCE after the first update. */
 int dc_motor_link_node_mid_run(dc_motor_link_node* node);
-/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
+/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step:
+ * after an error the step is not updated, and the caller may call again (gamma = 0 to go on
+ * without the measurement). */
 int dc_motor_link_node_update(dc_motor_link_node* node,
                               const dc_motor_link_real z[DC_MOTOR_LINK_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */

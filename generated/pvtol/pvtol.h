@@ -142,6 +142,8 @@ typedef struct {
     uint32_t late_applied;
     /** late measurements refused: lag out of window or duplicate */
     uint32_t late_rejected;
+    /** measurements, on time or late, the innovation gate refused (0 without --gate) */
+    uint32_t outliers;
 } pvtol_health;
 
 /** reals of a packed symmetric NX x NX matrix: its upper triangle, column by column */
@@ -268,7 +270,9 @@ int pvtol_node_init(pvtol_node* node, const pvtol_real x0[PVTOL_NX], const pvtol
  * step it starts at): late frames of steps before its first measurement are then refused
  * (ERR_LAG). ERR_SEQUENCE after the first update. */
 int pvtol_node_mid_run(pvtol_node* node);
-/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
+/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step:
+ * after an error the step is not updated, and the caller may call again (gamma = 0 to go on
+ * without the measurement). */
 int pvtol_node_update(pvtol_node* node, const pvtol_real z[PVTOL_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int pvtol_node_update_delayed(pvtol_node* node, const pvtol_real z[PVTOL_NY], int32_t lag);

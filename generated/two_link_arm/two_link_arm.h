@@ -157,6 +157,8 @@ typedef struct {
     uint32_t late_applied;
     /** late measurements refused: lag out of window or duplicate */
     uint32_t late_rejected;
+    /** measurements, on time or late, the innovation gate refused (0 without --gate) */
+    uint32_t outliers;
 } two_link_arm_health;
 
 /** reals of a packed symmetric NX x NX matrix: its upper triangle, column by column */
@@ -285,7 +287,9 @@ int two_link_arm_node_init(two_link_arm_node* node, const two_link_arm_real x0[T
  * step it starts at): late frames of steps before its first measurement are then refused
  * (ERR_LAG). ERR_SEQUENCE after the first update. */
 int two_link_arm_node_mid_run(two_link_arm_node* node);
-/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
+/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step:
+ * after an error the step is not updated, and the caller may call again (gamma = 0 to go on
+ * without the measurement). */
 int two_link_arm_node_update(two_link_arm_node* node, const two_link_arm_real z[TWO_LINK_ARM_NY],
                              int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */

@@ -135,6 +135,8 @@ typedef struct {
     uint32_t late_applied;
     /** late measurements refused: lag out of window or duplicate */
     uint32_t late_rejected;
+    /** measurements, on time or late, the innovation gate refused (0 without --gate) */
+    uint32_t outliers;
 } unicycle_health;
 
 /** reals of a packed symmetric NX x NX matrix: its upper triangle, column by column */
@@ -262,7 +264,9 @@ int unicycle_node_init(unicycle_node* node, const unicycle_real x0[UNICYCLE_NX],
  * step it starts at): late frames of steps before its first measurement are then refused
  * (ERR_LAG). ERR_SEQUENCE after the first update. */
 int unicycle_node_mid_run(unicycle_node* node);
-/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step. */
+/** The measurement of step k (gamma = 1) or its loss (gamma = 0, z may be NULL). Once per step:
+ * after an error the step is not updated, and the caller may call again (gamma = 0 to go on
+ * without the measurement). */
 int unicycle_node_update(unicycle_node* node, const unicycle_real z[UNICYCLE_NY], int gamma);
 /** A measurement taken at step k - lag, after update() of step k (replay). */
 int unicycle_node_update_delayed(unicycle_node* node, const unicycle_real z[UNICYCLE_NY],

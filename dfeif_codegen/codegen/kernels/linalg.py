@@ -115,6 +115,12 @@ def right_divide(B: ca.SX, S: ca.SX) -> tuple[ca.SX, ca.SX]:
     return ca.mtimes(B, Si), piv
 
 
+def normalized_square(e: ca.SX, S: ca.SX) -> ca.SX:
+    """e' S^-1 e for SPD S: an innovation's squared Mahalanobis length (the innovation gate's test)."""
+    w, _ = right_divide(e.T, S)
+    return ca.mtimes(w, e)
+
+
 def trace_of_product(A: ca.SX, B: ca.SX) -> ca.SX:
     """tr(A B) = sum_ab A_ab B_ba: n^2 products instead of the n^3 of forming A B."""
     n = A.shape[0]

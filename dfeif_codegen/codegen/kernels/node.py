@@ -10,7 +10,7 @@ from __future__ import annotations
 import casadi as ca
 
 from dfeif_codegen.codegen.kernels.chains import Chains
-from dfeif_codegen.codegen.kernels.linalg import pack, spd_inverse_once, sym, symmetric, unpack
+from dfeif_codegen.codegen.kernels.linalg import normalized_square, pack, spd_inverse_once, sym, symmetric, unpack
 
 
 def predict(s: Chains, name: str) -> ca.Function:
@@ -30,14 +30,17 @@ def update(s: Chains, name: str) -> ca.Function:
     Prior and posterior are each one vector, x then P (the node stores them so): fewer
     arguments, all in registers on the host. The innovation e comes wrapped from the node,
     whose wrap skips the fmod in the common case (a branch, which straight-line
-    code cannot take)."""
+    code cannot take). With an innovation gate (`--gate`) it also returns e' S^-1 e, which the
+    node compares with the gate's square before it keeps the posterior."""
     n, m, npp = s.n, s.m, s.n * (s.n + 1) // 2
     prior, e, R = sym("prior", n + npp), sym("e", m), sym("R", m, m)
     Pm = unpack(prior[n:], n)
-    _, K, piv = s.gain(Pm, R, 1)
+    S, K, piv = s.gain(Pm, R, 1)
     x, P = prior[:n] + ca.mtimes(K, e), s.posterior(Pm, K, R)
-    return ca.Function(name, [prior, e, R], [ca.vertcat(x, pack(P)), piv], ["prior", "e", "R"],
-                       ["post", "piv"])
+    outs, names = [ca.vertcat(x, pack(P)), piv], ["post", "piv"]
+    if s.opts.gate is not None:
+        outs, names = outs + [normalized_square(e, S)], names + ["nis"]
+    return ca.Function(name, [prior, e, R], outs, ["prior", "e", "R"], names)
 
 
 def node_predict(s: Chains, name: str) -> ca.Function:

@@ -10,7 +10,8 @@ from __future__ import annotations
 import casadi as ca
 
 from dfeif_codegen.codegen.kernels.chains import Chains
-from dfeif_codegen.codegen.kernels.linalg import pack, right_divide, spd_inverse, sym, symmetric, unpack
+from dfeif_codegen.codegen.kernels.linalg import (normalized_square, pack, right_divide, spd_inverse, sym, symmetric,
+                                                  unpack)
 
 
 def retro_step(s: Chains, name: str) -> ca.Function:
@@ -70,10 +71,13 @@ def retro_finish(s: Chains, name: str) -> ca.Function:
     inner = ca.mtimes(ca.mtimes(Phi1, P), Phi1.T) + PhiPxw + PhiPxw.T + Qs
     W = s.head_cols(s.head_rows(inner)) + R
     Mg, piv = right_divide(s.head_cols(ca.mtimes(P, Phi1.T) + Pxw), W)
-    xs = x + ca.mtimes(Mg, s.wrap(z - s.head_rows(xr)))
+    e = s.wrap(z - s.head_rows(xr))
+    xs = x + ca.mtimes(Mg, e)
     Ps = P - ca.mtimes(ca.mtimes(Mg, W), Mg.T)
     Ps = (Ps + Ps.T) / 2          # symmetric again: see algorithms.md, retrodict
     _, pivP = spd_inverse(Ps)     # with a stale history P* can lose definiteness: reject then
-    return ca.Function(name, [N, x, Pp, PmNp, usedN, z, R, q, sw, sQ, sX, su], [xs, pack(Ps), piv, pivP],
-                       ["N", "x", "P", "PmN", "usedN", "z", "R", "q", "sw", "sQ", "sX", "su"],
-                       ["xs", "Ps", "piv", "pivP"])
+    outs, names = [xs, pack(Ps), piv, pivP], ["xs", "Ps", "piv", "pivP"]
+    if s.opts.gate is not None:   # the gate's test: the late innovation against its covariance W
+        outs, names = outs + [normalized_square(e, W)], names + ["nis"]
+    return ca.Function(name, [N, x, Pp, PmNp, usedN, z, R, q, sw, sQ, sX, su], outs,
+                       ["N", "x", "P", "PmN", "usedN", "z", "R", "q", "sw", "sQ", "sX", "su"], names)
