@@ -57,7 +57,8 @@ def build_key(cfg: ex.Config) -> tuple:
     ts = float(cfg.ts or flat.model.ts)
     oosm = cfg.method if cfg.method in ex.OOSM else "replay"
     dist = None if cfg.disturbance is None else (cfg.disturbance.kind, cfg.disturbance.tau)   # what the C bakes in
-    return (cfg.model, ts, int(cfg.substeps), len(cfg.sensor), int(cfg.max_lag), oosm, cfg.fusion, cfg.predictor, dist)
+    return (cfg.model, ts, int(cfg.substeps), len(cfg.sensor), int(cfg.max_lag), oosm, cfg.fusion, cfg.predictor, dist,
+            cfg.gate or None)
 
 
 def plant_source(flat, ts: float, substeps: int, prefix: str) -> tuple[str, int]:
@@ -104,12 +105,12 @@ def compile_loop(key: tuple) -> Compiled:
     from dfeif_codegen import __version__
     from dfeif_codegen.codegen import render
 
-    spec, ts, substeps, nodes, max_lag, oosm, fusion, predictor, dist = key
+    spec, ts, substeps, nodes, max_lag, oosm, fusion, predictor, dist, gate = key
     flat = ex._flat(spec)
     with tempfile.TemporaryDirectory(prefix="codegen-loop-") as tmp:
         work = Path(tmp)
         md = harness.build_model(spec, work / "model", "double", oosm, fusion, nodes, max_lag, ts, predictor,
-                                 None if dist is None else Disturbance(dist[0], (1.0,), dist[1]))
+                                 None if dist is None else Disturbance(dist[0], (1.0,), dist[1]), gate)
         harness.render_driver(md, work)
         plant, plant_w = plant_source(flat, ts, substeps, md.name)
         (work / f"{md.name}_plant.c").write_text(plant)

@@ -195,7 +195,7 @@ def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", re
     """One closed-loop run of a scenario (default the built-in paper one) with the Python reference
     (an experiment.Result). `row` indexes the scenario's delay grid; `uplink` (a network Link) makes
     node -> master packets late or lost; `sensor_drop` adds camera frame drops; `predictor` None:
-    held, brunovsky with retrodict; `gate`: the nodes' innovation gate (None: none)."""
+    held, brunovsky with retrodict; `gate`: the nodes' innovation gate (None: the scenario's)."""
     import dataclasses
 
     from dfeif_codegen.experiment import plan, scenario
@@ -203,7 +203,7 @@ def closed_loop(model: str, oosm: str = "replay", fusion: str = "difference", re
 
     sc = scenario.load(scenario_spec)
     cfg = plan.make_config(sc, model, nodes, max_lag, reference, sc.grid[row], oosm, fusion, seed, predictor)
-    changes: dict[str, Any] = {"gate": gate or 0.0}
+    changes: dict[str, Any] = {} if gate is None else {"gate": gate}
     if duration is not None:
         changes["duration"] = duration
         changes["metrics_from"] = min(cfg.metrics_from, duration / 2)
@@ -266,7 +266,8 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     told the settings and the scenario as soon as they are known. The derivations (the
     reference's and the build's) run under `max_seconds` CPU seconds and `max_memory` GB. A
     mismatch is in the result (`ok`, `check(result.errors)` raises it); bad input and missing
-    tools raise before any work. `gate`: the build's and the reference's innovation gate."""
+    tools raise before any work. `gate`: the build's and the reference's innovation gate (None:
+    the scenario's [filter] gate, if any)."""
     import tempfile
     from pathlib import Path
 
@@ -284,6 +285,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
     driver_io.recorded_inputs(inputs)
     sc = scenarios.load(scenario)
     nodes = len(sc.noise_scale) if nodes is None else nodes   # the scenario's [[nodes]], as simulate's
+    gate = sc.gate or None if gate is None else gate          # the scenario's [filter] gate, unless given
     sc.check_predictor(predictor, oosm)
     if sc.disturbance is not None:    # the C carries the scenario's disturbance states
         Options(ts=1.0, oosm=oosm, fusion=fusion, predictor=predictor, disturbance=sc.disturbance.kind,

@@ -124,6 +124,8 @@ class Config:
     offsets: Offsets | None = field(default=None, repr=False)
     # the nodes' innovation gate [standard deviations] (the C's --gate; 0: none); out of repr as above
     gate: float = field(default=0.0, repr=False)
+    # camera outliers per node: (fraction of frames, offset in camera standard deviations); (): none
+    outliers: tuple = field(default=(), repr=False)
 
 
 @dataclass
@@ -273,7 +275,7 @@ def prepare(cfg: Config) -> Setup:
 
     net_rng, noise_rng, init_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(3))
     net = Network(list(cfg.sensor), list(cfg.uplink), K, net_rng)
-    noise = [noise_rng.standard_normal((K, len(c.channels))) for c in cams]
+    noise = outlying([noise_rng.standard_normal((K, len(c.channels))) for c in cams], cfg)
     P0 = initial_covariance(flat, cfg.p0_std)
     x_hat0 = state_of_flags(flat, ref[0])     # everyone starts at the reference's start
     zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
@@ -295,6 +297,21 @@ def prepare(cfg: Config) -> Setup:
     plant_p = cfg.plant_error.values(model, cfg.seed)
     return Setup(cfg, flat, ts, K, t, ref, net, cams, noise, flat.phi_inv_num(zeta0, plant_p), q, gains, R, oosm,
                  np.tile(x_hat0, (M, 1)), np.tile(P0, (M, 1, 1)), x_hat0, P0, upd, late, plant_p)
+
+
+def outlying(noise: list, cfg: Config) -> list:
+    """The cameras' standard-normal noise with `cfg.outliers` added: each node's frames hit with
+    probability `fraction` move by `size` standard deviations, a random sign per channel (a
+    tracker locked onto the wrong feature). Drawn from a stream of their own, so the noise, the
+    network and the initial state of a run without outliers stay as they were."""
+    if not cfg.outliers:
+        return noise
+    rng = np.random.default_rng(np.random.SeedSequence(cfg.seed).spawn(4)[3])
+    out = []
+    for nz, (fraction, size) in zip(noise, cfg.outliers):
+        hit = rng.random(nz.shape[0]) < fraction
+        out.append(nz + hit[:, None] * size * rng.choice([-1.0, 1.0], nz.shape))
+    return out
 
 
 def run(cfg: Config) -> Result:

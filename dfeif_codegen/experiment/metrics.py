@@ -86,6 +86,7 @@ def metrics(res: Result) -> dict:
         "rmse_est_tracking_master": np.sqrt(np.mean(_errors(flat, rec.x[k0:], desired) ** 2, axis=0)),
         "late_applied": sum(c["late_applied"] for c in res.counters),
         "late_rejected": sum(c["late_rejected"] for c in res.counters),
+        "outliers": sum(c.get("outliers", 0) for c in res.counters),   # frames the gate refused
         "saturated_steps": saturated_steps(flat, rec.u),
     }
 

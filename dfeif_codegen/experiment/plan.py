@@ -46,8 +46,14 @@ def make_config(sc, model: str, nodes: int, max_lag: int, ref: str, row, method:
         method=method, fusion=fusion, seed=seed, metrics_from=sc.metrics_from, plant_error=sc.model_error,
         predictor=predictor, q_brunovsky=tuple(sc.q_for("brunovsky")),
         q_ekf=tuple(sc.q_ekf or ()), q_scheduled=tuple(sc.q_scheduled or ()), disturbance=sc.disturbance,
-        offsets=sc.offsets,
+        offsets=sc.offsets, gate=sc.gate, outliers=_outliers(sc, nodes),
         trajectory=sc.trajectory if ref == ex.TRAJECTORY else None)
+
+
+def _outliers(sc, nodes: int) -> tuple:
+    """Each node's (fraction, size) of camera outliers, () when no node has any."""
+    out = tuple(_pick(sc.outliers, i) for i in range(nodes))
+    return out if any(f > 0 for f, _ in out) else ()
 
 
 def _canonical(cfg: ex.Config) -> ex.Config:

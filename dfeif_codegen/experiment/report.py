@@ -206,6 +206,9 @@ class _Printer:
         late = [f"{s['late_applied']['mean']:.0f}/{s['late_rejected']['mean']:.0f}" if s.get("runs") else "-"
                 for s in summaries]
         print("  late frames applied/rejected per run (all nodes): " + ", ".join(late), file=self.out)
+        if any(s.get("outliers", {}).get("mean") for s in summaries):
+            refused = [f"{s['outliers']['mean']:.1f}" if "outliers" in s else "-" for s in summaries]
+            print("  frames the innovation gate refused, per run (all nodes): " + ", ".join(refused), file=self.out)
         sat = [f"{s['saturated_steps']['mean']:.1f}" if "saturated_steps" in s else "-" for s in summaries]
         print("  steps with an input clamped to its declared limits, per run: " + ", ".join(sat) + "\n",
               file=self.out)

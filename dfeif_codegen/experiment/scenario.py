@@ -30,11 +30,11 @@ BUILTIN = ("paper", "unicycle", "pvtol")
 _ALLOWED = {
     "scenario": {"name", "description", "duration", "ts", "runs", "substeps", "metrics_from", "references",
                  "oosm", "fusion", "baselines"},
-    "filter": {"q", "q_brunovsky", "q_ekf", "q_scheduled", "p0_std", "initial_error"},
+    "filter": {"q", "q_brunovsky", "q_ekf", "q_scheduled", "p0_std", "initial_error", "gate"},
     "control": {"poles"},
     "reference": {"amplitude", "period", "offset", "harmonics", "phase", "cycles", "tracking_bound", "file",
                   "smoothing"},
-    "nodes": {"noise_scale", "noise_std"},
+    "nodes": {"noise_scale", "noise_std", "outliers", "outlier_size"},
     "uplink": {"p", "d", "p_drop"},
     "grid": {"d", "p", "p_drop"},
     "model_error": model_error.KEYS,
@@ -90,6 +90,10 @@ class Scenario:
     tracking_bound: list[float] = field(default_factory=list)   # default: twice the amplitude
     noise_scale: list[float] = field(default_factory=lambda: [1.0, 1.0])
     noise_std: list[list[float] | None] = field(default_factory=lambda: [None, None])
+    # per node: the fraction of its camera's frames that are outliers, and their offset in camera
+    # standard deviations (a tracker on the wrong feature); the nodes' innovation gate, 0: none
+    outliers: list[tuple[float, float]] = field(default_factory=lambda: [(0.0, 0.0), (0.0, 0.0)])
+    gate: float = 0.0
     uplink: Link = field(default_factory=Link)
     grid: list[Row] = field(default_factory=lambda: [Row([0, 0], 0.0)])
     model_error: model_error.ParamError = model_error.NONE    # the plant's parameters against the model's
@@ -268,6 +272,8 @@ def _read_settings(r: Reader, data: dict) -> None:
     if "q_scheduled" in filt:
         sc.q_scheduled = r.numbers(filt, "filter", "q_scheduled", [])
     sc.p0_std = r.stds(filt, "filter", "p0_std", sc.p0_std)
+    if "gate" in filt:
+        sc.gate = r.number(filt, "filter", "gate", 0.0, positive=True, allow_zero=False)
     sc.initial_error = filt.get("initial_error", sc.initial_error)
     if not isinstance(sc.initial_error, bool):
         r.fail("filter.initial_error", "must be true or false")
@@ -314,11 +320,16 @@ def _read_network(r: Reader, data: dict) -> None:
     if "nodes" in data:
         if not 1 <= len(data["nodes"]) <= NODES_LIMIT:
             r.fail("nodes", f"needs 1 to {NODES_LIMIT} [[nodes]] entries (a module's limit), got {len(data['nodes'])}")
-        sc.noise_scale, sc.noise_std = [], []
+        sc.noise_scale, sc.noise_std, sc.outliers = [], [], []
         for i, node in enumerate(data["nodes"]):
             at = f"nodes#{i}"
             sc.noise_scale.append(r.std(node, at, "noise_scale", 1.0))
             sc.noise_std.append(r.stds(node, at, "noise_std", None) if "noise_std" in node else None)
+            fraction = r.number(node, at, "outliers", 0.0, positive=True)
+            if fraction >= 1:
+                r.fail(f"{at}.outliers", f"must be a fraction of the frames in [0, 1), got {fraction!r}")
+            size = r.number(node, at, "outlier_size", 30.0, positive=True, allow_zero=False)
+            sc.outliers.append((fraction, size if fraction > 0 else 0.0))
     if "uplink" in data:
         sc.uplink = r.link(data["uplink"], "uplink")
     if "grid" in data:

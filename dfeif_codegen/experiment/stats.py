@@ -48,7 +48,7 @@ def nees_band(n: int, runs: int) -> tuple[float, float]:
 
 METRICS = ("trace_nodes", "trace_master", "rmse_nodes", "rmse_master", "rmse_tracking",
            "rmse_est_tracking_nodes", "rmse_est_tracking_master", "late_applied", "late_rejected", "us_per_step",
-           "saturated_steps")
+           "saturated_steps", "outliers")
 
 
 def summarize(runs: list[dict], n: int) -> dict:

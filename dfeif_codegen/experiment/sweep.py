@@ -91,6 +91,8 @@ def run_id(cfg: ex.Config, engine: str, kind: str = "df", model: str = "") -> st
         key = (*key, cfg.disturbance)
     if cfg.trajectory is not None:      # the same: path, content digest and smoothing of the CSV
         key = (*key, cfg.trajectory)
+    if cfg.gate or cfg.outliers:         # likewise
+        key = (*key, cfg.gate, cfg.outliers)
     if kind.split("-")[0] == "offsets":  # what that filter estimates
         key = (*key, cfg.offsets)
     return hashlib.sha256(repr(key).encode()).hexdigest()[:20]

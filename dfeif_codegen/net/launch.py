@@ -312,7 +312,7 @@ def launch(o: Options, work: Path, deadline: float | None = None, kept: bool = T
     cfg = make_config(o)
     s = session.setup(cfg)
     md = harness.build_model(o.model, work / "gen", o.precision, o.oosm, o.fusion, o.nodes, o.max_lag, cfg.ts,
-                             cfg.predictor, cfg.disturbance)
+                             cfg.predictor, cfg.disturbance, cfg.gate or None)
     progs = programs.build_programs(md, work / "programs")
     lay = wire.Layout.of_folder(md.path)
     ports = free_ports(3 + s.nodes)

@@ -73,7 +73,7 @@ def setup(cfg: ex.Config) -> Setup:
     ref = np.array([flags(refs, flat.degrees, tk) for tk in np.arange(K) * ts])
     net_rng, noise_rng, init_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(3))
     net = Network(list(cfg.sensor), list(cfg.uplink), K, net_rng)
-    noise = [noise_rng.standard_normal((K, len(c.channels))) for c in cams]
+    noise = ex.outlying([noise_rng.standard_normal((K, len(c.channels))) for c in cams], cfg)
     P0 = ex.initial_covariance(flat, cfg.p0_std)
     x_hat0 = ex.state_of_flags(flat, ref[0])
     zeta0 = x_hat0 + (np.linalg.cholesky(P0) @ init_rng.standard_normal(n) if cfg.initial_error else 0.0)
@@ -163,7 +163,7 @@ def recording(s: Setup, relay_log: list[dict], frames: np.ndarray, K: int) -> ex
         late_z=np.array([r[3] for r in late_rows]).reshape(-1, m),
         pkt_step=pk, pkt_node=pn, pkt_src=sources[pk, pn],
         late_applied=empty, node_x=empty, node_P=empty, x=empty, P=empty, u=empty, v=empty, heads=tuple(flat.heads),
-        disturbance="" if s.cfg.disturbance is None else s.cfg.disturbance.to_json())
+        disturbance="" if s.cfg.disturbance is None else s.cfg.disturbance.to_json(), gate=s.cfg.gate)
 
 
 def write_json(path: Path, data) -> None:
