@@ -383,8 +383,8 @@ def main(argv: list[str] | None = None) -> int:
     except CodegenError as exc:
         print(f"codegen {args.command}: error: {exc}", file=sys.stderr)
         return exc.exit_code
-    except KeyboardInterrupt:
-        print(f"codegen {args.command}: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:   # output.InterruptedAfterWrite says the build was written
+        print(f"codegen {args.command}: interrupted{' ' + str(exc) if str(exc) else ''}", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0

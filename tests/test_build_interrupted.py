@@ -105,8 +105,8 @@ os.rename = rename
 try:
     build_mod.build(model, out, precision="float", compile_check=False)
     print(json.dumps({"raised": False, "calls": calls}))
-except KeyboardInterrupt:
-    print(json.dumps({"raised": True, "calls": calls}))
+except KeyboardInterrupt as exc:
+    print(json.dumps({"raised": True, "calls": calls, "message": str(exc)}))
 """
 
 
@@ -122,6 +122,7 @@ def test_sigint_between_the_renames_keeps_the_output(tmp_path):
     got = json.loads(proc.stdout.strip().splitlines()[-1])
     calls = got["calls"]
     assert got["raised"], calls
+    assert "the new build is complete" in got["message"]   # not a bare "interrupted" over a whole build
     assert len(calls) == 2 and calls[0][0] == MODEL and calls[1][1] == MODEL
     assert "typedef float" in (tmp_path / MODEL / f"{MODEL}.h").read_text()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []

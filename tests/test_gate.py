@@ -168,3 +168,21 @@ def test_both_engines_refuse_the_same_outliers(host_cc, method):
     clean, ungated = ex.run(_loop(method=method, outliers=())), ex.run(_loop(method=method, gate=0.0))
     rmse = lambda r: r.metrics["rmse_master"][0]  # noqa: E731
     assert rmse(py) < 1.5 * rmse(clean) and rmse(ungated) > 2 * rmse(clean)
+
+
+def test_the_comparisons_filters_gate_their_frames_as_the_nodes_do():
+    """`simulate --filters` on a scenario with a gate: every filter of the comparison refuses
+    frames with the same test. The derivative-free filter through the comparison's driver is the
+    closed loop's own (the same frames refused, the same master estimate to 1e-9: only sums in
+    another order differ); the EKF and UKF refuse frames too, and gated they are at least twice as
+    accurate as ungated on the same outliers."""
+    from dfeif_codegen.experiment import compare
+
+    res, free = ex.run(_loop()), ex.run(_loop(gate=0.0))
+    df = compare.evaluate(res, "df")
+    assert df["outliers"] == res.metrics["outliers"] > 0
+    np.testing.assert_allclose(df["rmse_master"], res.metrics["rmse_master"], rtol=1e-9)
+    for kind in ("ekf", "ukf"):
+        gated, ungated = compare.evaluate(res, kind), compare.evaluate(free, kind)
+        assert gated["outliers"] > 0 and ungated["outliers"] == 0
+        assert gated["rmse_master"][0] < ungated["rmse_master"][0] / 2

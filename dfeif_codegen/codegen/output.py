@@ -159,6 +159,11 @@ def _keep_theirs(target: Path, tmp: Path, files: dict[str, str]) -> None:
             shutil.copy2(p, tmp / p.name, follow_symlinks=False)
 
 
+class InterruptedAfterWrite(KeyboardInterrupt):
+    """A Ctrl-C held off during the output's swap and delivered once the new folder was in
+    place: the command stops, but what it wrote is whole (the message says so)."""
+
+
 def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool = False,
                  check=None) -> Path:
     """Write files into out_root/name by rendering into a sibling temp folder and renaming.
@@ -188,10 +193,13 @@ def write_atomic(out_root: Path, name: str, files: dict[str, str], force: bool =
     except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
         raise BuildError(f"{out_root / name}: cannot write output ({exc.strerror})") from None
-    except BaseException:       # an interrupt: delivered after the swap, or before it
+    except BaseException as exc:       # an interrupt: delivered after the swap, or before it
+        written = not tmp.exists() and target.is_dir()
         shutil.rmtree(tmp, ignore_errors=True)
         if old is not None and old.is_dir() and not old.is_symlink() and target.is_dir():
             shutil.rmtree(old, ignore_errors=True)
+        if written and isinstance(exc, KeyboardInterrupt):   # held during the swap: the build is whole
+            raise InterruptedAfterWrite(f"after {target} was written (the new build is complete)") from None
         raise
     if old is not None:
         if old.is_dir() and not old.is_symlink():

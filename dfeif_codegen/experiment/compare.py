@@ -129,7 +129,8 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     canonical coordinates, (M, K, n), (M, K, n, n), (K, n), (K, n, n), and the CPU seconds of the
     filter loop alone (process time; the maps to canonical coordinates after it are not counted).
     "df" runs the derivative-free filter itself through the same driver (CanonicalModel). `q`:
-    the filter's process-noise densities when not the recording's (the chapter's filter's own)."""
+    the filter's process-noise densities when not the recording's (the chapter's filter's own).
+    Every filter's nodes gate their frames as the recording's did (`rec.gate`)."""
     q = tuple(np.asarray(rec.q if q is None or len(q) == 0 else ex._per_chain(q, rec.m), float))
     kind = own_kind(kind, rec.predictor)
     filt = filter_of(rec.model, float(rec.ts), q, substeps, kind, compiled,
@@ -141,7 +142,7 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
     P0 = J0 @ rec.master_P0 @ J0.T
     if hasattr(pm, "start"):
         x0, P0 = pm.start(x0, P0)
-    nodes = [ReplayNode(filt, rec.R[i], x0, P0, rec.max_lag) for i in range(rec.nodes)]
+    nodes = [ReplayNode(filt, rec.R[i], x0, P0, rec.max_lag, rec.gate or None) for i in range(rec.nodes)]
     master = PhysicalMaster(filt, x0, P0)
     K, n = rec.ref.shape[0], pm.n
     late_at = np.searchsorted(rec.late_step, np.arange(K + 1))
@@ -168,7 +169,7 @@ def run_on_recording(rec: ex.Recording, kind: str, substeps: int = 10, compiled:
         master.predict(w)
     seconds = time.process_time() - started
     out = {"seconds": seconds, "rejected": sum(nd.rejected for nd in nodes),
-           "applied": sum(nd.applied for nd in nodes)}
+           "applied": sum(nd.applied for nd in nodes), "outliers": sum(nd.outliers for nd in nodes)}
     for xk, Pk in (("node_x", "node_P"), ("x", "P")):
         xs, Ps = phys[xk].reshape(-1, n), phys[Pk].reshape(-1, n, n)
         nc = rec.n           # the canonical state's (a filter's own may be longer: disturbances)
@@ -194,7 +195,7 @@ def evaluate(res: ex.Result, kind: str, compiled: bool = False, disturbance=None
     except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return {"failed": f"{kind}: {type(exc).__name__}: {exc}"}
     mine = dataclasses.replace(rec, node_x=out["node_x"], node_P=out["node_P"], x=out["x"], P=out["P"])
-    counters = [{"late_applied": out["applied"], "late_rejected": out["rejected"]}]
+    counters = [{"late_applied": out["applied"], "late_rejected": out["rejected"], "outliers": out["outliers"]}]
     with np.errstate(all="ignore"):       # a diverged filter's NEES is inf or nan: judged below
         m = ex.metrics(dataclasses.replace(res, recording=mine, counters=counters))
     m["us_per_step"] = 1e6 * out["seconds"] / len(res.t)

@@ -18,6 +18,12 @@ class EKF(FusedFilter):
         F = ca.jacobian(xn, x)
         return xn, F @ P @ F.T + self.model.Qx_sx(x)
 
+    def innovation_sx(self, x, P, z, R):
+        """The innovation e and its covariance S (an innovation gate's test, FusedFilter.distance)."""
+        y = self.model.h_sx(x)
+        H = ca.jacobian(y, x)
+        return self.model.wrap_sx(z - y), H @ P @ H.T + R
+
     def update_sx(self, x, P, z, R):
         y = self.model.h_sx(x)
         H = ca.jacobian(y, x)

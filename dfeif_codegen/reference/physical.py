@@ -172,6 +172,16 @@ class FusedFilter:
     def update(self, x, P, z, R):
         return _unpack(self._update(x, np.asarray(P).T, z, np.asarray(R).T), self.model.n)
 
+    def distance(self, x, P, z, R) -> float:
+        """e' S^-1 e of a measurement z at the prior (x, P): an innovation gate's test (built on
+        first use, outside the counted operations: a gate is an option of every filter alike)."""
+        if not hasattr(self, "_distance"):
+            n, m = self.model.n, self.model.m
+            xs, Ps, zs, Rs = ca.SX.sym("x", n), ca.SX.sym("P", n, n), ca.SX.sym("z", m), ca.SX.sym("R", m, m)
+            e, S = self.innovation_sx(xs, Ps, zs, Rs)
+            self._distance = ca.Function("distance", [xs, Ps, zs, Rs], [e.T @ ca.solve(S, e)])
+        return float(self._distance(x, np.asarray(P), z, np.asarray(R)))
+
     def operations(self) -> dict:
         """Elementary operations of one predict and one update (CasADi's instruction count of the
         SX function, after common-subexpression elimination): a cost independent of the machine."""
@@ -183,19 +193,26 @@ class ReplayNode:
     frames arriving at this step, `predict` with the input applied. `filt` supplies
     `predict(x, P, u)` and `update(x, P, z, R)` (ekf.EKF or ukf.UKF)."""
 
-    def __init__(self, filt, R, x0, P0, max_lag: int = 32):
-        self.filt, self.max_lag = filt, max_lag
+    def __init__(self, filt, R, x0, P0, max_lag: int = 32, gate: float | None = None):
+        """`gate`: refuse a frame whose e' S^-1 e passes gate^2, as the derivative-free nodes do
+        (reference/node.py), on time and late (counted in `outliers`); None: no gate."""
+        self.filt, self.max_lag, self.gate = filt, max_lag, gate
         self.R = measurement_covariance(R, filt.model.m)
         self.k = 0
         self.x, self.P = np.array(x0, dtype=float), np.array(P0, dtype=float)
         self.x_pred, self.P_pred = self.x, self.P
-        self.applied = self.rejected = 0
+        self.applied = self.rejected = self.outliers = 0
         self._slots: dict[int, list] = {0: [self.x, self.P, None, None]}   # prior x, P, z, u
 
     def update(self, z, gamma: bool) -> None:
         slot = self._slots[self.k]
-        slot[2] = np.asarray(z, dtype=float) if gamma else None
+        slot[2] = np.asarray(z, dtype=float) if gamma and not self._outlier(slot, z) else None
         self.x, self.P = self._correct(slot[0], slot[1], slot[2])
+
+    def _outlier(self, slot, z) -> bool:
+        out = self.gate is not None and self.filt.distance(slot[0], slot[1], z, self.R) > self.gate ** 2
+        self.outliers += out
+        return out
 
     def update_delayed(self, frames) -> list[bool]:
         """`frames`: (z, lag) pairs arriving now; the same rejections as the derivative-free nodes."""
@@ -203,6 +220,9 @@ class ReplayNode:
         for z, lag in frames:
             j = self.k - int(lag)
             good = 1 <= lag <= self.max_lag and j >= 0 and self._slots[j][2] is None
+            if good and self._outlier(self._slots[j], z):   # refused: counted as an outlier only
+                ok.append(False)
+                continue
             if good:
                 self._slots[j][2] = np.asarray(z, dtype=float)
                 start = j if start is None else min(start, j)

@@ -38,13 +38,22 @@ class UKF(FusedFilter):
         mean, d = self._moments(Y, lambda mu: mu)
         return mean, self._cross(d, d) + self.model.Qx_sx(x)
 
-    def update_sx(self, x, P, z, R):
+    def _outputs(self, x, P):
+        """Sigma points, their outputs' mean (on the circle for angles) and deviations from it."""
         X = self._sigma(x, P)
         Z = [self.model.h_sx(c) for c in X]
         wrap = self.model.wrap_sx
         zm = Z[0] + sum((w * wrap(c - Z[0]) for w, c in zip(self.wm, Z)), ca.SX.zeros(Z[0].shape))
-        dZ = [wrap(c - zm) for c in Z]
+        return X, zm, [wrap(c - zm) for c in Z]
+
+    def innovation_sx(self, x, P, z, R):
+        """The innovation and its covariance (an innovation gate's test, FusedFilter.distance)."""
+        _, zm, dZ = self._outputs(x, P)
+        return self.model.wrap_sx(z - zm), self._cross(dZ, dZ) + R
+
+    def update_sx(self, x, P, z, R):
+        X, zm, dZ = self._outputs(x, P)
         dX = [c - x for c in X]
         S = self._cross(dZ, dZ) + R
         K = ca.solve(S, self._cross(dX, dZ).T).T
-        return x + K @ wrap(z - zm), P - K @ S @ K.T
+        return x + K @ self.model.wrap_sx(z - zm), P - K @ S @ K.T
