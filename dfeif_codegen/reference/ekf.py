@@ -18,17 +18,18 @@ class EKF(FusedFilter):
         F = ca.jacobian(xn, x)
         return xn, F @ P @ F.T + self.model.Qx_sx(x)
 
+    def _output(self, x):
+        y = self.model.h_sx(x)
+        return y, ca.jacobian(y, x)
+
     def innovation_sx(self, x, P, z, R):
         """The innovation e and its covariance S (an innovation gate's test, FusedFilter.distance)."""
-        y = self.model.h_sx(x)
-        H = ca.jacobian(y, x)
+        y, H = self._output(x)
         return self.model.wrap_sx(z - y), H @ P @ H.T + R
 
     def update_sx(self, x, P, z, R):
-        y = self.model.h_sx(x)
-        H = ca.jacobian(y, x)
-        e = self.model.wrap_sx(z - y)
-        S = H @ P @ H.T + R
+        _, H = self._output(x)
+        e, S = self.innovation_sx(x, P, z, R)
         K = ca.solve(S, H @ P).T
         L = ca.SX.eye(self.model.n) - K @ H
         return x + K @ e, L @ P @ L.T + K @ R @ K.T           # Joseph form
