@@ -296,11 +296,11 @@ def filter_bank(library: Library):
 
     class CFilterBank:
         def __init__(self, flat, ts, q, R, node_x0, node_P0, master_x0, master_P0, gains, max_lag, oosm, fusion,
-                     dtype=None, predictor=None, disturbance=None):
+                     dtype=None, predictor=None, disturbance=None, gate=None):
             del dtype, predictor   # the library's build fixed both (it predicts with <P>_PREDICTS_WITH_U's input)
             opts = library.model.options
             for key, want in (("oosm", oosm), ("fusion", fusion), ("max_lag", max_lag), ("nodes", len(R)),
-                              ("disturbance", None if disturbance is None else disturbance.kind)):
+                              ("disturbance", None if disturbance is None else disturbance.kind), ("gate", gate)):
                 if key in opts and opts[key] != want:
                     raise SetupError(f"the C was built with {key} = {opts[key]}, the run needs {want}")
             init = SimpleNamespace(nodes=len(R), n=flat.n, m=flat.m, ref=np.zeros((0, flat.n + flat.m)),
