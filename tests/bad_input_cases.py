@@ -233,7 +233,7 @@ def generated() -> dict:
         {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["s.toml:", "[disturbance]", "--predictor held"])
     c["network disturbance with retrodiction (its default predictor: Brunovsky)"] = (
         "scenario field", ["network", *S, "--oosm", "retrodict"],
-        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["s.toml:", "[disturbance]", "--predictor held"])
+        {"s.toml": SMALL + '\n[disturbance]\nkind = "random_walk"\nq = 1.0\n'}, ["s.toml:", "[disturbance]", "--oosm replay"])
     # --- parameter offsets of the comparison's `offsets` filter ---------------------------------
     for label, table, words in [("unknown parameter", 'params = ["R", "Rx"]', ["offsets.params", "Rx"]),
                                 ("zero std", 'params = ["R"]\nstd = 0', ["offsets.std", "> 0"]),
@@ -248,6 +248,9 @@ def generated() -> dict:
     c["build disturbance with the Brunovsky predictor"] = (
         "option: not a choice", ["build", "--disturbance", "random_walk", "--predictor", "brunovsky"], {},
         ["--disturbance", "--predictor held"])
+    c["build disturbance with retrodiction (its default predictor: Brunovsky)"] = (
+        "option: not a choice", ["build", "--disturbance", "random_walk", "--oosm", "retrodict"], {},
+        ["--disturbance", "--oosm replay", "held or scheduled"])
     c["build retrodiction with the scheduled predictor"] = (
         "option: not a choice", ["build", "--oosm", "retrodict", "--predictor", "scheduled"], {},
         ["--oosm retrodict", "--predictor brunovsky", "scheduled"])

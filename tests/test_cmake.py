@@ -44,7 +44,8 @@ def installed(module: Path, work: Path, *defs: str) -> Path:
     for name in (f"include/{MODEL}.h", f"lib/lib{MODEL}.a", f"lib/cmake/{MODEL}/{MODEL}Config.cmake",
                  f"lib/cmake/{MODEL}/{MODEL}ConfigVersion.cmake", f"lib/cmake/{MODEL}/{MODEL}Targets.cmake"):
         assert (prefix / name).is_file(), name
-    assert not list((prefix / "include").glob("*_internal.h")), "only the public header is installed"
+    assert (prefix / f"include/{MODEL}_kernels.h").is_file(), "the kernels' prototypes are installed"
+    assert not list((prefix / "include").glob("*_internal.h")), "the internal header is not installed"
     return prefix
 
 
@@ -95,6 +96,23 @@ def test_host_project_runs_ctest(modules, tmp_path, how):
     cmake_build(HERE / "host", wrong, f"-DMODEL={MODEL}", where,
                 "-DCHECK_TS_SCALE=2")
     assert run(["ctest"], cwd=wrong, ok=False).returncode != 0
+
+
+def test_example_builds_against_the_installed_package(tmp_path):
+    """The default build's example program (held predictor: it simulates its plant with the
+    kernels' mean map, declared in MODEL_kernels.h) compiles, links and passes against the
+    installed package alone, the module's folder out of reach."""
+    require_tool("cmake", "cmake")
+    require_tool("ctest", "cmake")
+    module = build.build(MODEL, tmp_path / "gen").path
+    prefix = installed(module, tmp_path)
+    example = shutil.copy(module / "example_main.c", tmp_path / "example_main.c")
+    shutil.rmtree(tmp_path / "gen")
+    host = tmp_path / "host"
+    cmake_build(HERE / "host", host, f"-DMODEL={MODEL}", f"-DCMAKE_PREFIX_PATH={prefix}",
+                f"-DEXAMPLE={example}", "-DPREDICT_CHECK=OFF")
+    result = run(["ctest", "--output-on-failure"], cwd=host)
+    assert "100% tests passed, 0 tests failed out of 1" in result.stdout and "module_example" in result.stdout
 
 
 def test_module_runs_its_own_example_under_ctest(modules, tmp_path):

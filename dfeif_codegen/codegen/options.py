@@ -66,7 +66,6 @@ class Options:
                 raise BuildError(f"--gate must be a number of standard deviations > 0, got {gate!r}")
             object.__setattr__(self, "gate", float(gate))
         object.__setattr__(self, "ts", float(ts))
-        implicit = self.predictor is None
         object.__setattr__(self, "predictor", for_method(self.predictor, self.oosm))
         for name, limit in (("max_lag", MAX_LAG_LIMIT), ("nodes", NODES_LIMIT)):
             value = getattr(self, name)
@@ -81,9 +80,9 @@ class Options:
             raise BuildError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the "
                              f"transition over the lag, ill-conditioned for the {self.predictor} predictor's); "
                              "use --oosm replay")
-        self._check_disturbance(implicit)
+        self._check_disturbance()
 
-    def _check_disturbance(self, implicit: bool) -> None:
+    def _check_disturbance(self) -> None:
         kind, tau = self.disturbance, self.tau
         if kind is None:
             if tau is not None:
@@ -92,9 +91,11 @@ class Options:
         if kind not in DISTURBANCES:
             raise BuildError(f"--disturbance must be one of {', '.join(DISTURBANCES)}, got {kind!r}")
         if self.predictor == "brunovsky":
-            chosen = f", the default with --oosm {self.oosm}," if implicit else ""
-            raise BuildError(f"--disturbance needs --predictor held or scheduled (the brunovsky predictor{chosen} "
-                             "has no disturbance states)")
+            if self.oosm == "retrodict":
+                raise BuildError("--disturbance needs --oosm replay and the held or scheduled predictor "
+                                 "(retrodiction runs only the brunovsky predictor, which has no disturbance states)")
+            raise BuildError("--disturbance needs --predictor held or scheduled (the brunovsky predictor has no "
+                             "disturbance states)")
         if kind in TIMED:
             if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau <= 0:
                 raise BuildError(f"--tau must be the {kind} time constant in seconds, > 0, got {tau!r}")

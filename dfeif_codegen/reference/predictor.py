@@ -26,8 +26,9 @@ def check(name: str, oosm: str = "replay", disturbance=None) -> None:
     if name not in PREDICTORS:
         raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, not {name!r}")
     if disturbance is not None and name == "brunovsky":
-        raise ValueError("[disturbance] needs --predictor held or scheduled (the brunovsky predictor has no "
-                         "disturbance states)")
+        fix = ("--oosm replay and the held or scheduled predictor (retrodiction runs only" if oosm == "retrodict"
+               else "--predictor held or scheduled (")
+        raise ValueError(f"[disturbance] needs {fix} the brunovsky predictor, which has no disturbance states)")
     if oosm == "retrodict" and name != "brunovsky":
         raise ValueError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the transition "
                          f"over the lag, ill-conditioned for the {name} predictor's); use --oosm replay")

@@ -1,10 +1,11 @@
 /* DO NOT EDIT: unicycle module, generated from template kernels.h.j2 by dfeif-codegen 0.1.0;
  * regenerate with `codegen build unicycle`. */
-/* Internal to the unicycle library: the typed entry points of the CasADi kernels,
- * generated from each kernel's signature, and the work size each needs (none for the kernels
- * that keep their work in locals). Inputs are const,
- * outputs writable, arrays row-major with the sizes given; none may be NULL and no output may
- * overlap an input. */
+/* The typed entry points of the CasADi kernels that the library calls, generated from each
+ * kernel's signature, and the work size each needs (none for the kernels that keep their work
+ * in locals). The package installs this header beside the API's: the example program
+ * simulates its plant with the mean map. Which kernels exist follows the build's options.
+ * Inputs are const, outputs writable, arrays row-major with the sizes given; none may be NULL
+ * and no output may overlap an input. */
 #ifndef UNICYCLE_KERNELS_H
 #define UNICYCLE_KERNELS_H
 
