@@ -27,7 +27,7 @@ from dfeif_codegen import __version__, budget
 from dfeif_codegen.errors import CodegenError
 from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.symbolic.sampling import nominal_point
-from dfeif_codegen.codegen import kernels, layout, provenance, render
+from dfeif_codegen.codegen import centring, kernels, layout, provenance, render
 from dfeif_codegen.codegen.kernels import csource
 from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
@@ -82,6 +82,7 @@ def context(flat, opts: Options, model_arg: str | None = None) -> dict:
                                                  ");")}
                         for k in infos]
     names = render.file_names(p, list(ks.groups))
+    steps = centring.centre_steps(m)
     return {
         "p": p, "P": p.upper(), "real": f"{p}_real", "real_c": real_c, "model_arg": model_arg or p,
         "description": _comment(m.description or p),
@@ -97,6 +98,10 @@ def context(flat, opts: Options, model_arg: str | None = None) -> dict:
         # the scheduled one's nominal flat outputs after it (where Φ(σ) = Φ₀)
         "input_nominal": nominal_input(flat, opts),
         "example_start": example_start(flat),
+        # each flat output's centre moves in exact steps (module centring): the C literals of
+        # the step, half of it and its inverse; the list for the comments
+        "centre_steps": [{"step": st, "half": st / 2, "per": 1 / st} for st in steps],
+        "centre_steps_text": ", ".join(f"1/{round(1 / st)}" for st in steps),
         "ci_iterations": ci_iterations(opts.nodes), "ci_tolerance": CI_TOLERANCE[opts.precision],
         # the CI Hessian's data: H (M x M), or its factor G (M x n^2) when that step is cheaper
         "ci_factor": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_grad"), 0),

@@ -171,9 +171,10 @@ typedef struct {
  * One camera node's filter. Treat as opaque; read it through the functions below.
  * The ring holds steps k-NMAX..k, step j in slot j % (NMAX + 1): the prior of the step, its
  * measurement and the input (u) used to predict out of it. Estimates, priors and measurements are
- * stored relative to `centre` (one value per flat output, a multiple of 1/8 kept within 1/16 of
- * the estimate), so that single precision resolves the flat outputs to their own size, not to
- * that of the distance travelled; the functions below add it back.
+ * stored relative to `centre` (one value per flat output, a whole number of its step, kept
+ * within half a step of the estimate), so that single precision resolves the flat outputs to
+ * their own size, not to that of the distance travelled; the functions below add it back.
+ * The steps: 1/8.
  */
 typedef struct {
     /** flat outputs' origin for the fields below */

@@ -118,10 +118,10 @@ static void centred(const pvtol_node* node, const real* z, real* zc)
  * stored value with it (called before the current step's update). Moving the centre leaves
  * A x + B v unchanged: it only touches the chain heads, and A maps a head-only vector to itself.
  * P does not depend on the centre. */
-static void shift_centre(pvtol_node* node, int j, int h)
+static void shift_centre(pvtol_node* node, int j, int h, real step, real per)
 {
     int s;
-    real shift = pvtol_centre_shift(node->post[h]);
+    real shift = pvtol_centre_shift(node->post[h], step, per);
     if (shift != (real)0) {
         node->centre[j] += shift;
         node->post[h] -= shift;
@@ -134,16 +134,15 @@ static void shift_centre(pvtol_node* node, int j, int h)
     }
 }
 
-/* Each output's centre within half a step of the estimate x (the node's): a shift only when
- * a head is half a step or more away (the heads are the generator's constants). */
+/* Each output's centre within half its step of the estimate x (the node's): a shift only when
+ * a head is half a step or more away (the heads and steps are the generator's constants). */
 static inline void recentre(pvtol_node* node, const real* x)
 {
-    const real half = PVTOL_CENTRE_STEP / (real)2;
-    if ((x[0] >= half) || (x[0] <= -half)) {
-        shift_centre(node, 0, 0);
+    if ((x[0] >= 0.0625) || (x[0] <= -0.0625)) {
+        shift_centre(node, 0, 0, 0.125, 8.0);
     }
-    if ((x[4] >= half) || (x[4] <= -half)) {
-        shift_centre(node, 1, 4);
+    if ((x[4] >= 0.0625) || (x[4] <= -0.0625)) {
+        shift_centre(node, 1, 4, 0.125, 8.0);
     }
 }
 

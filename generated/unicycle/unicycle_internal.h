@@ -46,23 +46,24 @@ typedef unicycle_real real;
 #error "unicycle.h comes from another build (UNICYCLE_CI_ITERATIONS)"
 #endif
 
-/* Centring (see the node struct in unicycle.h): flat outputs are stored relative to a
- * centre that moves in exact steps of 1/8, so that single precision resolves them to their own
- * size. */
-#define UNICYCLE_CENTRE_STEP ((real)0.125)
+/* Centring (see the node struct in unicycle.h): each flat output is stored relative to a
+ * centre that moves in exact steps of its own, so that single precision resolves it to its own
+ * size. The steps are powers of two, at most 1/8 and at most 1/16 of the range the model
+ * declares for the output. The steps: 1/8, 1/8. */
 /* zeta index of each flat output (defined in control.c) */
 extern const uint8_t unicycle_heads[UNICYCLE_NY];
 
-/* The whole steps of 1/8 nearest to a stored flat output (0 when it is within 1/16, or so large
- * that centring no longer matters and (long) could overflow). Subtracting it is exact. */
-static inline real unicycle_centre_shift(real value)
+/* The whole steps nearest to a stored flat output (0 when it is within half a step, or beyond
+ * 2^20 steps, left uncentred so that (long) cannot overflow). Subtracting it is exact; so is
+ * the product by per = 1 / step, a power of two. */
+static inline real unicycle_centre_shift(real value, real step, real per)
 {
-    real d = value / UNICYCLE_CENTRE_STEP;
+    real d = value * per;
     real shift = (real)0;
     if ((d < (real)1048576) && (d > (real)-1048576)) {
         real half = (d < (real)0) ? (real)-0.5 : (real)0.5;
         real whole = d + half;
-        shift = UNICYCLE_CENTRE_STEP * (real)(long)whole;
+        shift = step * (real)(long)whole;
     }
     return shift;
 }

@@ -45,16 +45,20 @@ static int master_step(const real* x, const real* P, const real* v, const real* 
     return rc;
 }
 
-/* Move the centre by whole steps to within 1/16 of the estimate (as the node does). */
+/* Move output j's centre (head h) by whole steps to within half a step of the estimate. */
+static void master_shift(unicycle_master* master, int j, int h, real step, real per)
+{
+    real shift = unicycle_centre_shift(master->x[h], step, per);
+    master->centre[j] += shift;
+    master->x[h] -= shift;
+    master->x_prior[h] -= shift;
+}
+
+/* Every output's centre moved, each in its own step (as the node does). */
 static void master_recentre(unicycle_master* master)
 {
-    int j;
-    for (j = 0; j < NY; j++) {
-        real shift = unicycle_centre_shift(master->x[unicycle_heads[j]]);
-        master->centre[j] += shift;
-        master->x[unicycle_heads[j]] -= shift;
-        master->x_prior[unicycle_heads[j]] -= shift;
-    }
+    master_shift(master, 0, 0, 0.125, 8.0);
+    master_shift(master, 1, 2, 0.125, 8.0);
 }
 
 /* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
