@@ -309,6 +309,9 @@ def test_load_names_a_folder_that_is_not_a_module(tmp_path):
     (lambda m: dc.simulate(runs=1.5), ["--runs 1.5", "whole number"]),
     (lambda m: dc.simulate(filters=5), ["--filters 5", "ekf"]),
     (lambda m: dc.load_model(5), ["int", "built-in name"]),
+    # a period given as text reads like a valid number: the line says it is a string
+    (lambda m: dc.inspect(m, ts="0.01"), ["--ts '0.01'", "not a str"]),
+    (lambda m: dc.build(m, "unused", ts="0.01"), ["--ts", "'0.01' (a str)"]),
 ])
 def test_api_arguments_of_the_wrong_kind_raise_the_documented_errors(call, words):
     """The functions the commands share take what their options take; given a Model object (from

@@ -55,7 +55,8 @@ class Options:
     def __post_init__(self) -> None:
         ts = self.ts
         if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts) or not 1e-9 <= ts <= 1e3:
-            raise BuildError(f"--ts must be a sampling period in seconds in [1e-9, 1e3], got {ts}")
+            raise BuildError(f"--ts must be a sampling period in seconds in [1e-9, 1e3], got {ts!r}"
+                             + (f" (a {type(ts).__name__})" if not isinstance(ts, (int, float)) else ""))
         rtol = self.singular_rtol
         if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < 1:
             raise BuildError(f"--singular-rtol must be a number in [0, 1), got {rtol!r}")

@@ -90,7 +90,8 @@ def inspect(spec, ts: float | None = None, max_seconds: float | None = None,
     mdl = spec if isinstance(spec, model.Model) else model.load(str(spec))
     ts = mdl.ts if ts is None else ts
     if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not (np.isfinite(ts) and 1e-9 <= ts <= 1e3):
-        raise ModelError(f"--ts {ts}: the sampling period must be a number of seconds in [1e-9, 1e3]")
+        raise ModelError(f"--ts {ts!r}: the sampling period must be a number of seconds in [1e-9, 1e3]"
+                         + (f", not a {type(ts).__name__}" if not isinstance(ts, (int, float)) else ""))
     from dfeif_codegen import budget  # the same time/memory budget as `build`
     flat = budget.bounded(flatness.derive, (mdl,), max_seconds, max_memory, f"deriving {mdl.source}")
     return describe(flat, float(ts))
