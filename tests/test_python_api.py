@@ -300,6 +300,18 @@ def test_load_names_a_folder_that_is_not_a_module(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_shape_numbers_from_python_take_lists_as_the_command_line_takes_text():
+    """`scenario(amplitude=[1, 0.5])` from Python means what `--amplitude 1,0.5` does; a list
+    of the wrong length is refused naming the option, as the text is."""
+    from dfeif_codegen.experiment import shapes
+    flat = flatness.derive(dc.load_model("two_link_arm"))
+    by_list = shapes.from_domains(flat, amplitude=[1, 0.5], offset=(0.1, -0.2), phase=0.3)
+    by_text = shapes.from_domains(flat, amplitude="1,0.5", offset="0.1,-0.2", phase="0.3")
+    assert by_list == by_text and by_list.amplitude == (1.0, 0.5) and by_list.phase == (0.3, 0.3)
+    with pytest.raises(dc.CodegenError, match="--amplitude"):
+        shapes.from_domains(flat, amplitude=[1, 2, 3])
+
+
 @pytest.mark.parametrize("call, words", [
     (lambda m: dc.simulate(m, runs=1), ["Model", "built-in name or a .toml path"]),
     (lambda m: dc.verify(m), ["Model", "built-in name or a .toml path"]),

@@ -66,12 +66,15 @@ class Shape:
         return self.period if self.trajectory is not None else math.inf
 
 
-def _numbers(text: str | None, m: int, flag: str) -> list[float] | None:
+def _numbers(text, m: int, flag: str) -> list[float] | None:
+    """The option's numbers: a comma-separated string (the command line's), or from Python a
+    number or a sequence of numbers."""
     if text is None:
         return None
+    items = text if isinstance(text, (list, tuple, np.ndarray)) else str(text).split(",")
     try:
-        values = [float(v) for v in str(text).split(",")]
-    except ValueError:
+        values = [float(v) for v in items]
+    except (TypeError, ValueError):
         raise ScenarioError(f"{flag} {text}: needs a number or {m} comma-separated numbers") from None
     if len(values) not in (1, m) or not all(np.isfinite(values)):
         raise ScenarioError(f"{flag} {text}: needs {'1 finite number' if m == 1 else f'1 or {m} finite numbers'} "

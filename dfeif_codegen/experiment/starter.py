@@ -351,9 +351,9 @@ def scenario(model: str, out: str | None = None, max_seconds: float | None = Non
              scheduled: bool = False) -> str:
     """`codegen scenario MODEL [--out FILE]`: the starting scenario's text, checked against the
     model; written to `out` when given (only over a file this command wrote before). The
-    derivation runs under `max_seconds` CPU seconds and `max_memory` GB. `trajectory`: a CSV of
-    the flat outputs (experiment/trajectory_file.py) to track instead of a shape, named in the
-    scenario relative to `out`'s folder (or to the current one when printed). `disturbance`
+    derivation runs under `max_seconds` CPU seconds and `max_memory` GB (`amplitude`, `offset`,
+    `phase`: the options' text, or numbers). `trajectory`: a CSV of the flat outputs to track
+    (experiment/trajectory_file.py), named relative to `out`'s folder. `disturbance`
     (one of disturbance.KINDS; `tau` the Gauss-Markov time constant [s]): the scenario adds
     disturbance states and calibrates their densities; `param_error` (as `simulate
     --param-error`): the calibration's plants and the scenario get that model error; `offsets`
