@@ -145,7 +145,7 @@ def bounded(fn, args: tuple, max_seconds: float | None, max_memory: float | None
     child.close()
     pid = proc.pid
     assert pid is not None  # set by start()
-    stage, wall_deadline = "starting", time.monotonic() + WALL_FACTOR * max_seconds + 60
+    stage, wall_deadline = "starting the derivation", time.monotonic() + WALL_FACTOR * max_seconds + 60
     try:
         while True:
             used = _cpu_seconds(pid)

@@ -180,7 +180,7 @@ def generate(m: model.Model, opts: Options, progress=None, model_arg: str | None
     `model_arg`: the model as the files' regenerate command names it (model_argument)."""
     flat = flatness.derive(m, progress=progress)
     if progress:
-        progress("CasADi kernels and C rendering")
+        progress("generating the CasADi kernels and rendering the C")
     try:
         return render.render(context(flat, opts, model_arg))
     except jinja2.TemplateError as exc:

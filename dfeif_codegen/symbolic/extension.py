@@ -129,7 +129,7 @@ def extend(model: Model, say=lambda text: None) -> tuple[Model, Extension, lie.I
                 f"relative degrees {io.degrees}) and integrators on input channels do not cure it: every input "
                 "enters its dependent rows, and delaying them all leaves it as it is: the outputs are not "
                 "independent (not flat with these outputs), or an input transformation is needed first")
-        say(f"dynamic extension: one integrator on {', '.join(current.inputs[j].name for j in entering)}")
+        say(f"extending the model dynamically: one integrator on {', '.join(current.inputs[j].name for j in entering)}")
         reason = _singular_reason(current, io, entering, rows)
         steps.append(Delay(tuple(current.inputs[j].name for j in entering), reason))
         for j in entering:
