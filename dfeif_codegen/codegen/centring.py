@@ -32,11 +32,12 @@ def output_ranges(model) -> list[float | None]:
     values = sampler.values([o.expr for o in model.outputs])
     out: list[float | None] = []
     for j, o in enumerate(model.outputs):
-        used = [states[s] for s in sp.sympify(o.expr).free_symbols if s in states]
+        expr = sp.sympify(o.expr)
+        used = [states[s] for s in expr.free_symbols if s in states]
         if not used or any(s.min is None or s.max is None for s in used):
             out.append(None)
             continue
-        if sp.sympify(o.expr) in states:    # the state itself: its declared range, exactly
+        if expr in states:    # the state itself: its declared range, exactly
             width = float(used[0].max - used[0].min)
         else:
             v = values[:, j][np.isfinite(values[:, j])]

@@ -8,7 +8,8 @@ from dataclasses import dataclass
 
 from dfeif_codegen.constants import NODES_LIMIT
 from dfeif_codegen.errors import CodegenError
-from dfeif_codegen.symbolic.disturbance import KINDS as DISTURBANCES, TAU_ONLY_TIMED, TIMED, Disturbance
+from dfeif_codegen.symbolic.disturbance import (KINDS as DISTURBANCES, TAU_ONLY_TIMED, TIMED, Disturbance,
+                                                 brunovsky_refusal)
 from dfeif_codegen.symbolic.sampling import PREDICTORS, for_method
 
 MAX_LAG_LIMIT = 4096
@@ -92,11 +93,7 @@ class Options:
         if kind not in DISTURBANCES:
             raise BuildError(f"--disturbance must be one of {', '.join(DISTURBANCES)}, got {kind!r}")
         if self.predictor == "brunovsky":
-            if self.oosm == "retrodict":
-                raise BuildError("--disturbance needs --oosm replay and the held or scheduled predictor "
-                                 "(retrodiction runs only the brunovsky predictor, which has no disturbance states)")
-            raise BuildError("--disturbance needs --predictor held or scheduled (the brunovsky predictor has no "
-                             "disturbance states)")
+            raise BuildError(f"--disturbance {brunovsky_refusal(self.oosm)}")
         if kind in TIMED:
             if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau <= 0:
                 raise BuildError(f"--tau must be the {kind} time constant in seconds, > 0, got {tau!r}")

@@ -17,7 +17,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from dfeif_codegen.symbolic import numeric, sampling
+from dfeif_codegen.symbolic import disturbance as disturbance_states, numeric, sampling
 from dfeif_codegen.symbolic.sampling import DEFAULT, PREDICTORS, for_method  # noqa: F401 (re-exported)
 
 
@@ -26,9 +26,7 @@ def check(name: str, oosm: str = "replay", disturbance=None) -> None:
     if name not in PREDICTORS:
         raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, not {name!r}")
     if disturbance is not None and name == "brunovsky":
-        fix = ("--oosm replay and the held or scheduled predictor (retrodiction runs only" if oosm == "retrodict"
-               else "--predictor held or scheduled (")
-        raise ValueError(f"[disturbance] needs {fix} the brunovsky predictor, which has no disturbance states)")
+        raise ValueError(f"[disturbance] {disturbance_states.brunovsky_refusal(oosm)}")
     if oosm == "retrodict" and name != "brunovsky":
         raise ValueError(f"--oosm retrodict needs --predictor brunovsky (Xia's retrodiction inverts the transition "
                          f"over the lag, ill-conditioned for the {name} predictor's); use --oosm replay")

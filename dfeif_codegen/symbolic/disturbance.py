@@ -27,6 +27,15 @@ TAU_ONLY_TIMED = "--tau: applies to --disturbance " + " or ".join(TIMED) + " onl
 KEYS = {"kind", "q", "tau", "p0_std"}
 
 
+def brunovsky_refusal(oosm: str) -> str:
+    """What disturbance states need when the predictor is the Brunovsky chain (the one wording
+    of the build option and the scenario table): with retrodiction, replay as well."""
+    if oosm == "retrodict":
+        return ("needs --oosm replay and the held or scheduled predictor (retrodiction runs only the brunovsky "
+                "predictor, which has no disturbance states)")
+    return "needs --predictor held or scheduled (the brunovsky predictor has no disturbance states)"
+
+
 @dataclass(frozen=True)
 class Disturbance:
     kind: str
