@@ -42,20 +42,24 @@ def test_every_figure_renders(tmp_path):
 
 def test_legends_cover_no_data(tmp_path, monkeypatch):
     """Issue 24 finding 9: every legend lies outside every panel's plotting area (so it covers no
-    data) and inside the figure (so it is not cut off). Checked on the drawn figure's pixel boxes."""
+    data) and inside the figure (so it is not cut off). Checked on the drawn figure's pixel boxes.
+    The title too: the longest simulate writes (Fig. 10's, a 17-character model name, three
+    nodes' delay row) lies inside the figure and above every panel and legend."""
     import matplotlib.pyplot as plt
 
     drawn, close = [], plt.close
     monkeypatch.setattr(plt, "close", lambda fig=None: drawn.append(fig))
     flat = ex._flat("dc_motor_link")
+    title = (f"Fig. 10: {'m' * 17}, camera -> node delays at {figures.row_text('25  30  30  0.6')} (sinusoid run; "
+             "the seed's draws, the same for every reference): late with probability p by 1..d_i steps")
     t = np.arange(300) * 0.01
     truth = np.column_stack([np.sin(t * (i + 1)) for i in range(flat.n)])
-    figures.states_figure(tmp_path / "a.png", "t", flat, t, truth + 1e-3, truth, truth, np.ones((300, flat.m)))
-    figures.error_figure(tmp_path / "b.png", "t", flat, t, truth + 1e-3, truth, np.full((300, flat.n), 1e-6))
+    figures.states_figure(tmp_path / "a.png", title, flat, t, truth + 1e-3, truth, truth, np.ones((300, flat.m)))
+    figures.error_figure(tmp_path / "b.png", title, flat, t, truth + 1e-3, truth, np.full((300, flat.n), 1e-6))
     lags = np.where(np.arange(600).reshape(2, 300) % 3 == 0, 5, 0)
     lags[0, 7] = -1
-    figures.delay_figure(tmp_path / "c.png", "t", t, lags, 0.01)
-    figures.comparison_figure(tmp_path / "d.png", "t", flat, ["(0, 0, 0)", "(4, 6, 0.8)"],
+    figures.delay_figure(tmp_path / "c.png", title, t, lags, 0.01)
+    figures.comparison_figure(tmp_path / "d.png", title, flat, ["(0, 0, 0)", "(4, 6, 0.8)"],
                               {"df": (np.ones((2, flat.n)), np.full((2, flat.n), 0.1)),
                                "ekf": (np.ones((2, flat.n)), np.zeros((2, flat.n)))})
     assert len(drawn) == 4
@@ -66,6 +70,10 @@ def test_legends_cover_no_data(tmp_path, monkeypatch):
         panels = [ax for ax in fig.axes if ax.get_visible()]
         legends = [ax.get_legend() for ax in panels if ax.get_legend() is not None]
         assert legends
+        head = fig._suptitle.get_window_extent(r)
+        assert page.x0 - 1 <= head.x0 and head.x1 <= page.x1 + 1 and head.y1 <= page.y1 + 1, "the title is cut"
+        for box in [leg.get_window_extent(r) for leg in legends] + [ax.get_window_extent(r) for ax in panels]:
+            assert box.y1 <= head.y0 + 1, "the title overlaps a panel or a legend"
         for leg in legends:
             box = leg.get_window_extent(r)
             assert page.x0 - 1 <= box.x0 and box.x1 <= page.x1 + 1 and page.y0 - 1 <= box.y0 and box.y1 <= page.y1 + 1

@@ -14,6 +14,7 @@ that implies (theta, theta' [rad/s], theta'' [rad/s^2]); the input by its name a
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -88,9 +89,15 @@ def _grid(plt, panels, height=2.3):
     return fig, axes.flat
 
 
+# Characters of a title per inch of figure width: matplotlib's 12-point sans-serif averages about
+# 0.08 in per character, so 10 per inch leaves a margin for wide letters.
+TITLE_CHARS_PER_INCH = 10
+
+
 def _save(plt, fig, title, path) -> None:
-    """Title, layout, the PNG at 110 dpi, and the figure closed (pyplot keeps open ones alive)."""
-    fig.suptitle(title)
+    """Title (wrapped to the figure's width: a long model name and delay row would cut it at both
+    edges), layout, the PNG at 110 dpi, and the figure closed (pyplot keeps open ones alive)."""
+    fig.suptitle(textwrap.fill(title, width=int(fig.get_figwidth() * TITLE_CHARS_PER_INCH)))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
