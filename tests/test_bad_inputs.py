@@ -416,6 +416,10 @@ def test_docs_table_is_current():
     if os.environ.get("DFEIF_WRITE_DOCS"):
         doc.write_text(table_markdown())
     assert doc.read_text() == table_markdown(), "docs/bad_inputs.md is stale: rerun with DFEIF_WRITE_DOCS=1"
+    readme = (doc.parents[1] / "README.md").read_text()
+    c_cases = len(C_CASES) + 3
+    assert (f"from the {len(ALL) + c_cases} cases it runs: {len(ALL)} on the command line, {c_cases} C calls"
+            in " ".join(readme.split())), "README.md's count of bad-input cases is stale"
 
 
 def test_the_table_is_big_enough():
