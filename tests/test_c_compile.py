@@ -370,7 +370,11 @@ int main(void)
         }
         CHECK(F(node_packet)(&b, &lagged[k % 4]) == K(OK) && F(node_packet)(&c, &lagged_c[k % 4]) == K(OK));
         CHECK(lagged_c[k % 4].step - lagged[k % 4].step == 0u - 100u);
-        i = ((k % 2 == 0) || (k < 3)) ? (k % 4) : ((k + 1) % 4);   /* every other packet 3 steps old */
+        /* at odd steps the packet of 3 steps before, at even ones none: each packet stale and
+         * newer than the last one fused (the difference rule then takes its gain over the last
+         * one brought forward: the lost packets' channel) */
+        i = (k + 1) % 4;
+        present[0] = (uint8_t)((k % 2 == 1) && (k >= 3));
         two[0] = lagged[i];
         flat_twin[0] = lagged_c[i];
         CHECK(F(master_fuse)(&mtwin, two, present) == K(OK) && F(master_fuse)(&m, flat_twin, present) == K(OK));
@@ -381,6 +385,7 @@ int main(void)
     CHECK(c.k == b.k - 100u && c.k < 1000u && b.health.late_applied > 20u);
     CHECK(SAME(c.post, b.post) && SAME(c.pred, b.pred) && SAME(c.ring_x, b.ring_x) && SAME(c.ring_P, b.ring_P));
     CHECK(SAME(c.health, b.health) && SAME(m.health, mtwin.health) && m.health.packets_stale > 20u);
+    CHECK(m.health.packets_ignored == 0u);
 
     /* init validates before touching the node */
     memset(x0, 0, sizeof(x0)); memset(P0, 0, sizeof(P0)); memset(R, 0, sizeof(R));

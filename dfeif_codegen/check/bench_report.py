@@ -154,7 +154,8 @@ def _worst_table(sec: dict) -> list[str]:
     out = ["Worst case per entry point (the real-time budget, host -O2, double, 2 nodes, N_max = 32): the "
            "costliest of every call `templates/harness/worst.c.j2` makes, driving each entry point down its "
            "longest path: a frame back at lag N_max, the master fusing packets N_max steps stale (brought "
-           "forward in one step each) from distinct nodes (the CI search runs longest; with "
+           "forward in one step each; the difference rule's N_max - 2 steps stale over a last fused packet "
+           "N_max steps old, the lost packets' channel) from distinct nodes (the CI search runs longest; with "
            "-D<MODEL>_CI_TOL=-1 every Newton step), keyed frames of the largest kind (CRC-32 and "
            "SipHash-2-4 over the whole frame), estimates that move (the stored values' centre moves). "
            "The median call is the typical cost.", "",

@@ -98,15 +98,21 @@ class Master:
         self._v: dict[int, np.ndarray] = {}
         self.weights = np.zeros(n_nodes)     # the last CI weights, node by node
         self.weighed = np.zeros(n_nodes, dtype=bool)     # the nodes the last CI fuse used
+        # difference rule: per node, the last packet fused (its step, x and P): the channel
+        self.last: list[Packet | None] = [None] * n_nodes
 
     def fuse(self, packets: list[Packet | None]) -> None:
         """One entry per node, None when its packet is absent; stale packets (at most max_lag
         steps old) are predicted to the current step, older or future ones are ignored."""
         if len(packets) != self.n_nodes:
             raise ValueError(f"expected {self.n_nodes} entries (None for absent), got {len(packets)}")
-        picked = [i for i, p in enumerate(packets) if p is not None and 0 <= self.k - p.step <= self.max_lag]
+        picked = [i for i, p in enumerate(packets) if p is not None and 0 <= self.k - p.step <= self.max_lag
+                  and not self._covered(i, p)]
         c = self.x_prior
-        usable = [self._on_branch(self._bring(packets[i]), c) for i in picked]
+        usable = [self._on_branch(self._channel(i, self._bring(packets[i]), packets[i].step), c) for i in picked]
+        if self.rule == "difference":   # the C writes them with the fused estimate
+            for i in picked:
+                self.last[i] = packets[i]
         if not usable:
             self.x, self.P = self.x_prior, self.P_prior
             return
@@ -150,6 +156,34 @@ class Master:
         self.x_prior = self.predictor.mean(self.x, v)
         self.P_prior = self.predictor.covariance(self.P, v)
         self.k += 1
+
+    def _covered(self, i: int, p: Packet) -> bool:
+        """Difference rule: a packet not newer than the last one fused from its node brings
+        nothing the master lacks (that one's gain, taken over a gap, covered its step)."""
+        last = self.last[i] if self.rule == "difference" else None
+        return last is not None and p.step <= last.step
+
+    def _channel(self, i: int, item, step: int):
+        """Difference rule: where packets of node i were lost since the last one fused (step j),
+        the gain is taken over its prediction of that packet's estimate, not over the node's own
+        prediction: (x_j, P_j) brought to the current step stands for x_pred, P_pred, so the
+        gain holds every frame the node used since j, which the lost packets carried (a channel
+        filter; docs/algorithms.md, master). Only while step j's inputs are kept, and only where
+        that prediction is no better informed on any diagonal entry than the node's own (to 64
+        ulps): after a node restarts, its own prediction holds less than its old estimate did,
+        and the gain is then its own."""
+        last = self.last[i] if self.rule == "difference" else None
+        if last is None or step - last.step <= 1 or self.k - last.step > self.max_lag:
+            return item
+        x, P, x_pred, P_pred = item
+        inputs = [self._v[s] for s in range(last.step, self.k)]
+        xc, = self.predictor.bring([last.x], inputs)
+        Pc, = self.predictor.carry([last.P], inputs)
+        # no frame in the gap: the two are equal but for rounding, and the slack picks the channel
+        slack = 1 - 64 * np.finfo(Pc.dtype).eps
+        if np.all(np.diag(Pc) >= np.diag(P_pred) * slack):
+            return x, P, xc, Pc
+        return item
 
     def _on_branch(self, item, c: np.ndarray):
         """A node's (x, P, x_pred, P_pred) with each angle head moved by whole turns to the branch

@@ -224,7 +224,8 @@ typedef struct {
     uint32_t packets_used;
     /** of those, packets predicted forward from an older step */
     uint32_t packets_stale;
-    /** present packets older than NMAX steps or from the future */
+    /** present packets older than NMAX steps or from the future, or not newer than the last one
+     * fused from their node */
     uint32_t packets_ignored;
 } pvtol_master_health;
 
@@ -250,6 +251,14 @@ typedef struct {
     uint32_t vslot;
     /** steps since init, up to NMAX and then staying there: no packet is from before step 0 */
     uint32_t age;
+    /** per node, the last packet fused (its step, centre, x and P; last_valid 0 before the
+     * first): where that node's packets were lost since, its next gain is taken over this
+     * estimate brought forward (a channel filter, docs/algorithms.md) */
+    uint32_t last_step[PVTOL_NNODES];
+    pvtol_real last_centre[PVTOL_NNODES * PVTOL_NY];
+    pvtol_real last_x[PVTOL_NNODES * PVTOL_NX];
+    pvtol_real last_P[PVTOL_NNODES * PVTOL_NXX];
+    uint8_t last_valid[PVTOL_NNODES];
     pvtol_master_health health;
 } pvtol_master;
 

@@ -61,23 +61,23 @@ static void master_recentre(unicycle_master* master)
     master_shift(master, 1, 2, 0.125, 8.0);
 }
 
-/* A packet's estimate (x_in, P_in) at the master's step and relative to its centre: x into x,
- * P_in itself when the packet is from this step, else predicted step by step with the stored
- * inputs (the held mean is not linear: no one-step form) into P_buf; *P_out says which.
- * `effect` is not used. */
-static inline int bring(const unicycle_master* master, const unicycle_packet* pk, const real* x_in,
-                        const real* P_in, const real* effect, real* x, real* P_buf,
-                        const real** P_out)
+/* An estimate (x_in, P_in) of step `step`, stored relative to `centre`, at the master's step
+ * and relative to its centre: x into x, P_in itself when it is of this step, else predicted
+ * step by step with the stored inputs (the held mean is not linear: no one-step form) into
+ * P_buf; *P_out says which. `effect` is not used. */
+static inline int bring(const unicycle_master* master, uint32_t step, const real* centre,
+                        const real* x_in, const real* P_in, const real* effect, real* x,
+                        real* P_buf, const real** P_out)
 {
     real x1[NX];
     real P1[NXX];
     uint32_t s;
     int rc = UNICYCLE_OK;
     (void)effect;
-    unicycle_move_origin(x_in, pk->centre, master->centre, x);
+    unicycle_move_origin(x_in, centre, master->centre, x);
     *P_out = P_in;
     /* step <= k, modulo 2^32 */
-    for (s = pk->step; (s != master->k) && (rc == UNICYCLE_OK); s++) {
+    for (s = step; (s != master->k) && (rc == UNICYCLE_OK); s++) {
         rc = master_step(x, *P_out, &master->v[input_at(master, s)], master->Qd, master->centre, x1,
                          P1);
         (void)memcpy(x, x1, sizeof(x1));
@@ -137,6 +137,52 @@ static int present_ok(const uint8_t present[NNODES])
         }
     }
     return ok;
+}
+
+/* Packet pk of node i is not newer than the last one fused from that node (modulo 2^32): that
+ * one's gain, taken over a gap, covered its step. */
+static int covered(const unicycle_master* master, int i, const unicycle_packet* pk)
+{
+    int out = 0;
+    if ((master->last_valid[i] != 0u) && ((pk->step - master->last_step[i] - 1u) >= 0x7FFFFFFFu)) {
+        out = 1;
+    }
+    return out;
+}
+
+/* Where packets of node i were lost since the last one fused from it (of step j, within the
+ * stored inputs), that packet's estimate brought to the current step replaces the node's own
+ * prediction (xp, *Ppk) as what the gain is taken over: the gain then holds every frame the node
+ * used since j (a channel filter, docs/algorithms.md). Only where it is no better informed on any
+ * diagonal entry than the node's own prediction (to 64 ulps): after a restart the node's own
+ * holds less. */
+static int channel(const unicycle_master* master, int i, const unicycle_packet* pk, real* xp,
+                   real* Pc, const real** Ppk)
+{
+    real xc[NX];
+    real effect[NX];
+    const real* Pk = Pc;
+    uint32_t j = master->last_step[i];
+    int better = 0;
+    int d;
+    int rc = UNICYCLE_OK;
+    if ((master->last_valid[i] != 0u) && ((pk->step - j) > 1u) &&
+        ((master->k - j) <= master->age)) {
+        (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
+        rc = bring(master, j, &master->last_centre[i * NY], &master->last_x[i * NX],
+                   &master->last_P[i * NXX], effect, xc, Pc, &Pk);
+        /* 64 ulps: with no frame in the gap the two are equal but for rounding */
+        for (d = 0; d < NX; d++) {
+            if (Pk[(d * NX) + d] < ((*Ppk)[(d * NX) + d] * 0.9999999999999858)) {
+                better = 1; /* the node's own prediction holds less: it restarted */
+            }
+        }
+        if ((rc == UNICYCLE_OK) && (better == 0)) {
+            (void)memcpy(xp, xc, sizeof(xc));
+            *Ppk = Pk;
+        }
+    }
+    return rc;
 }
 
 int unicycle_packet_check(const unicycle_packet* pk)
@@ -213,9 +259,11 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
     const real* Pk = P;
     real xp[NX];
     real Pp[NXX];
+    real Pc[NXX];
     const real* Ppk = Pp;
     real dY[NXP];
     real dy[NX];
+    uint8_t took[NNODES];
     int d;
     uint32_t used = 0u;
     uint32_t stale = 0u;
@@ -229,12 +277,15 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
     } else {
         (void)memset(Yacc, 0, sizeof(Yacc));
         (void)memset(yacc, 0, sizeof(yacc));
+        (void)memset(took, 0, sizeof(took));
     }
     for (i = 0; (i < NNODES) && (rc == UNICYCLE_OK); i++) {
         const unicycle_packet* pk = &packets[i];
         if (present[i] == 0u) {
             /* absent: left out */
         } else if ((master->k - pk->step) > master->age) { /* modulo 2^32: also the future's */
+            ignored++;
+        } else if (covered(master, i, pk) != 0) {
             ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = UNICYCLE_ERR_NONFINITE;
@@ -243,9 +294,13 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
             rc = UNICYCLE_ERR_SINGULAR;
         } else {
             (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
-            rc = bring(master, pk, pk->x, pk->P, effect, x, P, &Pk);
+            rc = bring(master, pk->step, pk->centre, pk->x, pk->P, effect, x, P, &Pk);
             if (rc == UNICYCLE_OK) {
-                rc = bring(master, pk, pk->x_pred, pk->P_pred, effect, xp, Pp, &Ppk);
+                rc = bring(master, pk->step, pk->centre, pk->x_pred, pk->P_pred, effect, xp, Pp,
+                           &Ppk);
+            }
+            if (rc == UNICYCLE_OK) {
+                rc = channel(master, i, pk, xp, Pc, &Ppk);
             }
             if (rc == UNICYCLE_OK) {
                 (void)unicycle_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
@@ -260,6 +315,7 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
                 for (d = 0; d < NX; d++) {
                     yacc[d] += dy[d];
                 }
+                took[i] = 1u;
             }
             if (rc == UNICYCLE_OK) {
                 used++;
@@ -295,6 +351,15 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
         master->health.packets_used += used;
         master->health.packets_stale += stale;
         master->health.packets_ignored += ignored;
+        for (i = 0; i < NNODES; i++) {
+            if (took[i] != 0u) {
+                master->last_step[i] = packets[i].step;
+                (void)memcpy(&master->last_centre[i * NY], packets[i].centre, sizeof(real[NY]));
+                (void)memcpy(&master->last_x[i * NX], packets[i].x, sizeof(real[NX]));
+                (void)memcpy(&master->last_P[i * NXX], packets[i].P, sizeof(real[NXX]));
+                master->last_valid[i] = 1u;
+            }
+        }
     }
     return rc;
 }
