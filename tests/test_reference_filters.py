@@ -396,6 +396,45 @@ def test_difference_fusion_over_lost_packets_equals_centralized_without_process_
     assert without > 1e-3
 
 
+def test_channel_is_skipped_for_a_restarted_node_and_covered_packets_are_ignored(monkeypatch):
+    """After a gap, a node whose own prediction holds less than the master's prediction of its
+    last fused packet (it restarted from its start-up prior) gets its own gain: the master then
+    equals one without the channel. A node that kept filtering through the gap gets the channel
+    (the master differs). A packet not newer than the last one fused changes nothing."""
+    flat = flat_system("dc_motor_link")
+    x0, P0 = start(flat)
+    v = np.zeros(flat.m)
+    R = np.eye(flat.m) * 1e-4
+
+    def fused(restarted: bool, channel: bool = True, repeat: bool = False):
+        node = NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, predictor="brunovsky")
+        fresh = NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, predictor="brunovsky")   # no frame before 5
+        master = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="difference", predictor="brunovsky")
+        if not channel:
+            monkeypatch.setattr(master, "_channel", lambda i, item, step: item)
+        first = None
+        for k in range(8):
+            if restarted and k == 5:   # back from a restart: its start-up prior predicted to now
+                node = fresh
+            node.update(x0[flat.heads] + 0.01 * k, True)
+            if node is not fresh:
+                fresh.update(None, False)
+            first = node.packet() if k == 0 else first
+            master.fuse([node.packet() if k in (0, 5) else (first if repeat and k == 6 else None)])
+            node.predict(v)
+            if node is not fresh:
+                fresh.predict(v)
+            master.predict(v)
+        return master.x, master.P
+
+    kept, kept_own = fused(False), fused(False, channel=False)
+    assert kept[1][0, 0] < 0.8 * kept_own[1][0, 0]   # the gap's frames reach the master (1.36e-4 vs 2.07e-4)
+    back, back_own = fused(True), fused(True, channel=False)
+    assert np.array_equal(back[0], back_own[0]) and np.array_equal(back[1], back_own[1])
+    again = fused(False, repeat=True)             # step 0's packet once more at step 6
+    assert np.array_equal(again[0], kept[0]) and np.array_equal(again[1], kept[1])
+
+
 def test_master_predicts_stale_packets_and_ignores_old_ones():
     flat, rng = flat_system("dc_motor_link"), np.random.default_rng(5)
     _, vs, (zs,) = simulate(flat, 12, rng, [np.eye(1) * 1e-4])
