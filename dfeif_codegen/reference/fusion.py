@@ -103,14 +103,16 @@ class Master:
 
     def fuse(self, packets: list[Packet | None]) -> None:
         """One entry per node, None when its packet is absent; stale packets (at most max_lag
-        steps old) are predicted to the current step, older or future ones are ignored."""
+        steps old) are predicted to the current step, older or future ones are ignored. The
+        difference rule also ignores a packet not newer than the last one fused from its node,
+        and takes the gain of one after lost packets over that last one (`_channel`)."""
         if len(packets) != self.n_nodes:
             raise ValueError(f"expected {self.n_nodes} entries (None for absent), got {len(packets)}")
         picked = [i for i, p in enumerate(packets) if p is not None and 0 <= self.k - p.step <= self.max_lag
                   and not self._covered(i, p)]
         c = self.x_prior
         usable = [self._on_branch(self._channel(i, self._bring(packets[i]), packets[i].step), c) for i in picked]
-        if self.rule == "difference":   # the C writes them with the fused estimate
+        if self.rule == "difference":   # the C writes them once the whole fuse has succeeded
             for i in picked:
                 self.last[i] = packets[i]
         if not usable:
