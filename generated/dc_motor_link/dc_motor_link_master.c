@@ -308,13 +308,13 @@ int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
             /* absent: left out */
         } else if ((master->k - pk->step) > master->age) { /* modulo 2^32: also the future's */
             ignored++;
-        } else if (covered(master, i, pk) != 0) {
-            ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
         } else if (dc_motor_link_packet_check(pk) != DC_MOTOR_LINK_OK) {
             /* P or P_pred not SPD, or P above P_pred (difference rule) */
             rc = DC_MOTOR_LINK_ERR_SINGULAR;
+        } else if (covered(master, i, pk) != 0) {
+            ignored++;
         } else {
             (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
             rc = bring(master, pk->step, pk->centre, pk->x, pk->P, effect, x, P, &Pk);

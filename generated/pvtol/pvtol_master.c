@@ -285,13 +285,13 @@ int pvtol_master_fuse_try(pvtol_master* master, const pvtol_packet packets[NNODE
             /* absent: left out */
         } else if ((master->k - pk->step) > master->age) { /* modulo 2^32: also the future's */
             ignored++;
-        } else if (covered(master, i, pk) != 0) {
-            ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = PVTOL_ERR_NONFINITE;
         } else if (pvtol_packet_check(pk) != PVTOL_OK) {
             /* P or P_pred not SPD, or P above P_pred (difference rule) */
             rc = PVTOL_ERR_SINGULAR;
+        } else if (covered(master, i, pk) != 0) {
+            ignored++;
         } else {
             (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
             rc = bring(master, pk->step, pk->centre, pk->x, pk->P, effect, x, P, &Pk);

@@ -310,13 +310,13 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
             /* absent: left out */
         } else if ((master->k - pk->step) > master->age) { /* modulo 2^32: also the future's */
             ignored++;
-        } else if (covered(master, i, pk) != 0) {
-            ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
         } else if (two_link_arm_packet_check(pk) != TWO_LINK_ARM_OK) {
             /* P or P_pred not SPD, or P above P_pred (difference rule) */
             rc = TWO_LINK_ARM_ERR_SINGULAR;
+        } else if (covered(master, i, pk) != 0) {
+            ignored++;
         } else {
             (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
             rc = bring(master, pk->step, pk->centre, pk->x, pk->P, effect, x, P, &Pk);

@@ -285,13 +285,13 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
             /* absent: left out */
         } else if ((master->k - pk->step) > master->age) { /* modulo 2^32: also the future's */
             ignored++;
-        } else if (covered(master, i, pk) != 0) {
-            ignored++;
         } else if (packet_finite(pk) == 0) {
             rc = UNICYCLE_ERR_NONFINITE;
         } else if (unicycle_packet_check(pk) != UNICYCLE_OK) {
             /* P or P_pred not SPD, or P above P_pred (difference rule) */
             rc = UNICYCLE_ERR_SINGULAR;
+        } else if (covered(master, i, pk) != 0) {
+            ignored++;
         } else {
             (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
             rc = bring(master, pk->step, pk->centre, pk->x, pk->P, effect, x, P, &Pk);
