@@ -162,7 +162,7 @@ class Master:
     def _covered(self, i: int, p: Packet) -> bool:
         """Difference rule: a packet not newer than the last one fused from its node brings
         nothing the master lacks (that one's gain, taken over a gap, covered its step)."""
-        last = self.last[i] if self.rule == "difference" else None
+        last = self.last[i]   # written by the difference rule only
         return last is not None and p.step <= last.step
 
     def _channel(self, i: int, item, step: int):
@@ -174,7 +174,7 @@ class Master:
         that prediction is no better informed on any diagonal entry than the node's own (to 64
         ulps): after a node restarts, its own prediction holds less than its old estimate did,
         and the gain is then its own."""
-        last = self.last[i] if self.rule == "difference" else None
+        last = self.last[i]
         if last is None or step - last.step <= 1 or self.k - last.step > self.max_lag:
             return item
         x, P, x_pred, P_pred = item
