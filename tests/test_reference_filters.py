@@ -2,6 +2,7 @@
 (batch re-run), a naive O(N^2) evaluation of the retrodiction sums, a centralized stacked
 Kalman filter, a grid search for covariance intersection, and a Monte Carlo for consistency."""
 
+import dataclasses
 from functools import lru_cache
 
 import numpy as np
@@ -433,6 +434,63 @@ def test_channel_is_skipped_for_a_restarted_node_and_covered_packets_are_ignored
     assert np.array_equal(back[0], back_own[0]) and np.array_equal(back[1], back_own[1])
     again = fused(False, repeat=True)             # step 0's packet once more at step 6
     assert np.array_equal(again[0], kept[0]) and np.array_equal(again[1], kept[1])
+
+
+@pytest.mark.parametrize("kind", ["brunovsky", "held"])
+def test_channel_decision_does_not_turn_on_rounding(kind):
+    """Node 0's packets of steps 1-3 are lost; at step 3 it applied a late frame of step 1. Its
+    own prediction of step 4 then holds more than the master's prediction of its last fused
+    packet (step 0) on every diagonal entry, by little on some: in exact arithmetic never less,
+    so that the channel is the node's gain; where a late frame adds next to nothing, a rounding
+    can put the node's entry on either side of the master's. The master must fuse the same
+    whichever side it falls on: one diagonal entry of the node's prediction set to the master's
+    (a twin node without the late frame: the same carry in exact arithmetic) times 1 + 1e-9 or
+    1 - 1e-9 gives the same master (both the channel, which does not read that prediction). A
+    decision taken at 64 ulps put the C and the reference on opposite sides (the arm, three
+    nodes, a packet three steps on, 4.5e-13 apart: their masters 0.12 apart); here it moved the
+    master's x by 3e-5 (brunovsky) and 7e-4 (held): the gain over the node's own prediction.
+    A restart (the prediction 100 times wider) is the node's own gain, far from the channel's."""
+    flat = flat_system("dc_motor_link")
+    x0, P0 = start(flat)
+    v = np.zeros(flat.m)
+    R = np.eye(flat.m) * 1e-4
+    frame = x0[flat.heads] + 0.01
+
+    def node_at_4(late: bool):
+        node = NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, predictor=kind)
+        for k in range(4):
+            node.update(frame if k == 0 else None, k == 0)
+            if late and k == 3:
+                node.update_delayed(frame, 2)
+            node.predict(v)
+        return node
+
+    twin = node_at_4(False).packet().P_pred        # = the master's carry of step 0's packet
+    d = int(np.argmax(np.diag(node_at_4(True).packet().P_pred) / np.diag(twin)))   # the entry the frame moved least
+
+    def fused(scale: float | None = None, wide: float = 1.0):
+        node = NodeFilter(flat, TS, Q_DENSITY, R, x0, P0, predictor=kind)
+        master = Master(flat, TS, Q_DENSITY, x0, P0, 1, rule="difference", predictor=kind)
+        for k in range(5):
+            node.update(frame if k in (0, 4) else None, k in (0, 4))
+            if k == 3:
+                node.update_delayed(frame, 2)
+            p = node.packet()
+            if k == 4:
+                Pp = p.P_pred * wide
+                if scale is not None:
+                    Pp = Pp.copy()
+                    Pp[d, d] = twin[d, d] * scale
+                p = dataclasses.replace(p, P_pred=Pp)
+            master.fuse([p if k in (0, 4) else None])
+            node.predict(v)
+            master.predict(v)
+        return master.x, master.P
+
+    above, below, plain = fused(1 + 1e-9), fused(1 - 1e-9), fused()
+    assert rel(above[0], below[0]) <= 1e-12 and rel(above[1], below[1]) <= 1e-12
+    assert rel(above[1], plain[1]) <= 1e-12
+    assert rel(fused(wide=100.0)[1], plain[1]) > 1e-2
 
 
 def test_master_predicts_stale_packets_and_ignores_old_ones():

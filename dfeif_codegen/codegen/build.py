@@ -29,7 +29,7 @@ from dfeif_codegen.symbolic import flatness, model
 from dfeif_codegen.symbolic.sampling import nominal_point
 from dfeif_codegen.codegen import centring, kernels, layout, provenance, render
 from dfeif_codegen.codegen.kernels import csource
-from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
+from dfeif_codegen.constants import CHANNEL_RESTART_RATIO, CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.codegen.options import BuildError, Options
 from dfeif_codegen.codegen.output import check_target, write_atomic
 
@@ -106,7 +106,7 @@ def context(flat, opts: Options, model_arg: str | None = None) -> dict:
         # the CI Hessian's data: H (M x M), or its factor G (M x n^2) when that step is cheaper
         "ci_factor": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_grad"), 0),
         "ci_pivots": next((f.numel_out(1) for f in ks.all() if f.name() == f"{p}_kern_ci_dir"), 0),
-        "ci_regulariser": CI_REGULARISER,
+        "ci_regulariser": CI_REGULARISER, "channel_restart_ratio": CHANNEL_RESTART_RATIO,
         "model_hash": provenance.model_hash(m), "versions": provenance.versions(),
         "cmake_version": provenance.cmake_version(__version__),
         "kernel_code": kernel_code, "kernel_list": kernel_list,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dfeif_codegen.constants import CI_REGULARISER, CI_TOLERANCE, ci_iterations
+from dfeif_codegen.constants import CHANNEL_RESTART_RATIO, CI_REGULARISER, CI_TOLERANCE, ci_iterations
 from dfeif_codegen.reference import predictor as predictors
 from dfeif_codegen.reference.linalg import cholesky, spd_inv, wrap
 from dfeif_codegen.reference.node import Packet
@@ -170,10 +170,10 @@ class Master:
         the gain is taken over its prediction of that packet's estimate, not over the node's own
         prediction: (x_j, P_j) brought to the current step stands for x_pred, P_pred, so the
         gain holds every frame the node used since j, which the lost packets carried (a channel
-        filter; docs/algorithms.md, master). Only while step j's inputs are kept, and only where
-        that prediction is no better informed on any diagonal entry than the node's own (to 64
-        ulps): after a node restarts, its own prediction holds less than its old estimate did,
-        and the gain is then its own."""
+        filter; docs/algorithms.md, master). Only while step j's inputs are kept, and not where
+        that prediction is far better informed on a diagonal entry than the node's own
+        (CHANNEL_RESTART_RATIO): after a node restarts, its own prediction holds less than its
+        old estimate did, and the gain is then its own."""
         last = self.last[i]
         if last is None or step - last.step <= 1 or self.k - last.step > self.max_lag:
             return item
@@ -181,9 +181,8 @@ class Master:
         inputs = [self._v[s] for s in range(last.step, self.k)]
         xc, = self.predictor.bring([last.x], inputs)
         Pc, = self.predictor.carry([last.P], inputs)
-        # no frame in the gap: the two are equal but for rounding, and the slack picks the channel
-        slack = 1 - 64 * np.finfo(Pc.dtype).eps
-        if np.all(np.diag(Pc) >= np.diag(P_pred) * slack):
+        # without a restart diag(Pc) >= diag(P_pred) but for rounding (equal: no frame in the gap)
+        if np.all(np.diag(Pc) >= np.diag(P_pred) * CHANNEL_RESTART_RATIO):
             return x, P, xc, Pc
         return item
 

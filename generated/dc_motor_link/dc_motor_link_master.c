@@ -173,9 +173,9 @@ static int covered(const dc_motor_link_master* master, int i, const dc_motor_lin
 /* Where packets of node i were lost since the last one fused from it (of step j, within the
  * stored inputs), that packet's estimate brought to the current step replaces the node's own
  * prediction (xp, *Ppk) as what the gain is taken over: the gain then holds every frame the node
- * used since j (a channel filter, docs/algorithms.md). Only where it is no better informed on any
- * diagonal entry than the node's own prediction (to 64 ulps): after a restart the node's own
- * holds less. */
+ * used since j (a channel filter, docs/algorithms.md). Not where it is far better informed on a
+ * diagonal entry than the node's own prediction (below 0.5 of it): after a restart the
+ * node's own holds less. */
 static int channel(const dc_motor_link_master* master, int i, const dc_motor_link_packet* pk,
                    real* xp, real* Pc, const real** Ppk)
 {
@@ -191,9 +191,10 @@ static int channel(const dc_motor_link_master* master, int i, const dc_motor_lin
         (void)memset(effect, 0, sizeof(effect)); /* not used by the held predictor's bring */
         rc = bring(master, j, &master->last_centre[i], &master->last_x[i * NX],
                    &master->last_P[i * NXX], effect, xc, Pc, &Pk);
-        /* 64 ulps: with no frame in the gap the two are equal but for rounding */
+        /* without a restart Pk >= *Ppk on the diagonal but for rounding (equal: no frame in the
+         * gap), so the test sits far from 1 (constants.CHANNEL_RESTART_RATIO) */
         for (d = 0; d < NX; d++) {
-            if (Pk[(d * NX) + d] < ((*Ppk)[(d * NX) + d] * 0.9999999999999858)) {
+            if (Pk[(d * NX) + d] < ((*Ppk)[(d * NX) + d] * 0.5)) {
                 better = 1; /* the node's own prediction holds less: it restarted */
             }
         }
