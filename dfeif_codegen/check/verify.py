@@ -155,18 +155,28 @@ def worst_of(runs) -> list[SignalError]:
     return list(worst.values())
 
 
-def float32_reference_errors(rec, nudges: int = 0) -> list[SignalError]:
+def float32_reference_errors(rec, nudges: int = 0, recorded: bool = True) -> list[SignalError]:
     """A second single-precision implementation on the same recording: the reference's nodes
     and master in float32 (numpy and LAPACK; the held mean instruction by instruction,
-    numeric.SinglePrecision), compared with the float64 reference like the C is. With `nudges`,
-    the worst of that run and as many more with P0 nudged by one float ulp: where a one-ulp
-    change moves the result by up to the budget, one float32 run is one draw (the arm's CI
-    master: 2.9e-5 to 1.0e-4 with the association alone), and the ensemble's worst is the size."""
+    numeric.SinglePrecision), compared with the float64 reference like the C is, predicting
+    with the inputs the C predicted with (`recorded`: the recorded ones, else its own
+    controller's). The two are not alike: a filter predicting with its own controller's input
+    closes the loop on its own estimate, whose poles contract its rounding, where the recorded
+    input leaves that to the filter's gain alone (the arm, one camera at 4x noise, CI: master x
+    in float32 1.6e-5 from the reference with its own inputs, 1.2e-4 with the recorded ones,
+    the C 8.1e-5; the first made `codegen verify` blame the C).
+    With `nudges`, the worst of that run and as many more with P0 nudged by one float ulp:
+    where a one-ulp change moves the result by up to the budget, one float32 run is one draw
+    (the arm's CI master: 2.9e-5 to 1.0e-4 with the association alone), and the ensemble's
+    worst is the size."""
+    from dfeif_codegen.check.driver_io import broadcast
     from dfeif_codegen.experiment import closed_loop as experiment
 
     eps = float(np.finfo(np.float32).eps)
+    inputs = broadcast(rec) if recorded else None
     recs = [rec] + [nudged(rec, eps, seed) for seed in range(nudges)]
-    return worst_of(compare_run(experiment.replay_recording(r, dtype=np.float32), rec, "float") for r in recs)
+    return worst_of(compare_run(experiment.replay_recording(r, dtype=np.float32, inputs=inputs), rec, "float")
+                    for r in recs)
 
 
 def double_twin_errors(rec, recorded: bool) -> list[SignalError]:
@@ -342,7 +352,7 @@ def compare_outputs(settings: str, about: str, ran, rec, precision: str, recorde
     recorded inputs)."""
     result = Verification(settings, about, compare_run(ran.outputs, rec, precision), ran.target_report)
     if not result.ok:
-        twin = (float32_reference_errors(rec, FLOAT_NUDGES) if precision == "float"
+        twin = (float32_reference_errors(rec, FLOAT_NUDGES, recorded) if precision == "float"
                 else double_twin_errors(rec, recorded))
         result.yardstick = yardstick(result.errors, twin, precision)
     return result
