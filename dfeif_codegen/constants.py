@@ -41,11 +41,12 @@ CHANNEL_RESTART_RATIO = 0.5
 """The difference rule's channel (docs/algorithms.md, master) is skipped for a node whose own
 prediction holds less than the master's prediction of its last fused packet: some diagonal entry
 of that prediction below this fraction of the node's. Without a restart the node's prediction
-holds that packet's information and more, so in exact arithmetic it is never larger; where no
-frame came in the gap the two are equal and differ by rounding, which the carry over N steps in
-one (docs/algorithms.md, master 1) makes far larger than one ulp (4.5e-13 relative on the arm,
-three nodes, a packet three steps on): the decision must lie far from 1, where no rounding
-reaches it. A node back from a restart predicts from its start-up prior, many times wider."""
+holds that packet's information and more, so in exact arithmetic it is never larger; on an
+entry the gap's frames barely moved (none came, or late ones that told little of it) the two
+are equal but for rounding, which the carry over N steps in one (docs/algorithms.md, master 1)
+makes far larger than one ulp (4.5e-13 relative on the arm, three nodes, a packet three steps
+on): the decision must lie far from 1, where no rounding reaches it. A node back from a restart
+predicts from its start-up prior, many times wider."""
 
 NODES_LIMIT = 16
 """Camera nodes a module is built for, at most: a scenario's [[nodes]] and --nodes alike."""
