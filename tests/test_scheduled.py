@@ -243,3 +243,27 @@ def test_calibration_with_disturbance_states_matches_the_scheduled_filters_nees_
     own = np.mean([np.mean(ex.run(config(q, s, "scheduled")).metrics["nees_master"]) for s in seeds])
     print(f"q {q}, NEES re-filtered {refiltered:.3f}, on its own loops {own:.3f}")
     assert abs(math.log(own / flat.n)) <= 2 * math.log(NEES_TOL)
+
+
+def test_transition_swing_and_the_scenarios_advice():
+    """`codegen scenario`'s advice (scheduled_calibration.advice) rests on how far Φ(σ) leaves
+    Φ₀ along the reference, in units of Φ₀'s own step. Oracles: at the nominal outputs Φ(σ₀) is
+    Φ₀ (the swing is 0 up to the rounding of one evaluation of L), and where L does not depend
+    on σ (the unicycle and the PVTOL: their canonical dynamics after the extension are linear in
+    the flat outputs' derivatives) it is 0 everywhere. Measured on the default references (the
+    values the threshold sits between): the arm 1.45 (its inertia and gravity move with q2),
+    advised; the motor 0.12 (gravity's cos θ alone), not advised."""
+    from dfeif_codegen.experiment import derivation, shapes, scheduled_calibration as sc
+
+    swings = {}
+    for model in ("dc_motor_link", "two_link_arm", "unicycle", "pvtol"):
+        flat = derivation.derive(model)
+        heads = list(flat.heads)
+        H = predictors.held_constants(flat, float(flat.model.ts))
+        assert sc.transition_swing(flat, float(flat.model.ts), [H.zeta0[heads]]) < 1e-12
+        states = shapes.along_reference(flat, model, 24, shapes.from_domains(flat))
+        swings[model] = sc.transition_swing(flat, float(flat.model.ts), [z[heads] for z, _ in states])
+    print(f"\n{swings}")
+    assert swings["unicycle"] < 1e-12 and swings["pvtol"] < 1e-12
+    assert swings["two_link_arm"] > 2 * sc.SWING_ADVICE and swings["dc_motor_link"] < sc.SWING_ADVICE / 2
+    assert "--predictor scheduled" in sc.advice(swings["two_link_arm"]) and sc.advice(swings["dc_motor_link"]) == ""

@@ -252,16 +252,24 @@ def _check_inputs(flat, rows, t) -> None:
                                   f"[{lo[i]:g}, {hi[i]:g}] less a tenth of that range for the feedback")
 
 
+def along_reference(flat, spec: str, points: int = 12, shape: Shape | None = None) -> list[tuple]:
+    """The canonical state and the feedforward input at `points` instants of one period of the
+    reference (the model's own parameters)."""
+    shape = shape or from_domains(flat)
+    refs = ex.references(ex.Config(model=spec, **shape.config()), flat.m)
+    out = []
+    for tk in np.linspace(0, shape.period, points, endpoint=False):
+        z, _, u = feedforward(flat, flags(refs, flat.degrees, tk), flat.param_vector)
+        out.append((z, u))
+    return out
+
+
 def fastest_oscillation(flat, spec: str, ts: float, points: int = 12, shape: Shape | None = None) -> float:
     """Largest |imaginary part| of the plant Jacobian's eigenvalues along the reference [rad/s]
     (`codegen scenario` names it when it turns by more than 0.3 rad per period: fast_mode)."""
-    shape = shape or from_domains(flat)
     plant = ex._plant(spec, ts, 1)
-    cfg = ex.Config(model=spec, **shape.config())
-    refs = ex.references(cfg, flat.m)
     p, n, worst = flat.param_vector, flat.n, 0.0
-    for tk in np.linspace(0, shape.period, points, endpoint=False):
-        z, _, u = feedforward(flat, flags(refs, flat.degrees, tk), p)
+    for z, u in along_reference(flat, spec, points, shape):
         x = flat.phi_inv_num(z, p)
         h = 1e-6 * np.maximum(1.0, np.abs(x))
         jac = np.column_stack([(plant.rhs(x + h[i] * np.eye(n)[i], u) - plant.rhs(x - h[i] * np.eye(n)[i], u))

@@ -23,7 +23,8 @@ What a user would otherwise guess, derived from the model:
   searching both ways after a lost loop (`_after_loss`); none closing is exit 2. Last, q rises
   by half decades until the replay loop closes under the grid's hardest delays too
   (`close_with_delays`).
-- a warning naming the plant's fastest mode past 1 rad per period, or 0.3 where a loop was lost.
+- a warning naming the plant's fastest mode past 1 rad per period, or 0.3 where a loop was lost,
+  and a note advising `--predictor scheduled` where it matters (scheduled_calibration.note).
 
 The residual grows with the relative degree and with how fast the dynamics are against Ts: a stiff
 flexible joint (degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e7 with Brunovsky's model, 1.5e3 held.
@@ -44,9 +45,7 @@ from typing import NamedTuple
 import numpy as np
 
 from dfeif_codegen.errors import ScenarioError
-from dfeif_codegen.experiment import closed_loop as ex
-from dfeif_codegen.experiment import derivation
-from dfeif_codegen.experiment import scenario as scenario_mod
+from dfeif_codegen.experiment import closed_loop as ex, derivation, scenario as scenario_mod
 from dfeif_codegen.experiment import (baseline_check, disturbance_calibration, disturbance_choice, offsets_calibration,
                                      pole_margin, scheduled_calibration, shapes)
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
@@ -281,6 +280,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
                             + (", or a smaller --param-error" if plant_error else "") + (f"; {fast}" if fast else ""))
     lost = any(entry.startswith("WARNING") for entry in log)     # a loop lost under delays or model error
     warn = [f"# WARNING: {fast}."] if fast and (lost or omega * ts > 1.0) else []
+    warn += [] if scheduled else scheduled_calibration.note(flat, spec, ts, shape, progress)
     lines = [
         MARKER + f" for model {model.name}.",
         "# Every number below comes from the model (docs/experiment.md, \"A starting scenario\"):",
