@@ -253,16 +253,14 @@ def test_transition_swing_and_the_scenarios_advice():
     the flat outputs' derivatives) it is 0 everywhere. Measured on the default references (the
     values the threshold sits between): the arm 1.45 (its inertia and gravity move with q2),
     advised; the motor 0.12 (gravity's cos θ alone), not advised."""
-    from dfeif_codegen.experiment import derivation, shapes, scheduled_calibration as sc
+    from dfeif_codegen.experiment import derivation, scheduled_calibration as sc
 
     swings = {}
     for model in ("dc_motor_link", "two_link_arm", "unicycle", "pvtol"):
         flat = derivation.derive(model)
-        heads = list(flat.heads)
         H = predictors.held_constants(flat, float(flat.model.ts))
-        assert sc.transition_swing(flat, float(flat.model.ts), [H.zeta0[heads]]) < 1e-12
-        states = shapes.along_reference(flat, model, 24, shapes.from_domains(flat))
-        swings[model] = sc.transition_swing(flat, float(flat.model.ts), [z[heads] for z, _ in states])
+        assert sc.transition_swing(flat, float(flat.model.ts), [H.zeta0[list(flat.heads)]]) < 1e-12
+        swings[model] = sc.swing_along_reference(flat, model, float(flat.model.ts))
     print(f"\n{swings}")
     assert swings["unicycle"] < 1e-12 and swings["pvtol"] < 1e-12
     assert swings["two_link_arm"] > 2 * sc.SWING_ADVICE and swings["dc_motor_link"] < sc.SWING_ADVICE / 2

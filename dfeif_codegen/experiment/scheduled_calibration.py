@@ -116,13 +116,18 @@ def advice(swing: float) -> str:
             "(2.0) it was 0.37-0.85 of an EKF's error with camera frames lost, where the held one lost to the EKF")
 
 
-def note(flat, spec: str, ts: float, shape, progress) -> list[str]:
-    """A starting scenario's header note advising the scheduled predictor where its transition
-    swings along the reference (`advice`), also said on `progress`; else nothing."""
+def swing_along_reference(flat, spec: str, ts: float, shape=None) -> float:
+    """transition_swing over the flat outputs of 24 instants of one period of the reference."""
     from dfeif_codegen.experiment import shapes
 
     heads = list(flat.heads)
-    said = advice(transition_swing(flat, ts, [z[heads] for z, _ in shapes.along_reference(flat, spec, 24, shape)]))
+    return transition_swing(flat, ts, [z[heads] for z, _ in shapes.along_reference(flat, spec, 24, shape)])
+
+
+def note(flat, spec: str, ts: float, shape, progress) -> list[str]:
+    """A starting scenario's header note advising the scheduled predictor where its transition
+    swings along the reference (`advice`), also said on `progress`; else nothing."""
+    said = advice(swing_along_reference(flat, spec, ts, shape))
     if said and progress:
         progress(f"note: {said}")
     return [f"# NOTE: {said}."] if said else []
