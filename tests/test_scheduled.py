@@ -5,6 +5,7 @@ set to the master's broadcast flat outputs σ."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -265,3 +266,52 @@ def test_transition_swing_and_the_scenarios_advice():
     assert swings["unicycle"] < 1e-12 and swings["pvtol"] < 1e-12
     assert swings["two_link_arm"] > 2 * sc.SWING_ADVICE and swings["dc_motor_link"] < sc.SWING_ADVICE / 2
     assert "--predictor scheduled" in sc.advice(swings["two_link_arm"]) and sc.advice(swings["dc_motor_link"]) == ""
+
+
+SQRT_MOTOR = str(Path(__file__).parent / "data" / "sqrt_motor.toml")
+
+
+def test_transition_is_the_held_ones_where_the_scheduling_point_leaves_the_domain():
+    """The reluctance motor's current is sqrt((J θ'' + c θ' + ks θ) / k), declared in [0.05, 5] A.
+    The scheduling point keeps the nominal θ' = θ'' = 0, so at σ = θ its current is
+    sqrt(ks σ / k): 0 at σ = 0 (an infinite slope: the filter's NaN ended the loop before),
+    NaN below, 0.045 A (under the domain) at σ = 0.001. There Φ(σ) is Φ₀ (L taken at the nominal
+    point: equal to rounding, 1e-12 of Φ₀'s scale, as at the arm's nominal above). Inside
+    (σ = 0.146: 0.54 A) it is the exponential-Euler step's Jacobian at the point, against a
+    central difference as in the arm's test above (1e-7 of a column's scale), and not Φ₀."""
+    flat = ex._flat(SQRT_MOTOR)
+    model = ScheduledModel(flat, 0.01, (1.0,))
+    H = predictors.held_constants(flat, 0.01)
+    zeta0, u0 = sampling.nominal_point(flat)
+    for sigma in (0.0, -0.3, 0.001):
+        Phi = np.array(model.transition_sx(np.concatenate([u0, [sigma]])))
+        np.testing.assert_allclose(Phi, H.E, rtol=0, atol=1e-12 * np.abs(H.E).max())
+    top = sampling.remainder_function(flat)
+    point = zeta0.copy()
+    point[0] = 0.146
+    Phi = np.array(model.transition_sx(np.concatenate([u0, [0.146]])))
+    fd = _central_difference(lambda z: z + H.Psi @ (H.Ac @ z + H.Bc @ np.array(
+        top(z, u0, flat.param_vector)[0]).ravel()), point)
+    for j in range(flat.n):
+        np.testing.assert_allclose(Phi[:, j], fd[:, j], rtol=0, atol=1e-7 * np.abs(fd[:, j]).max())
+    assert np.abs(Phi - H.E).max() > 0.5 * np.abs(H.E).max()     # measured 0.85: not Φ₀ there
+
+
+def test_the_scenario_advises_the_scheduled_predictor_only_where_it_holds_its_loops():
+    """Its transition swings along the reluctance motor's reference too (4.4 of Φ₀'s step), but
+    there the scheduled filter's covariance grows threefold a step near θ = 0.07 and the loop is
+    lost (measured): not advised, and said why. The arm's holds its loops (the paper scenario's
+    first row, seeds 0-1): advised."""
+    from dfeif_codegen.experiment import derivation, scenario, scheduled_calibration as sc, simulate
+
+    said = []
+    for spec, file, advised in ((SQRT_MOTOR, str(Path(__file__).parent / "data" / "sqrt_motor_scenario.toml"), False),
+                                ("two_link_arm", "paper", True)):
+        flat, scn = derivation.derive(spec), scenario.load(file)
+        assert sc.swing_along_reference(flat, spec, float(flat.model.ts)) > 2 * sc.SWING_ADVICE
+
+        def loop(seed):
+            return simulate.make_config(scn, spec, 2, 32, "sinusoid", scn.grid[0], "replay", "difference", seed)
+        note = sc.note(flat, spec, float(flat.model.ts), None, said.append, loop)
+        assert (len(note) == 1 and "--predictor scheduled" in note[0]) if advised else note == [], (spec, note)
+    assert "lost its loop" in said[0] and "not advised" in said[0]

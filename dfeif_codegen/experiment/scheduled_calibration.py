@@ -12,9 +12,10 @@ to cover (on the arm about 300 times less: docs/experiment.md). With disturbance
 (`--disturbance`, under model error) one stage, on the loops their densities were matched on
 (`under_model_error`).
 
-Whether a model wants the scheduled predictor at all (`transition_swing`, `advice`): `codegen
-scenario` says so when the transition moves along the reference by more than half of its own
-step, as the arm's does and the motor's does not.
+Whether a model wants the scheduled predictor at all (`transition_swing`, `advice`, `note`):
+`codegen scenario` says so when the transition moves along the reference by more than half of
+its own step, as the arm's does and the motor's does not, and the scheduled predictor holds the
+scenario's loops.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex
 from dfeif_codegen.experiment import compare
 from dfeif_codegen.experiment.disturbance_calibration import mean_nees
-from dfeif_codegen.experiment.nees_match import NEES_SECONDS, NO_LOOP, match_nees
+from dfeif_codegen.experiment.nees_match import NEES_SECONDS, NO_LOOP, first_loss, match_nees
 
 
 def nees(loops: list, q, disturbance=None) -> float:
@@ -124,10 +125,29 @@ def swing_along_reference(flat, spec: str, ts: float, shape=None) -> float:
     return transition_swing(flat, ts, [z[heads] for z, _ in shapes.along_reference(flat, spec, 24, shape)])
 
 
-def note(flat, spec: str, ts: float, shape, progress) -> list[str]:
+HOLD_SEEDS = 2   # closed loops the scheduled predictor must hold before it is advised
+
+
+def lost_loop(loop) -> str | None:
+    """Why the scheduled predictor loses one of the closed loops `loop(seed)` describes (seeds
+    0 to HOLD_SEEDS - 1, simulate's divergence watch), or None where it holds them all."""
+    loss = first_loss(dataclasses.replace(loop(s), predictor="scheduled", watch_nees=True) for s in range(HOLD_SEEDS))
+    return loss and loss[1]
+
+
+def note(flat, spec: str, ts: float, shape, progress, loop) -> list[str]:
     """A starting scenario's header note advising the scheduled predictor where its transition
-    swings along the reference (`advice`), also said on `progress`; else nothing."""
+    swings along the reference (`advice`) and it holds the scenario's own loops (`loop(seed)`:
+    their settings, at the calibrated q), also said on `progress`; else nothing. Why the loops:
+    a large swing says Φ₀ is wrong along the reference, not that Φ(σ), linearized at the nominal
+    derivatives, is right (the tests' reluctance motor: it swings 4.4, and the scheduled filter's
+    covariance grows threefold a step near θ = 0.07 and the loop is lost)."""
     said = advice(swing_along_reference(flat, spec, ts, shape))
+    lost = said and lost_loop(loop)
+    if lost:
+        said = ""
+        if progress:
+            progress(f"note: the scheduled predictor lost its loop on this reference ({lost}): not advised")
     if said and progress:
         progress(f"note: {said}")
     return [f"# NOTE: {said}."] if said else []

@@ -24,11 +24,9 @@ What a user would otherwise guess, derived from the model:
   by half decades until the replay loop closes under the grid's hardest delays too
   (`close_with_delays`).
 - a warning naming the plant's fastest mode past 1 rad per period, or 0.3 where a loop was lost,
-  and a note advising `--predictor scheduled` where it matters (scheduled_calibration.note).
-
-The residual grows with the relative degree and with how fast the dynamics are against Ts: a stiff
-flexible joint (degree 4, 94 rad/s at Ts = 10 ms) needs q near 1e7 with Brunovsky's model, 1.5e3 held.
-
+  and a note advising `--predictor scheduled` where it matters and holds the loops
+  (scheduled_calibration.note). The residual grows with the relative degree and how fast the
+  dynamics are against Ts (a stiff flexible joint, 94 rad/s at 10 ms: q 1e7 Brunovsky, 1.5e3 held).
 With `--disturbance` the scenario also gets disturbance states for the held filter, their
 densities calibrated to the same NEES target (experiment/disturbance_calibration.py); with
 `--scheduled` the scheduled filter's q (experiment/scheduled_calibration.py).
@@ -110,6 +108,7 @@ class Calibrated(NamedTuple):
     disturbance: Disturbance | None = None
     offsets: object = None          # reference/offsets.Offsets
     q_scheduled: np.ndarray | None = None   # the scheduled filter's (reference/scheduled.py)
+    loop: object = None            # seed -> the scenario's closed loop at the calibrated q (closed_loop.Config)
 
 
 def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: int = 10,
@@ -173,10 +172,10 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
         q, log = close_with_delays(q, config, seeds, delays, log, progress=say)
         poles, log = pole_margin.hold(lambda j: config(q, seed + j, NEES_SECONDS), poles,
                                       options.get("plant_error"), flat.model, delays, log, progress=say)
-    if not scheduled or NO_LOOP in log[-1]:
-        return Calibrated(q, log, list(poles))
-    q_scheduled, log = scheduled_calibration.q_scheduled(flat, q, config, seeds, log, say)
-    return Calibrated(q, log, list(poles), q_scheduled=q_scheduled)
+    q_scheduled = None
+    if scheduled and NO_LOOP not in log[-1]:
+        q_scheduled, log = scheduled_calibration.q_scheduled(flat, q, config, seeds, log, say)
+    return Calibrated(q, log, list(poles), q_scheduled=q_scheduled, loop=lambda s: config(q, s, NEES_SECONDS))
 
 
 def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offsets, scheduled, log, say):
@@ -213,7 +212,8 @@ def _with_disturbance(flat, cfg, res, q, config, seed, poles, delays, dist, offs
         offsets, log = offsets_calibration.chains_q(held, loops, offsets, free, log)
     q_s, log = (scheduled_calibration.under_model_error(flat, held, loops, seeds, dist, log, say) if scheduled
                 else (None, log))
-    return Calibrated(held, log, poles, dist, offsets, q_s)
+    loop = lambda s: dataclasses.replace(config(held, s, NEES_SECONDS), plant_error=ex.EXACT_MODEL)  # noqa: E731
+    return Calibrated(held, log, poles, dist, offsets, q_s, loop)
 
 
 def _white_q(flat, start, config, seed: int, log: list[str], say) -> tuple[np.ndarray, list[str]]:
@@ -267,7 +267,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     options = ({} if plant_error is None else {"plant_error": plant_error}) | \
         ({} if disturbance is None else {"predictor": "held", "disturbance": disturbance}) | \
         ({} if offsets is None else {"offsets": offsets}) | ({"scheduled": True} if scheduled else {})
-    q, log, poles, disturbance, offsets, q_scheduled = calibrate(
+    q, log, poles, disturbance, offsets, q_scheduled, loop = calibrate(
         flat, spec, ts, poles, p0_std, noise_std, shape=shape, delays=paper.grid[-1].links(len(noise_std)),
         progress=progress, **options)
     omega = shapes.fastest_oscillation(flat, spec, ts, shape=shape)
@@ -280,7 +280,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
                             + (", or a smaller --param-error" if plant_error else "") + (f"; {fast}" if fast else ""))
     lost = any(entry.startswith("WARNING") for entry in log)     # a loop lost under delays or model error
     warn = [f"# WARNING: {fast}."] if fast and (lost or omega * ts > 1.0) else []
-    warn += [] if scheduled else scheduled_calibration.note(flat, spec, ts, shape, progress)
+    warn += [] if scheduled else scheduled_calibration.note(flat, spec, ts, shape, progress, loop)
     lines = [
         MARKER + f" for model {model.name}.",
         "# Every number below comes from the model (docs/experiment.md, \"A starting scenario\"):",

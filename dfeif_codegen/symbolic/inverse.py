@@ -47,7 +47,7 @@ ROUND_TRIP = 1e-7   # |Phi^-1(Phi(x)) - x| <= 1e-7 (1 + |x|): a few hundred ulps
                      # far above double rounding and far below a wrong branch's O(|x|) error
 
 
-def _evaluate(args: list, expr: sp.Expr, columns: np.ndarray) -> np.ndarray:
+def evaluate(args: list, expr: sp.Expr, columns: np.ndarray) -> np.ndarray:
     """A sympy expression at many points at once (one row per point), through the one
     sympy -> CasADi bridge; nan where undefined (a square root of a negative number, a log of
     zero) or where the expression is not real (a candidate branch with I in it)."""
@@ -65,7 +65,7 @@ def _round_trips(cand: dict, rows: np.ndarray, zeta_rows: np.ndarray, zeta: list
     """Per test point: does this candidate give back the state it came from?"""
     ok = np.ones(len(rows), dtype=bool)
     for var, expr in cand.items():
-        got = _evaluate(list(zeta), sp.sympify(expr).subs(params), zeta_rows)
+        got = evaluate(list(zeta), sp.sympify(expr).subs(params), zeta_rows)
         want = rows[:, index[var]]
         ok &= np.isfinite(got) & (np.abs(got - want) <= ROUND_TRIP * (1 + np.abs(want)))
     return ok
@@ -88,7 +88,7 @@ def _float32_trips(cand: dict, rows: np.ndarray, zeta_rows: np.ndarray, zeta: li
     shaken = [zeta_rows * (1 + EPS32 * rng.uniform(-1, 1, zeta_rows.shape)) for _ in range(3)]
     for var, expr in cand.items():
         expr_p = sp.sympify(expr).subs(params)
-        values = _evaluate(list(zeta), expr_p, np.vstack([zeta_rows, *shaken])).reshape(len(shaken) + 1, -1)
+        values = evaluate(list(zeta), expr_p, np.vstack([zeta_rows, *shaken])).reshape(len(shaken) + 1, -1)
         moved = np.max(np.abs(values[1:] - values[0]), axis=0)
         try:
             with np.errstate(all="ignore"):
@@ -179,7 +179,7 @@ def polar_candidates(pair: list[sp.Expr], unknown: list[sp.Symbol], real: dict) 
     return out or None
 
 
-def _test_points(model: Model) -> np.ndarray:
+def domain_points(model: Model) -> np.ndarray:
     """BRANCH_POINTS states of the declared domain, the nominal state first (the point the robot
     is declared to operate at is always tested), then NEAR_NOMINAL states next to it."""
     rows = domain_samples(model, BRANCH_POINTS)
@@ -211,9 +211,9 @@ def solve_inverse(model: Model, phi: sp.Matrix, zeta: list[sp.Symbol]) -> sp.Mat
     trips) and kept as written; the equations they answer are tried last."""
     x = list(model.x)
     pending = [sp.expand_func(phi_i - z) for phi_i, z in zip(phi, zeta)]
-    rows = _test_points(model)
+    rows = domain_points(model)
     real = {s: sp.Dummy(str(s), real=True) for s in list(x) + list(zeta) + list(model.p)}
-    zeta_rows = np.column_stack([_evaluate(x, e.subs(model.param_values), rows) for e in phi])
+    zeta_rows = np.column_stack([evaluate(x, e.subs(model.param_values), rows) for e in phi])
     index = {v: i for i, v in enumerate(x)}
     declared = {v: s.bounded for v, s in zip(x, model.states)}
     trip = (rows, zeta_rows, zeta, model.param_values, index)

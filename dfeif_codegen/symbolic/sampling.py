@@ -286,9 +286,31 @@ def scheduled_transition_sx(flat, H: HeldSampling, sigma: ca.SX, p) -> ca.SX:
     point = ca.SX(ca.DM(H.zeta0))
     for j, c in enumerate(flat.chains):
         point[c.offset] = sigma[j]
+    inside = _schedulable(flat, point, p)
+    for j, c in enumerate(flat.chains):     # the nominal point where σ's is not a state
+        point[c.offset] = inside * sigma[j] + (1 - inside) * float(H.zeta0[c.offset])
     L = remainder_function(flat)(point, ca.DM(H.u0), p)[1]
     L = ca.horzcat(L, ca.SX(flat.m, len(H.A) - flat.n))
     return constant(H.E) + ca.mtimes(constant(H.G1), L - constant(H.L0))
+
+
+def _schedulable(flat, point: ca.SX, p) -> ca.SX:
+    """1 where the scheduling point is a state of the model, Φ⁻¹(point) inside every declared
+    [min, max]; 0 elsewhere (a NaN compares false), where Φ(σ) is then taken at the nominal point:
+    Φ₀. Why: the point holds the nominal derivatives, so it can leave the domain where the
+    reference does not: on a reluctance motor whose current is sqrt((J θ'' + c θ' + ks θ)/k), the
+    reference reaches θ = 0 with θ'' = 0.79 and the point, with θ'' = 0, a current of 0 and an
+    infinite slope (the filter's NaN ended the loop). A product of comparisons, not a logical
+    AND or a select: the C stays free of floating-point conditions (clang -Wfloat-conversion)."""
+    table = {s: point[i] for i, s in enumerate(flat.zeta)} | {s: p[i] for i, s in enumerate(flat.params)}
+    inside = ca.SX(1)
+    for i, state in enumerate(flat.model.states):
+        if state.min is None and state.max is None:
+            continue
+        x = numeric.to_casadi(flat.phi_inv[i], table, f"Phi^-1[{i}]")
+        inside = inside if state.min is None else inside * (x >= state.min)
+        inside = inside if state.max is None else inside * (x <= state.max)
+    return inside
 
 
 def within_limits(flat, u: ca.SX) -> ca.SX:
