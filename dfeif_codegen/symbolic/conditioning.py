@@ -119,4 +119,4 @@ def better_conditioned(expr: sp.Expr, zeta: list, model, point_sets: list[np.nda
     if rewritten == expr or instructions(rewritten, zeta, model) > GROWTH * instructions(expr, zeta, model):
         return expr
     before, after = (float32_error(e, zeta, model, point_sets) for e in (expr, rewritten))
-    return rewritten if after * GAIN <= before else expr
+    return rewritten if before > 0 and after * GAIN <= before else expr

@@ -282,7 +282,8 @@ def scheduled_transition_sx(flat, H: HeldSampling, sigma: ca.SX, p) -> ca.SX:
     section 3). L(σ) is a closed form of the m numbers σ: whoever evaluates it differentiates
     nothing. Φ(σ₀) = Φ₀ at the nominal outputs σ₀. With disturbance states (H of the extended
     state, `augmented`) L(σ) has zero columns for them, as L₀ has: they enter through B_c, which
-    A carries, and F + G u does not read them."""
+    A carries, and F + G u does not read them. Where the point is not a state of the model
+    (`_schedulable`), L is taken at the nominal point: Φ₀."""
     point = ca.SX(ca.DM(H.zeta0))
     for j, c in enumerate(flat.chains):
         point[c.offset] = sigma[j]
