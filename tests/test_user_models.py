@@ -2,6 +2,8 @@
 cameras that measure the flat outputs directly, a model without any [measurement]. Every one goes
 through `codegen verify`: its generated C must reproduce the reference on its own scenario."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -159,6 +161,17 @@ def test_builtin_scenario_that_does_not_fit_says_what_to_do(tmp_path, capsys):
     assert cli.main(["verify", path]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "p0_std" in err and "--scenario FILE" in err
+    assert "`codegen scenario MODEL --out FILE`" in err
+
+
+def test_builtin_scenario_whose_reference_leaves_the_model_says_what_to_do(capsys):
+    """The paper scenario's 0.5 rad sinusoid asks the hydraulic actuator of the tests for a
+    pressure above its declared 9e6 Pa: the reference fails before any C runs, and the one line
+    says so and names the command that writes a scenario for the model."""
+    model_path = str(Path(__file__).parent / "data" / "hydraulic.toml")
+    assert cli.main(["verify", model_path]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "the Python reference itself failed" in err and f"`codegen scenario {model_path} --out FILE`" in err
 
 
 @pytest.mark.parametrize("which, options", [

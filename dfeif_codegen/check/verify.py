@@ -327,9 +327,12 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
             rec = record(model, oosm, fusion, ref, row, nodes, max_lag, scenario_spec=scenario,
                          predictor=predictor, gate=gate)
         except (ArithmeticError, np.linalg.LinAlgError) as exc:
+            own = (f"; the built-in scenario may not suit model {built.name}: write one for it with `codegen "
+                   f"scenario {model} --out FILE` and pass it with --scenario FILE" if scenario in scenarios.BUILTIN
+                   else "")
             raise ScenarioError(f"{sc.source}: run {ref} row {row + 1} seed 0: the Python reference itself "
                                 f"failed ({type(exc).__name__}: {exc}), so there is nothing to compare the C "
-                                "with") from None
+                                f"with{own}") from None
         whole = rec.ref.shape[0]
         rec, K = targets.fitting(rec, built, inputs) if target == "cortex-m4f" else (rec, whole)
         about = (f"scenario: {sc.name}, {ref}, delays d = {tuple(sc.grid[row].d)}, p = {sc.grid[row].p}, "

@@ -130,8 +130,9 @@ class Scenario:
     def check_model(self, flat) -> None:
         """What depends on the model: per-chain lengths, P0 orders, camera noise."""
         m = flat.m
-        hint = (f" (the built-in scenario does not fit model {flat.model.name}: copy "
-                f"dfeif_codegen/experiment/scenarios/{self.source}, edit it and pass it with --scenario FILE)"
+        hint = (f" (the built-in scenario does not fit model {flat.model.name}: write one for it with `codegen "
+                f"scenario MODEL --out FILE`, or copy dfeif_codegen/experiment/scenarios/{self.source} and edit it, "
+                "and pass it with --scenario FILE)"
                 if self.source in {f"{b}.toml" for b in BUILTIN} else "")
 
         def fail(key: str, message: str):
