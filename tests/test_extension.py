@@ -72,7 +72,7 @@ def test_pvtol_is_extended_by_two_integrators_on_its_thrust_and_inverts_at_hover
 def test_float32_check_rejects_the_half_angle_form_and_keeps_atan2():
     flat = flatness.derive(model.loads_toml(UNICYCLE))
     x1, y1 = sp.symbols("x_1 y_1")
-    rows = inverse._test_points(flat.model)
+    rows = inverse.domain_points(flat.model)
     zeta_rows = np.array([flat.phi_num(r) for r in rows])
     index = {v: i for i, v in enumerate(flat.model.x)}
     th = sp.Symbol("th")
