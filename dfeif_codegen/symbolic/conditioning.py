@@ -31,22 +31,24 @@ import numpy as np
 import sympy as sp
 
 from dfeif_codegen.symbolic import numeric
-from dfeif_codegen.symbolic.inverse import evaluate
+from dfeif_codegen.symbolic.inverse import domain_points, evaluate, node_count
 
 GAIN = 4.0            # float32 error of the form substituted over the rewritten one's, at least
 GROWTH = 1.5          # CasADi instructions of the rewritten form over the substituted one's, at most
 SUM_MAX_NODES = 400   # larger sums are not rewritten (their expansion is what grows an arm's F-bar)
 
 
-def canonical_points(zeta_rows: np.ndarray, chains, seed: int = 11) -> list[np.ndarray]:
+def canonical_points(model, phi, chains, seed: int = 11) -> list[np.ndarray]:
     """The two sets of canonical states of the module docstring (rows with a non-finite entry
-    dropped): `zeta_rows` = Phi at the domain's states, and its flat outputs with derivatives
-    from [-1, 1]."""
+    dropped): `phi` (Phi, in the states of `model`) at the domain's states, and their flat
+    outputs with derivatives from [-1, 1]."""
+    rows = domain_points(model)
+    zeta_rows = np.column_stack([evaluate(list(model.x), e.subs(model.param_values), rows) for e in phi])
     slow = np.array(zeta_rows, dtype=float)
     rng = np.random.default_rng(seed)
     for c in chains:
         slow[:, c.offset + 1:c.offset + c.degree] = rng.uniform(-1.0, 1.0, (len(slow), c.degree - 1))
-    return [rows[np.all(np.isfinite(rows), axis=1)] for rows in (np.asarray(zeta_rows, dtype=float), slow)]
+    return [z[np.all(np.isfinite(z), axis=1)] for z in (zeta_rows, slow)]
 
 
 def float32_error(expr: sp.Expr, zeta: list, model, point_sets: list[np.ndarray]) -> float:
@@ -72,14 +74,6 @@ def float32_error(expr: sp.Expr, zeta: list, model, point_sets: list[np.ndarray]
     return worst
 
 
-def _size(expr: sp.Expr, cap: int) -> int:
-    """Nodes of expr's tree, counted up to `cap` (an expansion can be huge: stop there)."""
-    for k, _ in enumerate(sp.preorder_traversal(expr)):
-        if k >= cap:
-            return cap
-    return k + 1
-
-
 def cancel_sums(expr: sp.Expr) -> sp.Expr:
     """expr with each sum of at most SUM_MAX_NODES nodes replaced, from the leaves up, by its
     expansion or its numerator's expansion over the common denominator, whichever has the
@@ -94,11 +88,11 @@ def cancel_sums(expr: sp.Expr) -> sp.Expr:
             args = [visit(a) for a in e.args]
             if any(a is not b for a, b in zip(args, e.args)):
                 out = e.func(*args)
-            size = _size(out, SUM_MAX_NODES + 1) if out.is_Add else SUM_MAX_NODES + 1
+            size = node_count(out, SUM_MAX_NODES + 1) if out.is_Add else SUM_MAX_NODES + 1
             if size <= SUM_MAX_NODES:
                 num, den = sp.fraction(sp.together(out))
                 for form in (sp.expand(out), sp.expand(num) / den):
-                    shorter = _size(form, size)
+                    shorter = node_count(form, size)
                     if shorter < size:
                         out, size = form, shorter
         done[e] = out

@@ -13,7 +13,7 @@ import sympy as sp
 
 from dfeif_codegen import angles
 from dfeif_codegen.symbolic import conditioning, discretize, extension, lie, numeric
-from dfeif_codegen.symbolic.inverse import ROUND_TRIP, domain_points, evaluate, small_simplify, solve_inverse
+from dfeif_codegen.symbolic.inverse import ROUND_TRIP, small_simplify, solve_inverse
 from dfeif_codegen.errors import ModelError
 from dfeif_codegen.symbolic.lie import domain_samples, nominal_state  # noqa: F401  (re-exported)
 from dfeif_codegen.symbolic.model import Model
@@ -252,8 +252,7 @@ def derive(model: Model, progress=None) -> FlatSystem:
     F = sp.Matrix([small_simplify(sp.sympify(r).xreplace(back)) for r in io.top])
     G = io.decoupling.xreplace(back).applyfunc(small_simplify)
     say("choosing the forms of F-bar and G-bar that single precision computes best")
-    points = conditioning.canonical_points(
-        np.column_stack([evaluate(x, e.subs(model.param_values), domain_points(model)) for e in phi]), chains)
+    points = conditioning.canonical_points(model, phi, chains)
     F, G = (part.applyfunc(lambda e: conditioning.better_conditioned(e, zeta, model, points)) for part in (F, G))
     _check_denominators(model, {f"Phi^-1.{s.name}": e for s, e in zip(model.states, phi_inv)}
                         | {"F-bar": sum(F), "G-bar": sum(G)})

@@ -23,18 +23,19 @@ from dfeif_codegen.symbolic.lie import domain_samples, interval, nominal_state
 from dfeif_codegen.symbolic.model import Model
 
 
-def _nodes_exceed(expr, cap: int) -> bool:
-    """More than `cap` nodes in the tree? Stops counting there (count_ops walks all of a huge one)."""
+def node_count(expr, cap: int) -> int:
+    """Nodes of expr's tree, counted up to `cap` (count_ops walks all of a huge one: stop there)."""
     for k, _ in enumerate(sp.preorder_traversal(expr)):
         if k >= cap:
-            return True
-    return False
+            return cap
+    return k + 1
+
 
 
 def small_simplify(expr: sp.Expr, limit: int = 30) -> sp.Expr:
     """Simplify what is cheap to simplify; large expressions are left for CasADi's CSE. A tree of
     more than 40 nodes per allowed operation is large without counting its operations."""
-    if _nodes_exceed(expr, 40 * limit) or sp.count_ops(expr) > limit:
+    if node_count(expr, 40 * limit + 1) > 40 * limit or sp.count_ops(expr) > limit:
         return expr
     out = sp.simplify(expr)
     # simplify writes sign(x) as Piecewise((0, Eq(x, 0)), (x/Abs(x), True)): longer, and a
@@ -304,7 +305,7 @@ def _linear_roots(eqs: list, rest: list) -> list[dict] | None:
     forms no inverse and simplifies nothing (a fully coupled arm's currents from its accelerations:
     sympy's general solve took minutes where this takes milliseconds); None when not linear or
     not square. The round-trip test of the caller checks the result."""
-    if len(eqs) != len(rest) or not _nodes_exceed(sp.Add(*eqs), LINEAR_NODES):
+    if len(eqs) != len(rest) or node_count(sp.Add(*eqs), LINEAR_NODES + 1) <= LINEAR_NODES:
         return None   # small systems: sympy's solve, whose simplified forms the built-ins' C keeps
     E = sp.Matrix(eqs)
     A = E.jacobian(rest)
