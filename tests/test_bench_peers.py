@@ -169,3 +169,18 @@ def test_looped_fusion_kernels_grow_as_n_squared(tmp_path):
     assert looped == {6: set(), 7: {"chain7_kern_master_gain", "chain7_kern_fuse_finish"}}
     size = {n: kernel_text.chain_kernels(n, tmp_path, "fusion", None)[1] for n in (7, 10)}
     assert size[10] / size[7] < (10 / 7) ** 2
+
+
+def test_c_peers_take_the_models_mean_substeps(host_cc, tmp_path):
+    """A model whose mean takes three ETD2RK steps per period ([model] mean_substeps): both
+    hand-written peers loop their mean over the shorter step's constants and still end where the
+    generated filter ends after 200 steps (the compare step's 1e-9); with one step per period
+    they would not (the motor's one-step error is 1e-7 of a period's change on θ'')."""
+    require_tool("valgrind", "valgrind")
+    text = model_mod.builtin_text("dc_motor_link")
+    assert "\nts = 0.01\n" in text
+    path = tmp_path / "motor3.toml"
+    path.write_text(text.replace("\nts = 0.01\n", "\nts = 0.01\nmean_substeps = 3\n"))
+    md = harness.build_model(str(path), tmp_path / "b")
+    out = bench_peers.checked(measure(bench_peers.peers(str(path), md, tmp_path / "w")))
+    assert set(out["instructions"]) == {"generated", "dense", "straight"}

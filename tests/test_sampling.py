@@ -4,6 +4,7 @@ closed forms (the constants with L₀ = 0 must reduce to them), quadrature of th
 integral, and a tight-tolerance ODE solution of the same canonical model."""
 
 from functools import lru_cache
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -187,3 +188,49 @@ def test_carried_sines_change_the_etd2rk_step_by_rounding_only(name):
         got, want = (np.array(f(zz, uu)).ravel() for f in (carried, plain))
         scale = np.maximum(np.abs(want), 1e-12 * np.max(np.abs(zz)))
         assert np.max(np.abs(got - want) / scale) < 1e-13, (zz, uu)
+
+
+# tests/data/pmsm.toml: a permanent-magnet synchronous motor in its rotor frame, the rotor angle
+# and the d current flat (relative degrees 3 and 1). The currents' pole, R/L = 800 rad/s, is fast
+# against Ts = 1 ms, and the speed multiplies the currents (p w L i terms): within a period the
+# remainder moves with the currents' transient, which one ETD2RK step resolves to a few digits.
+PMSM = (Path(__file__).parent / "data" / "pmsm.toml").read_text()
+
+
+def test_mean_substeps_converge_to_the_held_input_solution_at_second_order():
+    """[model] mean_substeps = N takes N ETD2RK steps of Ts/N per period: against DOP853 at rtol
+    1e-12 on the same canonical model with u held, the worst one-step error falls about 4x per
+    doubling of N (second order: N steps of local error C (Ts/N)^3); at least 3x is asserted,
+    the margin for the stiff mode's order reduction. And N steps are exactly the single step at
+    Ts/N composed N times (the constants are the shorter period's), to rounding."""
+    rng = np.random.default_rng(3)
+    assert "\nts = 0.001\n" in PMSM
+    flats = {n: flatness.derive(model.loads_toml(PMSM.replace("\nts = 0.001\n", f"\nts = 0.001\nmean_substeps = {n}\n")))
+             for n in (1, 2, 4, 8)}
+    flat = flats[1]
+    top = sampling.remainder_function(flat)
+    Ac, Bc, _ = flat.canonical()
+    p = flat.param_vector
+    cases = []
+    for _ in range(8):
+        x = np.array([rng.normal(0, 0.5), rng.normal(0, 20.0), rng.normal(0, 2.0), rng.normal(0, 2.0)])
+        z, u = flat.phi_num(x), rng.normal(0, 5.0, 2)
+        end = solve_ivp(lambda t, s: Ac @ s + Bc @ np.asarray(top(s, u, p)[0]).ravel(), (0, 0.001), z,
+                        method="DOP853", rtol=1e-12, atol=1e-14).y[:, -1]
+        cases.append((z, u, end))
+    scale = np.max([np.abs(end - z) for z, _, end in cases], axis=0)   # a period's change, per state
+    worst = {}
+    for n, fl in flats.items():
+        pred = predictors.make("held", fl, 0.001, 1.0)
+        worst[n] = max(np.max(np.abs(pred.mean(z, u) - end) / scale) for z, u, end in cases)
+    print("\nworst one-step error over a period's change, N = 1, 2, 4, 8:", worst)
+    for n in (1, 2, 4):
+        assert worst[n] / worst[2 * n] > 3.0, worst
+    assert worst[1] > 1e-4 and worst[8] < worst[1] / 40     # a few digits, then most of them
+    short = predictors.make("held", flat, 0.001 / 4, 1.0)
+    for z, u, _ in cases:
+        composed = z
+        for _ in range(4):
+            composed = short.mean(composed, u)
+        four = predictors.make("held", flats[4], 0.001, 1.0).mean(z, u)
+        assert np.all(np.abs(four - composed) <= 1e-12 * scale + 1e-15 * np.abs(composed))

@@ -236,3 +236,28 @@ def test_disturbance_densities_put_the_held_filters_nees_in_its_band(tmp_path):
     assert np.mean(without) > 10 * hi
     assert lo <= np.mean(offsets) <= 2 * hi
     assert np.mean(top_offsets) < 0.5 * np.mean(top_held)
+
+
+def test_the_scenario_measures_its_means_exactness_and_advises_more_steps():
+    """`codegen scenario`'s log line on the held mean (experiment/mean_exactness.py): on the
+    synchronous motor of tests/data/pmsm.toml its one-step error along the reference falls
+    about 4x per doubling of the steps (ETD2RK is second order: between 3x and 5x allows for
+    the stiff mode) and one step is above ADVISE, so the line names the first count under it;
+    on dc_motor_link (1e-4 of a period's change, falling slower: the plant's own RK4 error is
+    within 10x of it) it advises nothing."""
+    import re
+
+    from dfeif_codegen.experiment import mean_exactness, shapes
+
+    for spec, advised in ((str(Path(__file__).parent / "data" / "pmsm.toml"), True), ("dc_motor_link", False)):
+        flat = ex._flat(spec)
+        errors = mean_exactness.one_step_errors(flat, spec, flat.model.ts, 10, shapes.from_domains(flat), (1, 2, 4))
+        if advised:   # the motor's plant (RK4, 10 steps) is within 1e-5 of its own change: a floor
+            assert 3.0 < errors[1] / errors[2] < 5.0 and 3.0 < errors[2] / errors[4] < 5.0, errors
+        assert errors[1] > errors[2] > errors[4], errors
+        line = mean_exactness.line(flat, spec, flat.model.ts, 10, shapes.from_domains(flat))
+        shown = [float(v) for v in re.findall(r"([0-9.e-]+) at mean_substeps = [124]\b", line)]
+        assert shown == pytest.approx([errors[1], errors[2], errors[4]], rel=0.05), (line, errors)
+        assert (errors[1] > mean_exactness.ADVISE) == advised
+        first = min(k for k, e in errors.items() if e <= mean_exactness.ADVISE)
+        assert (f"set [model] mean_substeps = {first} in the model" in line) == advised, line

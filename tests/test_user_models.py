@@ -191,6 +191,9 @@ def test_builtin_scenario_whose_reference_leaves_the_model_says_what_to_do(capsy
     ("flex", ["--predictor", "scheduled"]),
     ("mixed", ["--predictor", "scheduled", "--fusion", "ci"]),
     ("mixed", ["--predictor", "scheduled", "--precision", "float"]),
+    # the mean in three ETD2RK steps per period ([model] mean_substeps), both precisions
+    ("mixed3", []),
+    ("mixed3", ["--precision", "float", "--predictor", "scheduled"]),
 ])
 def test_user_model_verifies_on_its_own_scenario(which, options, tmp_path, capsys):
     """The generated C of a user's model, run on the user's scenario (delays (4, 6, 0.8)),
@@ -200,7 +203,9 @@ def test_user_model_verifies_on_its_own_scenario(which, options, tmp_path, capsy
         noise = ("noise_std = [0.004]", "noise_std = [0.005]")
         q = "200.0"
     else:
-        path = _write(tmp_path, "mixed.toml", MIXED)
+        text = MIXED.replace("ts = 0.01", "ts = 0.01\nmean_substeps = 3") if which == "mixed3" else MIXED
+        assert text != MIXED or which == "mixed"
+        path = _write(tmp_path, "mixed.toml", text)
         noise = ("noise_scale = 1.0", "noise_scale = 1.25")
         q = "[0.5, 20.0]"     # per chain: a spring-mass position needs far less than the motor angle
     scenario = _write(tmp_path, "user.toml", SCENARIO.format(q=q, noise1=noise[0], noise2=noise[1]))

@@ -86,11 +86,13 @@ def render_peers(spec: str, md: harness.ModelDir, work: Path) -> Path:
         H = sampling.held_sampling(flat, ts)
         Ac, Bc, _ = flat.canonical()
         model_c, work_size, n_trig = _model_function(flat, md.precision)
-        consts = {"Q": arr(H.Q(np.ones(flat.m))), "E": arr(H.E), "Psi": arr(H.Psi), "Ac": arr(Ac), "Bc": arr(Bc),
-                  "G2": arr(H.G2), "L0": arr(H.L0), "model_c": model_c, "model_work": work_size, "n_trig": n_trig}
+        step = H.sub or H   # the mean's ETD2RK step (one of the model's mean_substeps)
+        consts = {"Q": arr(H.Q(np.ones(flat.m))), "E": arr(H.E), "Psi": arr(step.Psi), "Ac": arr(Ac), "Bc": arr(Bc),
+                  "G2": arr(step.G2), "L0": arr(H.L0), "model_c": model_c, "model_work": work_size, "n_trig": n_trig,
+                  "steps": H.steps}
     else:
         A, B, _ = flat.discrete(ts)
-        consts = {"A": arr(A), "B": arr(B), "Q": arr(flat.process_noise(ts, np.ones(flat.m)))}
+        consts = {"A": arr(A), "B": arr(B), "Q": arr(flat.process_noise(ts, np.ones(flat.m))), "steps": 1}
     env = render.environment(md.precision)
     work.mkdir(parents=True, exist_ok=True)
     src = work / "peers.c"

@@ -26,6 +26,8 @@ def model_hash(m: model.Model) -> str:
     }
     if m.inverse:   # only when given: the hashes of models without one stay as they were
         doc["inverse"] = sorted(m.inverse.items())
+    if m.mean_substeps != 1:   # the nodes' and the master's means must be the same map
+        doc["mean_substeps"] = m.mean_substeps
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 

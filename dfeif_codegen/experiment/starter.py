@@ -24,9 +24,9 @@ What a user would otherwise guess, derived from the model:
   by half decades until the replay loop closes under the grid's hardest delays too
   (`close_with_delays`).
 - a warning naming the plant's fastest mode past 1 rad per period, or 0.3 where a loop was lost,
-  and a note advising `--predictor scheduled` where it matters and holds the loops
-  (scheduled_calibration.note). The residual grows with the relative degree and how fast the
-  dynamics are against Ts (a stiff flexible joint, 94 rad/s at 10 ms: q 1e7 Brunovsky, 1.5e3 held).
+  a note advising `--predictor scheduled` where it matters and holds the loops
+  (scheduled_calibration.note), and the held mean's one-step exactness (mean_exactness.line).
+  The residual grows with the relative degree and how fast the dynamics are against Ts.
 With `--disturbance` the scenario also gets disturbance states for the held filter, their
 densities calibrated to the same NEES target (experiment/disturbance_calibration.py); with
 `--scheduled` the scheduled filter's q (experiment/scheduled_calibration.py).
@@ -44,8 +44,8 @@ import numpy as np
 
 from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex, derivation, scenario as scenario_mod
-from dfeif_codegen.experiment import (baseline_check, disturbance_calibration, disturbance_choice, offsets_calibration,
-                                     pole_margin, scheduled_calibration, shapes)
+from dfeif_codegen.experiment import (baseline_check, disturbance_calibration, disturbance_choice, mean_exactness,
+                                     offsets_calibration, pole_margin, scheduled_calibration, shapes)
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.shapes import toml_list
@@ -131,14 +131,15 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
                              for a, c in zip(shape.amplitude, flat.chains)])
     q = np.maximum(q, floor)
     log = [f"along the reference: q = {_fmt(q)}"]
+    if options.get("predictor") != "brunovsky":     # the held mean's own exactness, for mean_substeps
+        log.append(mean_exactness.line(flat, spec, ts, substeps, shape))
 
     def config(q, run_seed, duration=duration):   # a file's trajectory ends: no run beyond it
         return ex.Config(model=spec, ts=ts, duration=min(duration, shape.limit), substeps=substeps, q=tuple(q),
                          poles=tuple(poles), p0_std=tuple(p0_std), **shape.config(),
                          noise_std=tuple(None if s is None else tuple(s) for s in noise_std),
                          noise_scale=(1.0, 1.25), seed=run_seed, watch_nees=False, **options)
-        # too small a q is what these loops are run to measure: their NEES is meant to be high,
-        # only a plant that leaves its domain or overflows ends one
+        # too small a q is what these loops measure (a high NEES); only a plant out of its domain ends one
 
     dist = options.pop("disturbance", None)
     offsets = options.pop("offsets", None)
@@ -305,8 +306,7 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
         *([] if q_scheduled is None else [f"q_scheduled = {toml_list(q_scheduled)}   # simulate --filters scheduled: "
                                           "its own q, scaled toward NEES = n"]),
         f"p0_std = {toml_list(p0_std)}   # per derivative order",
-        "initial_error = true",
-        "",
+        "initial_error = true", "",
         "[control]",
         f"poles = {poles[0]:g}              # every pole at -{poles[0] * ts:.3g}/Ts",
         "",

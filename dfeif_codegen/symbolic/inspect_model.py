@@ -39,6 +39,7 @@ def describe(flat: flatness.FlatSystem, ts: float) -> dict:
         "f_bar": {c.output: text(e) for c, e in zip(flat.chains, flat.F)},
         "g_bar": [[text(e) for e in flat.G.row(i)] for i in range(flat.m)],
         "ts": ts,
+        "mean_substeps": mdl.mean_substeps,
         "A_d": a_d.tolist(),
         "B_d": b_d.tolist(),
         "C_d": c_d.tolist(),
@@ -77,6 +78,7 @@ def render_text(info: dict) -> str:
     lines += ["", "canonical form  y^(r) = f_bar(zeta) + g_bar(zeta) u:"]
     lines += [f"  f_bar[{k}] = {v}" for k, v in info["f_bar"].items()]
     lines += [f"  g_bar[{i}] = [{', '.join(row)}]" for i, row in enumerate(info["g_bar"])]
+    lines += ["", f"held predictor's mean: {info['mean_substeps']} ETD2RK step(s) per period of Ts = {info['ts']:g} s"]
     lines += ["", f"exact discretization at Ts = {info['ts']:g} s:", "  A_d =", _matrix(info["A_d"]),
               "  B_d =", _matrix(info["B_d"]), "  C_d =", _matrix(info["C_d"])]
     return "\n".join(lines)

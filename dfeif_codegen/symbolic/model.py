@@ -16,7 +16,7 @@ import sympy as sp
 from dfeif_codegen.errors import ModelError
 from dfeif_codegen.paths import parse_toml, read_text
 from dfeif_codegen.symbolic.expr_parser import parse_expression
-from dfeif_codegen.symbolic.model_parts import (CLASHING_WORDS, MODEL_NAME_LIMIT, _NAME, _twice, Measurement, Model,
+from dfeif_codegen.symbolic.model_parts import (CLASHING_WORDS, MAX_MEAN_SUBSTEPS, MODEL_NAME_LIMIT, _NAME, _twice, Measurement, Model,
                                                 Output, Parameter, Variable, _finite, _where)
 
 __all__ = ["CLASHING_WORDS", "MODEL_NAME_LIMIT", "Measurement", "Model", "Output", "Parameter", "Variable",
@@ -25,7 +25,7 @@ __all__ = ["CLASHING_WORDS", "MODEL_NAME_LIMIT", "Measurement", "Model", "Output
 # Keys a model file may use, per section (a typo must not silently switch a feature off).
 SCHEMA = {
     "": {"model", "states", "inputs", "parameters", "dynamics", "outputs", "measurement", "inverse"},
-    "model": {"name", "description", "ts"},
+    "model": {"name", "description", "ts", "mean_substeps"},
     "states": {"name", "unit", "description", "min", "max", "nominal"},
     "inputs": {"name", "unit", "description", "min", "max", "nominal"},
     "parameters": {"name", "value", "unit", "description", "source"},
@@ -281,6 +281,10 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
     ts = head.get("ts", 0.01)
     if not _finite(ts) or not 1e-9 <= ts <= 1e3:
         raise ModelError(f"{doc.where('model.ts')}: must be a sampling period in seconds in [1e-9, 1e3], got {ts!r}")
+    steps = head.get("mean_substeps", 1)
+    if type(steps) is not int or not 1 <= steps <= MAX_MEAN_SUBSTEPS:
+        raise ModelError(f"{doc.where('model.mean_substeps')}: must be a whole number of ETD2RK steps per period "
+                         f"in [1, {MAX_MEAN_SUBSTEPS}], got {steps!r}")
     states, inputs = _variables(doc, "states"), _variables(doc, "inputs")
     parameters = _parameters(doc)
     dynamics = _table(doc.data, "dynamics", source)
@@ -291,7 +295,7 @@ def loads_toml(text: str, source: str = "<string>") -> Model:
     f, g = _dynamics(doc, dynamics, [s.name for s in states], [u.name for u in inputs])
     outputs = _outputs(doc)
     return Model(name=name, states=states, inputs=inputs, parameters=parameters, f=f, g=g, outputs=outputs,
-                 ts=float(ts), description=str(head.get("description", "")),
+                 ts=float(ts), mean_substeps=steps, description=str(head.get("description", "")),
                  measurement=_measurement(doc, outputs, parameters), source=source, _lines=doc.lines,
                  inverse=_inverse(doc, states, inputs))
 

@@ -36,6 +36,7 @@ NAME_LIMIT = 31  # C99 guarantees 31 significant characters in external identifi
 # The model name prefixes every identifier: up to this length the generated C keeps within 100
 # columns laid out as clang-format would (tests/test_format.py builds models of this length).
 MODEL_NAME_LIMIT = 17
+MAX_MEAN_SUBSTEPS = 64   # the mean's code grows with each: past this a finer ts is the remedy
 
 MAX_POWER = 1024       # |integer exponent| after sympy folds (x**64)**64: real models stay far below
 MAX_CALL_NESTING = 16  # functions inside functions: every level multiplies the chain rule's terms
@@ -138,6 +139,9 @@ class Model:
     g: sp.Matrix
     outputs: list[Output]
     ts: float = 0.01
+    # ETD2RK steps per period in the held predictor's mean (symbolic/sampling.py): more where a
+    # fast mode moves the remainder F + G u within a period (docs/mathematics.md section 3)
+    mean_substeps: int = 1
     description: str = ""
     measurement: Measurement | None = None
     source: str = "<python>"

@@ -114,6 +114,8 @@ class HeldSampling:
     G2: np.ndarray         # Ts φ₂(A Ts) B_c
     U: np.ndarray          # (m [+ m], N, N): Q₀ per unit density of each chain [and disturbance]
     noise: np.ndarray      # (N, m [+ m]): the columns the white noises enter through
+    steps: int = 1         # ETD2RK steps the mean takes per period (the model's mean_substeps)
+    sub: "HeldSampling | None" = None   # the constants at ts / steps that each of them uses
 
     def Q(self, q, qd=None) -> np.ndarray:
         """Q₀ for densities q (a scalar or one per chain) and qd, the disturbance states' (if any)."""
@@ -128,16 +130,18 @@ class HeldSampling:
         return assemble(self.Ac, self.Bc, self.L0, self.zeta0, self.u0, steps * self.ts, self.noise)
 
 
-def assemble(Ac, Bc, L0, zeta0, u0, ts, noise=None) -> HeldSampling:
+def assemble(Ac, Bc, L0, zeta0, u0, ts, noise=None, steps: int = 1) -> HeldSampling:
     """The constants for the linear part A = A_c + B_c L₀ at period ts; white noise of unit
-    density enters through each column of `noise` (default B_c: each chain's top derivative)."""
+    density enters through each column of `noise` (default B_c: each chain's top derivative);
+    with `steps` > 1 the mean's ETD2RK steps' at ts / steps too."""
     A = Ac + Bc @ L0
     noise = Bc if noise is None else noise
     E, G1, G2 = phi_matrices(A, Bc, ts)
     Psi = phi_matrices(A, np.eye(len(A)), ts)[1]
     U = np.array([van_loan(A, noise[:, j], ts) for j in range(noise.shape[1])])
+    sub = assemble(Ac, Bc, L0, zeta0, u0, ts / steps, noise) if steps > 1 else None
     return HeldSampling(float(ts), np.asarray(zeta0, float), np.asarray(u0, float), L0, Bc, Ac, A, E, Psi, G1, G2, U,
-                        noise)
+                        noise, steps, sub)
 
 
 def augmented(flat, L0, dist) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -235,9 +239,20 @@ def _horner(coefficients, t):
 
 
 def held_increment_sx(flat, H: HeldSampling, x: ca.SX, z: ca.SX, u: ca.SX, p) -> ca.SX:
-    """x⁺ - x for one ETD2RK step with u held, from the absolute state z (x may be z relative to
-    a centre on the chain heads: A_c never reads a head). In the increment form of the module
-    docstring of sampling.py: d = Ψ (A_c x + B_c v(z)), a = z + d, and
+    """x⁺ - x over one period with u held: H.steps ETD2RK steps of H.sub's length (one of the
+    period's when steps is 1), each from where the last ended."""
+    if H.steps == 1:
+        return _etd2rk_increment(flat, H, x, z, u, p)
+    inc = _etd2rk_increment(flat, H.sub, x, z, u, p)
+    for _ in range(1, H.steps):
+        inc = inc + _etd2rk_increment(flat, H.sub, x + inc, z + inc, u, p)
+    return inc
+
+
+def _etd2rk_increment(flat, H: HeldSampling, x: ca.SX, z: ca.SX, u: ca.SX, p) -> ca.SX:
+    """x⁺ - x for one ETD2RK step of length H.ts with u held, from the absolute state z (x may
+    be z relative to a centre on the chain heads: A_c never reads a head). In the increment form
+    of the module docstring of sampling.py: d = Ψ (A_c x + B_c v(z)), a = z + d, and
     x⁺ - x = d + Γ₂ (v(a) - v(z) - L₀ d), v = F + G u: no large terms that cancel; v(a)'s sines
     and cosines carried from v(z)'s (`TrigCarry`)."""
     n, carry = flat.n, TrigCarry(flat.zeta)
@@ -365,4 +380,4 @@ def held_sampling(flat, ts: float, x=None, u=None, disturbance=None) -> HeldSamp
     if not np.all(np.isfinite(L0)):
         raise ModelError(f"{flat.model.where('states')}: dF/dzeta + dG/dzeta u is not finite at the nominal state")
     Ac, Bc, L0, noise = augmented(flat, L0, disturbance)
-    return assemble(Ac, Bc, L0, zeta0, u0, ts, noise)
+    return assemble(Ac, Bc, L0, zeta0, u0, ts, noise, flat.model.mean_substeps)
