@@ -251,11 +251,12 @@ def test_the_scenario_measures_its_means_exactness_and_advises_more_steps():
 
     for spec, advised in ((str(Path(__file__).parent / "data" / "pmsm.toml"), True), ("dc_motor_link", False)):
         flat = ex._flat(spec)
-        errors = mean_exactness.one_step_errors(flat, spec, flat.model.ts, 10, shapes.from_domains(flat), (1, 2, 4))
+        steps = mean_exactness.reference_steps(flat, spec, flat.model.ts, 10, shapes.from_domains(flat))
+        errors = mean_exactness.one_step_errors(flat, flat.model.ts, steps, (1, 2, 4))
         if advised:   # the motor's plant (RK4, 10 steps) is within 1e-5 of its own change: a floor
             assert 3.0 < errors[1] / errors[2] < 5.0 and 3.0 < errors[2] / errors[4] < 5.0, errors
         assert errors[1] > errors[2] > errors[4], errors
-        line = mean_exactness.line(flat, spec, flat.model.ts, 10, shapes.from_domains(flat))
+        line = mean_exactness.line(flat, flat.model.ts, steps)
         shown = [float(v) for v in re.findall(r"([0-9.e-]+) at mean_substeps = [124]\b", line)]
         assert shown == pytest.approx([errors[1], errors[2], errors[4]], rel=0.05), (line, errors)
         assert (errors[1] > mean_exactness.ADVISE) == advised

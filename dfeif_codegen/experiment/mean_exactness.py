@@ -13,6 +13,7 @@ change the mean gets wrong. The worst state's is reported.
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,10 +22,32 @@ from dfeif_codegen.experiment import shapes
 from dfeif_codegen.experiment.trajectory import flags
 from dfeif_codegen.reference import predictor as predictors
 
-POINTS = 400    # reference states sampled per period of the reference
+POINTS = 400    # reference states the mean is tried from, spread over the reference's period
 # Above this fraction of a period's change the mean is the exact model's main error: a
 # parameter known to 1% moves the top derivative's change over a period by about 1%
 ADVISE = 1e-2
+
+
+class Steps(NamedTuple):
+    """The plant's periods along a reference: started on each reference state, driven one
+    period by that state's feedforward (rows: the reference's steps over its period)."""
+    starts: np.ndarray    # canonical states
+    tops: np.ndarray      # the feedforward's top derivatives v
+    inputs: np.ndarray    # the feedforward's u
+    ends: np.ndarray      # canonical states one period later
+
+
+def reference_steps(flat, spec: str, ts: float, substeps: int, shape: shapes.Shape) -> Steps:
+    """One period of the plant (`substeps` RK4 steps) from every reference state of `shape`:
+    what `codegen scenario`'s residual q and this module's errors are measured on."""
+    plant = ex._plant(spec, ts, substeps)
+    refs = ex.references(ex.Config(model=spec, **shape.config()), flat.m)
+    p = flat.param_vector
+    rows = []
+    for tk in np.arange(int(round(shape.period / ts)) + 1) * ts:
+        z, top, u = shapes.feedforward(flat, flags(refs, flat.degrees, tk), p)
+        rows.append((z, top, u, flat.phi_num(plant.step(flat.phi_inv_num(z, p), u), p)))
+    return Steps(*(np.array(column) for column in zip(*rows)))
 
 
 def with_substeps(flat, steps: int):
@@ -32,34 +55,26 @@ def with_substeps(flat, steps: int):
     return dataclasses.replace(flat, model=dataclasses.replace(flat.model, mean_substeps=steps))
 
 
-def one_step_errors(flat, spec: str, ts: float, substeps: int, shape: shapes.Shape, counts) -> dict[int, float]:
+def one_step_errors(flat, ts: float, steps: Steps, counts) -> dict[int, float]:
     """Per number of ETD2RK steps in `counts`, the worst state's one-step error over a period's
-    change along the reference of `shape` (module docstring); the plant in `substeps` RK4 steps."""
-    plant = ex._plant(spec, ts, substeps)
-    refs = ex.references(ex.Config(model=spec, **shape.config()), flat.m)
-    p = flat.param_vector
-    t = np.arange(int(round(shape.period / ts)) + 1) * ts
-    starts, ends, inputs = [], [], []
-    for tk in t[::max(1, len(t) // POINTS)]:
-        z, _, u = shapes.feedforward(flat, flags(refs, flat.degrees, tk), p)
-        starts.append(z)
-        ends.append(flat.phi_num(plant.step(flat.phi_inv_num(z, p), u), p))
-        inputs.append(u)
-    change = np.sqrt(np.mean((np.array(ends) - np.array(starts)) ** 2, axis=0))
+    change (module docstring), from at most POINTS of `steps`."""
+    pick = slice(None, None, max(1, len(steps.starts) // POINTS))
+    starts, inputs, ends = steps.starts[pick], steps.inputs[pick], steps.ends[pick]
+    change = np.sqrt(np.mean((ends - starts) ** 2, axis=0))
     out = {}
     for n in counts:
         mean = predictors.make("held", with_substeps(flat, n), ts, np.ones(flat.m)).mean
-        miss = np.array([mean(z, u) for z, u in zip(starts, inputs)]) - np.array(ends)
+        miss = np.array([mean(z, u) for z, u in zip(starts, inputs)]) - ends
         rms = np.sqrt(np.mean(miss ** 2, axis=0))
         out[n] = float(np.max(rms / np.maximum(change, np.finfo(float).tiny)))
     return out
 
 
-def line(flat, spec: str, ts: float, substeps: int, shape: shapes.Shape) -> str:
+def line(flat, ts: float, steps: Steps) -> str:
     """The calibration log's line: the errors at the model's mean_substeps N, 2N and 4N, and
     advice where N's is above ADVISE."""
     n = flat.model.mean_substeps
-    errors = one_step_errors(flat, spec, ts, substeps, shape, (n, 2 * n, 4 * n))
+    errors = one_step_errors(flat, ts, steps, (n, 2 * n, 4 * n))
     text = ("held mean's worst one-step error along the reference, as a fraction of a period's change: "
             + ", ".join(f"{e:.2g} at mean_substeps = {k}" for k, e in errors.items()))
     if errors[n] > ADVISE:

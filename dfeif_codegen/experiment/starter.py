@@ -49,7 +49,6 @@ from dfeif_codegen.experiment import (baseline_check, disturbance_calibration, d
 from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.shapes import toml_list
-from dfeif_codegen.experiment.trajectory import flags
 from dfeif_codegen.symbolic.disturbance import Disturbance
 
 MARKER = "# Starting scenario written by `codegen scenario`"
@@ -80,22 +79,11 @@ def implied_q(flat, ts, zeta, v, u=None, predictor: str = "brunovsky") -> np.nda
     return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
 
 
-def _reference_q(flat, spec, ts, substeps, shape: shapes.Shape) -> np.ndarray:
+def _reference_q(flat, ts, steps: mean_exactness.Steps) -> np.ndarray:
     """Residual along the reference: the plant started on each reference state, driven one step
-    by the feedforward input of that state."""
-    plant = ex._plant(spec, ts, substeps)
-    cfg = ex.Config(model=spec, **shape.config())
-    refs = ex.references(cfg, flat.m)
-    t = np.arange(int(round(shape.period / ts)) + 1) * ts
-    zeta, v = [], []
-    p = flat.param_vector
-    for tk in t:
-        z, top, u = shapes.feedforward(flat, flags(refs, flat.degrees, tk), p)
-        zn = flat.phi_num(plant.step(flat.phi_inv_num(z, p), u), p)
-        zeta.append(np.stack([z, zn]))
-        v.append(top)
+    by the feedforward input of that state (`steps`)."""
     A, B, _ = flat.discrete(ts)
-    res = np.array([zz[1] - A @ zz[0] - B @ vv for zz, vv in zip(zeta, v)])
+    res = np.array([zn - A @ z - B @ v for z, v, zn in zip(steps.starts, steps.tops, steps.ends)])
     ratio = np.mean(res ** 2, axis=0) / _unit_q(flat, ts)
     return np.array([ratio[c.offset:c.offset + c.degree].max() for c in flat.chains])
 
@@ -126,13 +114,14 @@ def calibrate(flat, spec: str, ts: float, poles, p0_std, noise_std, substeps: in
     say = progress or (lambda line: None)
     shape = shape or shapes.from_domains(flat)
     say("q from the one-step residual along the reference")
-    q = _reference_q(flat, spec, ts, substeps, shape)
+    steps = mean_exactness.reference_steps(flat, spec, ts, substeps, shape)
+    q = _reference_q(flat, ts, steps)
     floor = 1e-6 * np.array([(a * shape.omega ** c.degree) ** 2 * shape.period
                              for a, c in zip(shape.amplitude, flat.chains)])
     q = np.maximum(q, floor)
     log = [f"along the reference: q = {_fmt(q)}"]
     if options.get("predictor") != "brunovsky":     # the held mean's own exactness, for mean_substeps
-        log.append(mean_exactness.line(flat, spec, ts, substeps, shape))
+        log.append(mean_exactness.line(flat, ts, steps))
 
     def config(q, run_seed, duration=duration):   # a file's trajectory ends: no run beyond it
         return ex.Config(model=spec, ts=ts, duration=min(duration, shape.limit), substeps=substeps, q=tuple(q),
