@@ -136,7 +136,7 @@ CLI = {
                             ["s.toml:", "grid[1].d", "delay 40", "--max-lag 32"]),
     "uplink delay beyond window": (["simulate", "--scenario", "{d}/in/s.toml", "--max-lag", "8"],
                                    {"s.toml": SMALL + "[uplink]\nd = 9\np = 0.5\n"}, ["uplink.d", "delay 9", "--max-lag 8"]),
-    "network delay beyond window": (["network", "--max-lag", "4"], {}, ["paper.toml", "grid[2].d", "delay 6", "--max-lag 4"]),
+    "network delay beyond window": (["network", "--max-lag", "4"], {}, ["paper.toml", "grid[3].d", "delay 8", "--max-lag 4"]),
     "scenario 17 nodes": (["simulate", "--scenario", "{d}/in/s.toml"], {"s.toml": SMALL + "[[nodes]]\n" * 17},
                           ["s.toml:", "nodes", "1 to 16", "got 17"]),
     "verify scenario 17 nodes": (["verify", "--scenario", "{d}/in/s.toml"], {"s.toml": SMALL + "[[nodes]]\n" * 17},

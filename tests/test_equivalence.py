@@ -509,6 +509,20 @@ def test_verify_api_returns_the_comparison(store, run, monkeypatch):
 
 
 @pytest.mark.parametrize("run", [VERIFY_CASE], ids=["default"])
+def test_verify_checks_the_window_on_the_row_it_runs_only(store, run, monkeypatch, capsys):
+    """verify records one row, the paper grid's (4, 6, 0.8): a window of 6 steps holds its
+    frames though the grid's other rows delay them up to 30 steps; 5 does not (exit 2, before
+    any build)."""
+    from dfeif_codegen import cli
+
+    monkeypatch.setattr(verify, "record", lambda *a, **k: store.recording(run[0]))
+    assert cli.main(["verify", "dc_motor_link", "--max-lag", "6"]) == 0
+    assert capsys.readouterr().out.rstrip().endswith("PASS")
+    assert cli.main(["verify", "dc_motor_link", "--max-lag", "5"]) == 2
+    assert "grid[2].d: delay 6 steps is longer than the window --max-lag 5" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("run", [VERIFY_CASE], ids=["default"])
 def test_verify_command_reports_a_mismatch(store, run, monkeypatch, capsys):
     from dfeif_codegen import cli
 

@@ -302,7 +302,7 @@ def verify(model: str = "dc_motor_link", *, target: str = "host", precision: str
                 tau=sc.disturbance.tau)
     sc.check_model(derivation.derive(model, max_seconds, max_memory))   # the derivation the recording reuses (cached)
     row, ref = verify_row(sc), sc.references[0]   # the paper's: sinusoid; a CSV's: trajectory
-    scenarios.check_window(sc, max_lag, nodes)
+    scenarios.check_window(sc, max_lag, nodes, rows=[row])
     precision = precision or ("float" if target == "cortex-m4f" else "double")
     if target == "host":
         harness.host_compiler()

@@ -88,9 +88,9 @@ def make_config(o: Options) -> ex.Config:
     sc = scenario.load(o.scenario)
     sc.check_predictor(o.predictor, o.oosm)
     sc.check_model(ex._flat(o.model))
-    scenario.check_window(sc, o.max_lag, o.nodes)
     if not 0 <= o.row < len(sc.grid):
         raise ScenarioError(f"--row {o.row}: the scenario '{sc.name}' has rows 0..{len(sc.grid) - 1}")
+    scenario.check_window(sc, o.max_lag, o.nodes, rows=[o.row])
     cfg = plan.make_config(sc, o.model, o.nodes, o.max_lag, o.reference or sc.references[0], sc.grid[o.row],
                            o.oosm, o.fusion, o.seed, o.predictor)
     if o.duration is not None:
