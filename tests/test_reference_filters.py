@@ -304,9 +304,13 @@ def test_rejected_late_measurements_change_nothing(oosm, kind):
 @pytest.mark.parametrize("kind", PREDICTORS)
 @pytest.mark.parametrize("name", MODELS)
 @pytest.mark.parametrize("n_nodes", [2, 3])
-def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes, kind):
+@pytest.mark.parametrize("calls", ["once", "in pieces"])
+def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes, kind, calls):
     """Exact also with the held predictor's nonlinear mean: a node's information gain does not
-    depend on its prior mean, and the master predicts its own estimate with the same map and u."""
+    depend on its prior mean, and the master predicts its own estimate with the same map and u.
+    `in pieces`: each step's packets fused as they might arrive, a random part first, then the
+    rest alone or every packet again (those already fused are ignored): information adds, so the
+    same filter."""
     flat, rng, steps = flat_system(name), np.random.default_rng(10 + n_nodes), 80
     Rs = [random_spd(rng, flat.m, s) for s in (1e-4, 4e-4, 2.5e-5)[:n_nodes]]
     _, vs, zs = simulate(flat, steps, rng, Rs, kind=kind)
@@ -321,7 +325,12 @@ def test_difference_fusion_equals_centralized_kalman_filter(name, n_nodes, kind)
     for k in range(steps):
         for i, node in enumerate(nodes):
             node.update(zs[i][k], has[i, k])
-        master.fuse([node.packet() for node in nodes])
+        packets = [node.packet() for node in nodes]
+        if calls == "in pieces":
+            first = rng.random(n_nodes) < 0.5
+            master.fuse([p if f else None for p, f in zip(packets, first)])
+            packets = packets if k % 2 else [None if f else p for p, f in zip(packets, first)]
+        master.fuse(packets)
         present = [i for i in range(n_nodes) if has[i, k]]
         if present:                                           # centralized: stacked measurement
             Cs = np.vstack([C] * len(present))

@@ -105,18 +105,25 @@ class Master:
         """One entry per node, None when its packet is absent; stale packets (at most max_lag
         steps old) are predicted to the current step, older or future ones are ignored. The
         difference rule also ignores a packet not newer than the last one fused from its node,
-        and takes the gain of one after lost packets over that last one (`_channel`)."""
+        takes the gain of one after lost packets over that last one (`_channel`), and adds to
+        the estimate: called again in a step it adds the packets not yet fused (the paper and
+        ci rules fuse the packets given from the prediction each time)."""
         if len(packets) != self.n_nodes:
             raise ValueError(f"expected {self.n_nodes} entries (None for absent), got {len(packets)}")
         picked = [i for i, p in enumerate(packets) if p is not None and 0 <= self.k - p.step <= self.max_lag
                   and not self._covered(i, p)]
-        c = self.x_prior
-        usable = [self._on_branch(self._channel(i, self._bring(packets[i]), packets[i].step), c) for i in picked]
+        usable = [self._on_branch(self._channel(i, self._bring(packets[i]), packets[i].step), self.x_prior)
+                  for i in picked]
+        # the difference rule adds information to the estimate (the prediction at the step's first
+        # call): a second call in the step adds the packets the first did not fuse, the others
+        # fuse the packets given from the prediction again
+        c = self.x if self.rule == "difference" else self.x_prior
         if self.rule == "difference":   # the C writes them once the whole fuse has succeeded
             for i in picked:
                 self.last[i] = packets[i]
         if not usable:
-            self.x, self.P = self.x_prior, self.P_prior
+            if self.rule != "difference":
+                self.x, self.P = self.x_prior, self.P_prior
             return
         # information about the master's prior c: y = Y (x - c), x = c + P y; the same in exact
         # arithmetic as y = Y x, without cancelling large Y x terms (docs/algorithms.md)
@@ -125,13 +132,13 @@ class Master:
         if self.rule == "paper":
             Y, y = sum(Ys), sum(ys)
         elif self.rule == "difference":
-            D, y = np.zeros_like(self.P_prior), np.zeros_like(c)
+            D, y = np.zeros_like(self.P), np.zeros_like(c)
             for Yi, yi, (_, _, xp, Pp) in zip(Ys, ys, usable):
                 Y_pred = spd_inv(Pp)
                 D, y = D + (Yi - Y_pred), y + (yi - Y_pred @ (xp - c))
-            # (P_prior^-1 + D)^-1 in the prior's factor P_prior = L L', without inverting it
-            # twice (the C's order, kernels/fusion.py fuse_finish_difference)
-            L = cholesky(self.P_prior)
+            # (P^-1 + D)^-1 in the factor P = L L' of the estimate it adds to, without inverting
+            # it twice (the C's order, kernels/fusion.py fuse_finish_difference)
+            L = cholesky(self.P)
             self.P = L @ spd_inv(np.eye(len(c), dtype=c.dtype) + L.T @ D @ L) @ L.T
             self.x = c + self.P @ y
             return
@@ -157,6 +164,7 @@ class Master:
         self._v.pop(self.k - self.max_lag, None)
         self.x_prior = self.predictor.mean(self.x, v)
         self.P_prior = self.predictor.covariance(self.P, v)
+        self.x, self.P = self.x_prior, self.P_prior   # the estimate until a fuse adds to it
         self.k += 1
 
     def _covered(self, i: int, p: Packet) -> bool:

@@ -329,7 +329,7 @@ int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
                 turn(xp, turns); /* the turns of the node's x: its gain is kept */
             }
             if (rc == DC_MOTOR_LINK_OK) {
-                (void)dc_motor_link_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
+                (void)dc_motor_link_kern_master_gain(x, Pk, xp, Ppk, master->x, dY, dy, piv);
                 if (dc_motor_link_positive(piv, NPIV) == 0) {
                     rc = DC_MOTOR_LINK_ERR_SINGULAR;
                 }
@@ -354,14 +354,14 @@ int dc_motor_link_master_fuse_try(dc_motor_link_master* master,
     if (rc != DC_MOTOR_LINK_OK) {
         /* refused: the master is left as it was */
     } else if (used == 0u) {
-        (void)memcpy(x, master->x_prior, sizeof(x));
-        (void)memcpy(P, master->P_prior, sizeof(P));
+        /* information adds: the estimate so far (the prediction, or an earlier call's result) */
+        (void)memcpy(x, master->x, sizeof(x));
+        (void)memcpy(P, master->P, sizeof(P));
     } else {
         if (pair_finite(Yacc, NXP, yacc, NX) == 0) {
             rc = DC_MOTOR_LINK_ERR_NONFINITE;
         } else {
-            (void)dc_motor_link_kern_fuse_finish(master->P_prior, Yacc, yacc, master->x_prior, x, P,
-                                                 piv);
+            (void)dc_motor_link_kern_fuse_finish(master->P, Yacc, yacc, master->x, x, P, piv);
         }
         if ((rc == DC_MOTOR_LINK_OK) && (dc_motor_link_positive(piv, NPIV) == 0)) {
             rc = DC_MOTOR_LINK_ERR_SINGULAR;

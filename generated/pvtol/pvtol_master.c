@@ -304,7 +304,7 @@ int pvtol_master_fuse_try(pvtol_master* master, const pvtol_packet packets[NNODE
                 rc = channel(master, i, pk, xp, Pc, &Ppk);
             }
             if (rc == PVTOL_OK) {
-                (void)pvtol_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
+                (void)pvtol_kern_master_gain(x, Pk, xp, Ppk, master->x, dY, dy, piv);
                 if (pvtol_positive(piv, NPIV) == 0) {
                     rc = PVTOL_ERR_SINGULAR;
                 }
@@ -329,13 +329,14 @@ int pvtol_master_fuse_try(pvtol_master* master, const pvtol_packet packets[NNODE
     if (rc != PVTOL_OK) {
         /* refused: the master is left as it was */
     } else if (used == 0u) {
-        (void)memcpy(x, master->x_prior, sizeof(x));
-        (void)memcpy(P, master->P_prior, sizeof(P));
+        /* information adds: the estimate so far (the prediction, or an earlier call's result) */
+        (void)memcpy(x, master->x, sizeof(x));
+        (void)memcpy(P, master->P, sizeof(P));
     } else {
         if (pair_finite(Yacc, NXP, yacc, NX) == 0) {
             rc = PVTOL_ERR_NONFINITE;
         } else {
-            (void)pvtol_kern_fuse_finish(master->P_prior, Yacc, yacc, master->x_prior, x, P, piv);
+            (void)pvtol_kern_fuse_finish(master->P, Yacc, yacc, master->x, x, P, piv);
         }
         if ((rc == PVTOL_OK) && (pvtol_positive(piv, NPIV) == 0)) {
             rc = PVTOL_ERR_SINGULAR;

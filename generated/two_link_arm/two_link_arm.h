@@ -329,7 +329,9 @@ int two_link_arm_master_init(two_link_arm_master* master,
 /**
  * Fuse the packets of step k. present[i] = 0 leaves node i out; a packet from an older step is
  * predicted to k with the stored inputs, one older than NMAX steps or from the future is ignored.
- * With no packet the estimate is the master's prediction. May be called again in the same step.
+ * With no packet the estimate is the master's prediction. May be called again in the same step:
+ * information adds, so a call adds the packets not yet fused to the estimate (one already fused
+ * is ignored): fuse packets as they arrive.
  * A present packet whose P or P_pred is not symmetric positive definite, or (difference rule)
  * whose P exceeds P_pred on the diagonal, refuses the call (ERR_SINGULAR).
  */

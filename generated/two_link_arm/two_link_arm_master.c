@@ -331,7 +331,7 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
                 turn(xp, turns); /* the turns of the node's x: its gain is kept */
             }
             if (rc == TWO_LINK_ARM_OK) {
-                (void)two_link_arm_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
+                (void)two_link_arm_kern_master_gain(x, Pk, xp, Ppk, master->x, dY, dy, piv);
                 if (two_link_arm_positive(piv, NPIV) == 0) {
                     rc = TWO_LINK_ARM_ERR_SINGULAR;
                 }
@@ -356,14 +356,14 @@ int two_link_arm_master_fuse_try(two_link_arm_master* master,
     if (rc != TWO_LINK_ARM_OK) {
         /* refused: the master is left as it was */
     } else if (used == 0u) {
-        (void)memcpy(x, master->x_prior, sizeof(x));
-        (void)memcpy(P, master->P_prior, sizeof(P));
+        /* information adds: the estimate so far (the prediction, or an earlier call's result) */
+        (void)memcpy(x, master->x, sizeof(x));
+        (void)memcpy(P, master->P, sizeof(P));
     } else {
         if (pair_finite(Yacc, NXP, yacc, NX) == 0) {
             rc = TWO_LINK_ARM_ERR_NONFINITE;
         } else {
-            (void)two_link_arm_kern_fuse_finish(master->P_prior, Yacc, yacc, master->x_prior, x, P,
-                                                piv);
+            (void)two_link_arm_kern_fuse_finish(master->P, Yacc, yacc, master->x, x, P, piv);
         }
         if ((rc == TWO_LINK_ARM_OK) && (two_link_arm_positive(piv, NPIV) == 0)) {
             rc = TWO_LINK_ARM_ERR_SINGULAR;

@@ -304,7 +304,7 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
                 rc = channel(master, i, pk, xp, Pc, &Ppk);
             }
             if (rc == UNICYCLE_OK) {
-                (void)unicycle_kern_master_gain(x, Pk, xp, Ppk, master->x_prior, dY, dy, piv);
+                (void)unicycle_kern_master_gain(x, Pk, xp, Ppk, master->x, dY, dy, piv);
                 if (unicycle_positive(piv, NPIV) == 0) {
                     rc = UNICYCLE_ERR_SINGULAR;
                 }
@@ -329,14 +329,14 @@ int unicycle_master_fuse_try(unicycle_master* master, const unicycle_packet pack
     if (rc != UNICYCLE_OK) {
         /* refused: the master is left as it was */
     } else if (used == 0u) {
-        (void)memcpy(x, master->x_prior, sizeof(x));
-        (void)memcpy(P, master->P_prior, sizeof(P));
+        /* information adds: the estimate so far (the prediction, or an earlier call's result) */
+        (void)memcpy(x, master->x, sizeof(x));
+        (void)memcpy(P, master->P, sizeof(P));
     } else {
         if (pair_finite(Yacc, NXP, yacc, NX) == 0) {
             rc = UNICYCLE_ERR_NONFINITE;
         } else {
-            (void)unicycle_kern_fuse_finish(master->P_prior, Yacc, yacc, master->x_prior, x, P,
-                                            piv);
+            (void)unicycle_kern_fuse_finish(master->P, Yacc, yacc, master->x, x, P, piv);
         }
         if ((rc == UNICYCLE_OK) && (unicycle_positive(piv, NPIV) == 0)) {
             rc = UNICYCLE_ERR_SINGULAR;

@@ -58,10 +58,11 @@ def fuse_finish(s: Chains, name: str) -> ca.Function:
 
 
 def fuse_finish_difference(s: Chains, name: str) -> ca.Function:
-    """The difference rule's end: the fused Y = P_prior^-1 + D (D the sum of the gains, packed),
-    y = 0 + the sum of their dy; then x = c + P y with P = Y^-1 in the prior's factor
-    P_prior = L L': P = L (I + L' D L)^-1 L'. The same P in exact arithmetic as inverting
-    P_prior^-1 + D, without inverting twice: where the packets bring little information
+    """The difference rule's end: the fused Y = P_c^-1 + D (P_c, c the estimate the gains add
+    to: the prediction, or an earlier call's result in the step; D the sum of the gains,
+    packed), y = 0 + the sum of their dy; then x = c + P y with P = Y^-1 in the factor
+    P_c = L L': P = L (I + L' D L)^-1 L'. The same P in exact arithmetic as inverting
+    P_c^-1 + D, without inverting twice: where the packets bring little information
     (D small, or 0 before the first measurement arrives) P is P_prior to the rounding of its
     factor, where the double inversion lost cond(P_prior) * eps (a float master 1.7e-4 from the
     reference at a user model's second step, docs/algorithms.md). Every sum is written out from
