@@ -368,6 +368,37 @@ def test_master_fuse_refuses_present_not_0_or_1(clib):
     assert clib.dc_motor_link_master_fuse(master, packets, ptr(np.array([1, 1], dtype=np.uint8))) == 0
 
 
+def test_master_fuse_called_again_adds_the_packets_not_yet_fused(clib):
+    """The difference rule (this build's) adds information: node 0's packet, then both (node
+    1's arrived), is the fusion of both in one call to rounding (the independent expectation:
+    one call), far from either node alone; the same call again leaves the estimate as it was."""
+    packet_size = clib.dc_motor_link_packet_size
+    packet_size.restype = ctypes.c_size_t
+    packets = ctypes.create_string_buffer(packet_size() * NODES)
+    for i, z in enumerate((0.01, -0.02)):
+        node = fresh(clib, "node")
+        assert clib.dc_motor_link_node_update(node, ptr(np.array([z])), 1) == 0
+        assert clib.dc_motor_link_node_packet(node, ctypes.byref(packets, i * packet_size())) == 0
+
+    def fused(*calls):
+        master = fresh(clib, "master")
+        for present in calls:
+            assert clib.dc_motor_link_master_fuse(master, packets, ptr(np.array(present, dtype=np.uint8))) == 0
+        x, P = np.zeros(N), np.zeros((N, N))
+        assert clib.dc_motor_link_master_estimate(master, ptr(x), ptr(P)) == 0
+        return x, P
+
+    x2, P2 = fused([1, 1])
+    again = fused([1, 1], [1, 1])   # both packets ignored (counted): the estimate bit for bit
+    assert np.array_equal(again[0], x2) and np.array_equal(again[1], P2)
+    for calls in (([1, 0], [1, 1]), ([0, 1], [1, 0])):
+        x, P = fused(*calls)
+        # two 3x3 information sums associated differently: a few ulps times cond(P) < 1e3
+        assert np.allclose(x, x2, rtol=1e-12, atol=1e-15) and np.allclose(P, P2, rtol=1e-12, atol=1e-18)
+    for alone in ([1, 0], [0, 1]):
+        assert abs(fused(alone)[1][0, 0] - P2[0, 0]) > 0.2 * P2[0, 0]
+
+
 def test_gains_overflow_is_nonfinite_and_leaves_output(clib):
     gains = np.full(N, 7.0)
     # k_3 = lambda^3 = 1e600 overflows a double: ERR_NONFINITE, gains untouched
