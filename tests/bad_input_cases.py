@@ -257,6 +257,9 @@ def generated() -> dict:
     c["build tau without gauss_markov"] = ("option: out of range", ["build", "--tau", "0.5"], {},
                                            ["--tau", "gauss_markov"])
     c |= _opt("option: not a choice", "scenario", "--disturbance", ["walk", ""])
+    # a period past the model's 1e5 steps (1e300 crashed allocating, 1e6 ran for hours) or under 2 Ts
+    c |= _opt("option: out of range", "scenario", "--period", ["1e300", "1e6", "0.015"],
+              words=["--period", "0.02 to 1000 s", "Ts = 0.01 s"])
     c |= _opt("option: out of range", "scenario", "--tau", ["0", "-1", "nan"], extra=("--disturbance", "gauss_markov"))
     for v in ("0", "nan"):     # auto takes a tau for its Gauss-Markov candidates: the same check
         c[f"scenario --disturbance auto --tau {v}"] = ("option: out of range",

@@ -118,6 +118,7 @@ def from_domains(flat, shape: str = "sinusoid", amplitude=None, offset=None, pha
     return Shape(shape, tuple(amp), tuple(off), tuple(phases), tuple(cycles), float(period or PERIOD))
 
 
+MAX_PERIOD_STEPS = 1e5   # a period's steps: codegen scenario walks the plant along one (1e8 ran for hours)
 MIN_SECONDS = 2.0   # a starting scenario measures from 1 s on: a shorter file leaves nothing
 
 
@@ -197,6 +198,11 @@ def fitting(flat, spec: str, kind: str = "sinusoid", amplitude=None, offset=None
     from dfeif_codegen.experiment.trajectory import flags
 
     base = from_domains(flat, kind, amplitude, offset, phase, period)
+    if period is not None:   # the scenario's own bounds, before the calibration walks the period
+        ts = float(flat.model.ts)
+        if not 2 * ts <= period <= MAX_PERIOD_STEPS * ts:
+            raise ScenarioError(f"--period {period:g}: needs {2 * ts:g} to {MAX_PERIOD_STEPS * ts:g} s at the model's "
+                                f"Ts = {ts:g} s (two sampling periods to {MAX_PERIOD_STEPS:g} of them)")
     periods = (base.period,) if period is not None else PERIODS
     scales = (1.0,) if amplitude is not None else SCALES
     first = None
