@@ -93,6 +93,8 @@ def test_camera_recovers_the_flat_outputs(name):
         want = flat.phi_num(x)[flat.heads]
         assert np.allclose(np.angle(np.exp(1j * (y - want))), 0, atol=1e-12)
         assert np.allclose(cam.measure(x, np.zeros(len(cam.channels))), y)
+        R = cam.covariance(x)   # what the C's node_init takes: symmetric bit for bit, or refused
+        assert np.array_equal(R, R.T) and np.all(np.linalg.eigvalsh(R) > 0)
     assert np.all(np.linalg.eigvalsh(cam.R) > 0)
 
 
