@@ -262,3 +262,20 @@ def test_the_scenario_measures_its_means_exactness_and_advises_more_steps():
         assert (errors[1] > mean_exactness.ADVISE) == advised
         first = min(k for k, e in errors.items() if e <= mean_exactness.ADVISE)
         assert (f"set [model] mean_substeps = {first} in the model" in line) == advised, line
+
+
+def test_a_calibration_that_loses_every_loop_says_what_ended_the_last(monkeypatch):
+    """Every closed loop of the NEES match lost (here: each run raises the plant's domain error):
+    the log's last line, which codegen scenario's one-line error quotes, carries that reason, not
+    only the advice to change the reference (a two-mass model's velocity left its domain at
+    t = 0.10 s whatever the amplitude)."""
+    from dfeif_codegen.experiment import nees_match
+
+    def lost(cfg):
+        raise ArithmeticError("diverged at t = 0.10 s: state v1 = 2.004 left its domain [-2, 2]")
+
+    monkeypatch.setattr(ex, "run", lost)
+    flat = ex._flat("dc_motor_link")
+    _, log = nees_match.match_nees(flat, np.ones(1), lambda q, s, d: None, [0, 1], [])
+    assert nees_match.NO_LOOP in log[-1]
+    assert log[-1].endswith(nees_match.LAST_LOSS + "diverged at t = 0.10 s: state v1 = 2.004 left its domain [-2, 2]")

@@ -80,6 +80,7 @@ NEES_LOST = 6      # scales of q whose closed loops were lost, at most, before g
 # decades): the search then goes where loops close.
 NEES_FLOOR = 0.1
 NO_LOOP = "every scale of q tried"
+LAST_LOSS = "; the last loop lost: "   # then its reason, in the NO_LOOP line
 
 
 def _after_loss(tried, scale: float, lost: int) -> float:
@@ -93,14 +94,25 @@ def _after_loss(tried, scale: float, lost: int) -> float:
     return math.log(10.0) * (k if lost % 2 else -k)
 
 
+class _Lost(float):
+    """inf, and why the run was lost: a calibration that loses every loop says what ended them."""
+
+    reason: str
+
+    def __new__(cls, reason: str) -> "_Lost":
+        lost = super().__new__(cls, math.inf)
+        lost.reason = reason
+        return lost
+
+
 def _master_nees(config, q, seeds) -> float:
-    """The master's NEES averaged over the steps and the runs (inf when a run fails)."""
+    """The master's NEES averaged over the steps and the runs (inf when a run fails: `_Lost`)."""
     values = []
     for s in seeds:
         try:
             values.append(float(np.mean(ex.run(config(q, s, NEES_SECONDS)).metrics["nees_master"])))
-        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError):
-            return math.inf
+        except (ArithmeticError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            return _Lost(str(exc))
     return float(np.mean(values)) if np.all(np.isfinite(values)) else math.inf
 
 
@@ -124,8 +136,10 @@ def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEE
     lost = 0
     scale = 0.0
     floored = False
+    why = ""                                     # the last lost loop's reason, if it gave one
     while len(tried) < NEES_EVALS and lost <= NEES_LOST:
         value = nees_at(q * math.exp(scale))
+        why = getattr(value, "reason", why)
         if progress:
             progress(f"master NEES at q = {fmt(q * math.exp(scale))}: " + (
                 f"{value:.3g} ({len(tried) + 1} of at most {NEES_EVALS})" if math.isfinite(value)
@@ -152,7 +166,7 @@ def match_nees(flat, q, config, seeds, log, nees=None, floor: float | None = NEE
                 break                            # at the floor, and NEES still asks for less q
     if not tried:
         log.append(f"master NEES: {NO_LOOP} (x1e-{NEES_LOST // 2} to x1e{(NEES_LOST + 1) // 2}) lost a closed loop; "
-                   "q kept from the residual")
+                   "q kept from the residual" + (f"{LAST_LOSS}{why}" if why else ""))
         return q, log
     best = min(tried, key=lambda t: abs(t[1]))
     q = q * math.exp(best[0])

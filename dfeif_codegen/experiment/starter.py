@@ -46,7 +46,7 @@ from dfeif_codegen.errors import ScenarioError
 from dfeif_codegen.experiment import closed_loop as ex, derivation, scenario as scenario_mod
 from dfeif_codegen.experiment import (baseline_check, disturbance_calibration, disturbance_choice, mean_exactness,
                                      offsets_calibration, pole_margin, scheduled_calibration, shapes)
-from dfeif_codegen.experiment.nees_match import (NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
+from dfeif_codegen.experiment.nees_match import (LAST_LOSS, NEES_RUNS, NEES_SECONDS, NEES_TOL, NO_LOOP, close_with_delays,
                                                  fmt as _fmt, match_nees)
 from dfeif_codegen.experiment.shapes import toml_list
 from dfeif_codegen.symbolic.disturbance import Disturbance
@@ -263,9 +263,11 @@ def starting_scenario(spec: str, shape: shapes.Shape | None = None, file: str | 
     omega = shapes.fastest_oscillation(flat, spec, ts, shape=shape)
     fast = shapes.fast_mode(omega, ts)
     if NO_LOOP in log[-1]:     # no closed loop of the NEES stage survived: nothing was calibrated
+        why = log[-1].partition(LAST_LOSS)[2]
         raise ScenarioError(f"{model.source}: every calibration round of the starting scenario diverged or lost "
                             f"its closed loop (q up to {_fmt(q)} on a {shape.kind} of amplitude "
-                            f"{_fmt(shape.amplitude)} around {_fmt(shape.offset)}): the loop does not close on that "
+                            f"{_fmt(shape.amplitude)} around {_fmt(shape.offset)}"
+                            + (f"; the last: {why}" if why else "") + "): the loop does not close on that "
                             "reference; try --amplitude, --offset, --period or --shape"
                             + (", or a smaller --param-error" if plant_error else "") + (f"; {fast}" if fast else ""))
     lost = any(entry.startswith("WARNING") for entry in log)     # a loop lost under delays or model error
